@@ -1,0 +1,76 @@
+//! Streaming mean and variance (Welford), per RGB channel, in f64.
+
+use super::Estimate;
+
+/// Running mean and variance of RGB samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MeanVar {
+    n: u64,
+    mean: [f64; 3],
+    m2: [f64; 3],
+}
+
+impl MeanVar {
+    /// Empty.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Adds one sample.
+    #[inline]
+    pub fn push(&mut self, x: [f64; 3]) {
+        self.n += 1;
+        let n = self.n as f64;
+        for c in 0..3 {
+            let d = x[c] - self.mean[c];
+            self.mean[c] += d / n;
+            self.m2[c] += d * (x[c] - self.mean[c]);
+        }
+    }
+    /// Merges another accumulator (Chan et al.), so batches can be combined in
+    /// any grouping with the same result up to rounding.
+    pub fn merge(&mut self, o: &MeanVar) {
+        if o.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *o;
+            return;
+        }
+        let n = (self.n + o.n) as f64;
+        for c in 0..3 {
+            let d = o.mean[c] - self.mean[c];
+            self.mean[c] += d * o.n as f64 / n;
+            self.m2[c] += o.m2[c] + d * d * self.n as f64 * o.n as f64 / n;
+        }
+        self.n += o.n;
+    }
+    /// Number of samples.
+    pub fn count(&self) -> u64 {
+        self.n
+    }
+    /// Mean and standard error of the mean.
+    pub fn estimate(&self) -> Estimate {
+        let n = self.n.max(1) as f64;
+        let se = |c: usize| {
+            if self.n > 1 {
+                (self.m2[c] / (n - 1.0) / n).sqrt()
+            } else {
+                0.0
+            }
+        };
+        Estimate {
+            value: self.mean,
+            stderr: [se(0), se(1), se(2)],
+            samples: self.n,
+        }
+    }
+    /// The estimate shifted by a deterministic term (e.g. the first-order
+    /// reflection), which adds no variance.
+    pub fn estimate_plus(&self, d: [f64; 3]) -> Estimate {
+        let mut e = self.estimate();
+        for c in 0..3 {
+            e.value[c] += d[c];
+        }
+        e
+    }
+}

@@ -1,0 +1,46 @@
+//! Which side light enters and leaves, shared by every engine.
+
+use crate::stack::LayerStack;
+
+/// A query after orientation: directions in the stack's frame with the top
+/// facing `+z`, and whether they were mirrored (two-sided opaque stacks).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Oriented {
+    pub wi: [f64; 3],
+    pub flipped: bool,
+}
+
+impl Oriented {
+    /// Applies the same mirroring to another direction.
+    pub fn apply(&self, mut w: [f64; 3]) -> [f64; 3] {
+        if self.flipped {
+            w[2] = -w[2];
+        }
+        w
+    }
+}
+
+/// Orients the incident direction for `stack`, or `None` when no light enters:
+/// `wi` grazing exactly (cos = 0), or arriving at the back of an opaque
+/// one-sided stack. `wo` (when given) must then leave on a side light can leave
+/// through: above, or below for a transmissive stack.
+pub(crate) fn orient(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> Option<Oriented> {
+    if wi[2] == 0.0 || !wi[2].is_finite() {
+        return None;
+    }
+    let mut o = Oriented { wi, flipped: false };
+    if wi[2] < 0.0 && !stack.transmissive() {
+        if !stack.two_sided() {
+            return None;
+        }
+        o.wi[2] = -wi[2];
+        o.flipped = true;
+    }
+    if let Some(wo) = wo {
+        let wo = o.apply(wo);
+        if wo[2] == 0.0 || (!stack.transmissive() && wo[2] < 0.0) {
+            return None;
+        }
+    }
+    Some(o)
+}

@@ -1,0 +1,289 @@
+//! Interface BSDFs: dielectric, conductor and diffuse, rough or smooth.
+//!
+//! Conventions (see `docs/conventions.md`): directions are in the interface's
+//! frame, z up, and both point *away* from the interface. `a` is the direction
+//! the light arrives from, `b` the direction it leaves along, so `eval(a, b)` is
+//! the radiance BSDF for light flowing `a → b` (for refraction it carries the
+//! `(n_b / n_a)²` factor of radiance transport, Walter et al. 2007, eq. 21).
+//!
+//! Sampling is from the light's side: given `a`, draw `b` with density
+//! `pdf(a, b)` and weight `f(a → b) |b.z| / pdf`. In this flow the radiance
+//! factor cancels against the solid-angle compression, so a smooth refraction
+//! has weight `1 - F`.
+//!
+//! Every function takes the interface per lane ([`InterfaceLanes`]), so a
+//! wavefront of walks sitting at different interfaces is served by one call;
+//! each kind's code runs only if some lane needs it.
+
+use crate::fresnel;
+use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::math::sample_cosine_hemisphere;
+use crate::microfacet::Microfacet;
+
+/// One interface per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct InterfaceLanes<L: Lane> {
+    /// IOR of the region above.
+    pub n_above: L,
+    /// IOR of the region below (dielectrics only).
+    pub n_below: L,
+    /// Microfacet distribution (ignored where `smooth`).
+    pub mf: Microfacet<L>,
+    /// Smooth lanes: delta lobes, never evaluated.
+    pub smooth: L::Mask,
+    /// Dielectric lanes.
+    pub dielectric: L::Mask,
+    /// Conductor lanes.
+    pub conductor: L::Mask,
+    /// Lambertian lanes.
+    pub diffuse: L::Mask,
+    /// Conductor IOR, real part, relative to the region above.
+    pub eta: Rgb<L>,
+    /// Conductor IOR, imaginary part, relative to the region above.
+    pub k: Rgb<L>,
+    /// Lambertian albedo.
+    pub albedo: Rgb<L>,
+}
+
+/// The result of sampling an interface.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample<L: Lane> {
+    /// The outgoing direction (pointing away from the interface).
+    pub b: V3<L>,
+    /// `f(a → b) |b.z| / pdf`; for a delta lobe, the discrete weight.
+    pub weight: Rgb<L>,
+    /// Solid-angle density of `b` (0 for a delta lobe).
+    pub pdf: L,
+    /// Lanes where a direction was produced (false: absorbed or impossible).
+    pub valid: L::Mask,
+    /// Lanes whose sample came from a delta lobe.
+    pub delta: L::Mask,
+}
+
+impl<L: Lane> InterfaceLanes<L> {
+    /// `(n_a, n_b)`: the IORs on the side of `a` and on the other side.
+    #[inline]
+    fn sides(&self, a: V3<L>) -> (L, L) {
+        let above = a.z.gt(L::zero());
+        (
+            L::select(above, self.n_above, self.n_below),
+            L::select(above, self.n_below, self.n_above),
+        )
+    }
+
+    /// `n_below / n_above`, the relative IOR the Fresnel term takes.
+    #[inline]
+    fn eta(&self) -> L {
+        self.n_below / self.n_above
+    }
+
+    /// Samples `b` given `a`. `transmit_only` lanes sample the refraction lobe
+    /// alone (used to enter a stack and for next-event estimation); their
+    /// weight then includes the `1 - F` the selection would have removed.
+    #[inline]
+    pub fn sample(
+        &self,
+        a: V3<L>,
+        u_select: L,
+        u1: L,
+        u2: L,
+        transmit_only: L::Mask,
+    ) -> BsdfSample<L> {
+        let zero = L::zero();
+        let mut out = BsdfSample {
+            b: V3::z_axis(),
+            weight: Rgb::zero(),
+            pdf: zero,
+            valid: L::Mask::splat(false),
+            delta: self.smooth,
+        };
+        let a_up = a.z.gt(zero);
+        let rough = !self.smooth;
+
+        if self.dielectric.any() {
+            let (n_a, n_b) = self.sides(a);
+            let eta = self.eta();
+            // Microfacet normal (smooth lanes: the macro normal), on a's side.
+            let m_up = V3::select(self.smooth, V3::z_axis(), self.mf.sample(a, u1, u2));
+            let m = V3::select(a_up, m_up, -m_up);
+            let am = a.dot(m);
+            let f = fresnel::dielectric(a.dot(m_up), eta);
+            let (t_dir, t_ok) = fresnel::refract(a, m, n_b / n_a);
+            let reflect = !transmit_only & u_select.lt(f);
+            let b = V3::select(reflect, a.reflect(m), t_dir);
+            let side_ok = L::select(reflect, a.z * b.z, -(a.z * b.z)).gt(zero);
+            let ok = self.dielectric & am.gt(zero) & side_ok & (reflect | t_ok);
+            // Weight: (G / G1-like ratio) × (Fresnel / selection probability).
+            let fresnel_w = L::select(transmit_only, L::one() - f, L::one());
+            let w_rough = self.rough_weight(a, b, m_up);
+            let w = L::select(self.smooth, L::one(), w_rough) * fresnel_w;
+            let pdf = L::select(rough, self.pdf(a, b, transmit_only), zero);
+            let ok = ok & (self.smooth | pdf.gt(zero));
+            out.b = V3::select(self.dielectric, b, out.b);
+            out.weight = Rgb::select(ok, Rgb::splat(w), out.weight);
+            out.pdf = L::select(self.dielectric, pdf, out.pdf);
+            out.valid = out.valid | ok;
+        }
+
+        if self.conductor.any() {
+            let m = V3::select(self.smooth, V3::z_axis(), self.mf.sample(a, u1, u2));
+            let b = a.reflect(m);
+            let f = fresnel::conductor(a.dot(m), self.eta, self.k);
+            let w = L::select(self.smooth, L::one(), self.rough_weight(a, b, m));
+            let pdf = L::select(rough, self.pdf(a, b, transmit_only), zero);
+            let ok = self.conductor
+                & a_up
+                & b.z.gt(zero)
+                & !transmit_only
+                & (self.smooth | pdf.gt(zero));
+            out.b = V3::select(self.conductor, b, out.b);
+            out.weight = Rgb::select(ok, f.scale(w), out.weight);
+            out.pdf = L::select(self.conductor, pdf, out.pdf);
+            out.valid = out.valid | ok;
+        }
+
+        if self.diffuse.any() {
+            let b = sample_cosine_hemisphere(u1, u2);
+            let pdf = b.z * L::splat(std::f64::consts::FRAC_1_PI);
+            let ok = self.diffuse & a_up & pdf.gt(zero) & !transmit_only;
+            out.b = V3::select(self.diffuse, b, out.b);
+            out.weight = Rgb::select(ok, self.albedo, out.weight);
+            out.pdf = L::select(self.diffuse, pdf, out.pdf);
+            out.valid = out.valid | ok;
+            out.delta = out.delta & !self.diffuse;
+        }
+        out
+    }
+
+    /// `f(a → b) |b.z| / pdf` for a microfacet sample `b` made from normal `m`,
+    /// divided by the Fresnel factor (the caller applies it): `G |a·m| /
+    /// (|a.z| pdf_m / D(m))`, which is `G(a, b) / G1(a)` for visible-normal
+    /// sampling.
+    #[inline]
+    fn rough_weight(&self, a: V3<L>, b: V3<L>, m_up: V3<L>) -> L {
+        let g = self.mf.g(a, b);
+        let g1 = self.mf.g1(a);
+        let visible = g / g1;
+        if self.mf.beckmann.any() {
+            let am = a.dot(m_up).abs();
+            let den = a.z.abs() * m_up.z;
+            let ok = den.gt(L::zero());
+            let beck = L::div_or_zero(g * am, den, ok);
+            L::select(self.mf.beckmann, beck, visible)
+        } else {
+            visible
+        }
+    }
+
+    /// The half vector of the pair (a, b) on the +z side, and whether the pair
+    /// is a valid microfacet configuration (each direction on the same side of
+    /// the microfacet as of the macro surface).
+    #[inline]
+    fn half_vector(&self, a: V3<L>, b: V3<L>, reflection: L::Mask) -> (V3<L>, L::Mask) {
+        let (n_a, n_b) = self.sides(a);
+        let hr = a + b;
+        let ht = -(a * n_a + b * n_b);
+        let h = V3::select(reflection, hr, ht);
+        let h = V3::select(h.z.lt(L::zero()), -h, h);
+        let l2 = h.length_squared();
+        let h = h.normalize_or_z();
+        let ok = l2.gt(L::splat(1e-24))
+            & (a.dot(h) * a.z).gt(L::zero())
+            & (b.dot(h) * b.z).gt(L::zero());
+        (h, ok)
+    }
+
+    /// The radiance BSDF `f(a → b)` without the cosine, delta lobes excluded.
+    #[inline]
+    pub fn eval(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
+        let zero = L::zero();
+        let rough = !self.smooth;
+        let reflection = (a.z * b.z).gt(zero);
+        let cos_a = a.z.abs();
+        let cos_b = b.z.abs();
+        let cos_ok = cos_a.gt(zero) & cos_b.gt(zero);
+        let mut f = Rgb::zero();
+
+        if (self.dielectric & rough).any() {
+            let (h, ok) = self.half_vector(a, b, reflection);
+            let ok = ok & self.dielectric & rough & cos_ok;
+            let d = self.mf.d(h);
+            let g = self.mf.g(a, b);
+            let fr = fresnel::dielectric(a.dot(h), self.eta());
+            let (n_a, n_b) = self.sides(a);
+            let ah = a.dot(h);
+            let bh = b.dot(h);
+            let den = n_a * ah + n_b * bh;
+            let den2 = den * den;
+            let fr_val = L::div_or_zero(d * g * fr, L::splat(4.0) * cos_a * cos_b, ok);
+            let ft_ok = ok & den2.gt(zero);
+            let ft_val = L::div_or_zero(
+                d * g * (L::one() - fr) * (ah * bh).abs() * n_b * n_b,
+                cos_a * cos_b * den2,
+                ft_ok,
+            );
+            let v = L::select(reflection, fr_val, ft_val);
+            f = Rgb::select(ok, Rgb::splat(v), f);
+        }
+
+        if (self.conductor & rough).any() {
+            let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero);
+            let h = (a + b).normalize_or_z();
+            let d = self.mf.d(h);
+            let g = self.mf.g(a, b);
+            let fr = fresnel::conductor(a.dot(h), self.eta, self.k);
+            let s = L::div_or_zero(d * g, L::splat(4.0) * cos_a * cos_b, ok);
+            f = Rgb::select(ok, fr.scale(s), f);
+        }
+
+        if self.diffuse.any() {
+            let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero);
+            let v = self.albedo.scale(L::splat(std::f64::consts::FRAC_1_PI));
+            f = Rgb::select(ok, v, f);
+        }
+        f
+    }
+
+    /// The density with which [`InterfaceLanes::sample`] (from `a`, with the
+    /// same `transmit_only` mask) produces `b`; 0 for delta lobes.
+    #[inline]
+    pub fn pdf(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
+        let zero = L::zero();
+        let rough = !self.smooth;
+        let reflection = (a.z * b.z).gt(zero);
+        let mut p = zero;
+
+        if (self.dielectric & rough).any() {
+            let (h, ok) = self.half_vector(a, b, reflection);
+            let ok = ok & self.dielectric & rough & !(reflection & transmit_only);
+            let pm = self.mf.pdf(a, h);
+            let fr = fresnel::dielectric(a.dot(h), self.eta());
+            let (n_a, n_b) = self.sides(a);
+            let ah = a.dot(h);
+            let bh = b.dot(h);
+            let den = n_a * ah + n_b * bh;
+            let pr = L::div_or_zero(pm * fr, L::splat(4.0) * ah.abs(), ok);
+            let sel_t = L::select(transmit_only, L::one(), L::one() - fr);
+            let pt = L::div_or_zero(
+                pm * sel_t * n_b * n_b * bh.abs(),
+                den * den,
+                ok & (den * den).gt(zero),
+            );
+            p = L::select(ok, L::select(reflection, pr, pt), p);
+        }
+
+        if (self.conductor & rough).any() {
+            let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
+            let h = (a + b).normalize_or_z();
+            let ah = a.dot(h);
+            let v = L::div_or_zero(self.mf.pdf(a, h), L::splat(4.0) * ah, ok & ah.gt(zero));
+            p = L::select(ok, v, p);
+        }
+
+        if self.diffuse.any() {
+            let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
+            p = L::select(ok, b.z * L::splat(std::f64::consts::FRAC_1_PI), p);
+        }
+        p
+    }
+}

@@ -1,0 +1,156 @@
+//! Homogeneous media between interfaces: phase functions and free flight in depth.
+//!
+//! Directions here are *travel* directions: a walk moving along `d` scatters
+//! into `d'`, and the phase function depends on `μ = d · d'` (forward
+//! scattering for `g > 0`). Henyey–Greenstein with `g = 0` is the isotropic
+//! phase function, so one code path serves both.
+
+use crate::lane::{Lane, Rgb, V3};
+use crate::math::Frame;
+
+const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
+
+/// Henyey–Greenstein phase function value for `μ = d·d'`.
+#[inline]
+pub fn hg_eval<L: Lane>(g: L, mu: L) -> L {
+    let one = L::one();
+    let denom = (one + g * g - L::splat(2.0) * g * mu).max(L::splat(1e-12));
+    L::splat(INV_4PI) * (one - g * g) / (denom * denom.sqrt())
+}
+
+/// Samples `d'` from Henyey–Greenstein around the travel direction `d`.
+/// Exact inversion, so the weight is 1 and the density is [`hg_eval`].
+#[inline]
+pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
+    let one = L::one();
+    let two = L::splat(2.0);
+    let iso = g.abs().lt(L::splat(1e-3));
+    let g_safe = L::select(iso, L::splat(0.5), g);
+    let s = (one - g_safe * g_safe) / (one - g_safe + two * g_safe * u1);
+    let mu_hg = (one + g_safe * g_safe - s * s) / (two * g_safe);
+    let mu = L::select(iso, two * u1 - one, mu_hg).clamp(-one, one);
+    let sin = (one - mu * mu).safe_sqrt();
+    let (sp, cp) = u2.sin_cos_turns();
+    Frame::around(d).to_world(V3::new(sin * cp, sin * sp, mu))
+}
+
+/// Transmittance `exp(-σt · Δz / |d.z|)` per channel over a depth `dz >= 0`
+/// along a direction with `|d.z| = mu > 0`.
+#[inline]
+pub fn transmittance<L: Lane>(sigma_t: Rgb<L>, dz: L, mu: L) -> Rgb<L> {
+    let s = dz / mu.max(L::splat(1e-30));
+    sigma_t.map(|st| (-(st * s)).exp())
+}
+
+/// The outcome of a free flight.
+///
+/// Colour uses path-level ("hero channel") spectral MIS: a walk draws one
+/// channel `h` at its start and samples every distance with `σt[h]`; it carries,
+/// besides its throughput `β`, the ratios `r[c] = p_c(path) / p_h(path)` of the
+/// path's density had channel `c` been the hero. The balance heuristic over
+/// channels weights channel `c` by `1 / mean(r)`; the kernel keeps `mean(r) = 1`
+/// by renormalizing, so `β` is always the MIS-weighted throughput. (method.md
+/// §7 draws a channel per event instead: unbiased too, but its weights multiply
+/// along a path and their variance explodes; see docs/numerics.md.)
+#[derive(Clone, Copy, Debug)]
+pub struct FreeFlight<L: Lane> {
+    /// Lanes where the walk collides inside the layer.
+    pub collide: L::Mask,
+    /// Distance travelled along the direction (to the collision or to the boundary).
+    pub distance: L,
+    /// Factor for the throughput (albedo at a collision; transmittance ratios).
+    pub weight: Rgb<L>,
+    /// The walk's new channel-density ratios (mean 1).
+    pub ratios: Rgb<L>,
+}
+
+/// The extinction of the hero channel `hero` (0, 1 or 2 as a lane value).
+#[inline]
+pub fn hero_sigma<L: Lane>(sigma_t: Rgb<L>, hero: L) -> L {
+    L::select(
+        hero.lt(L::splat(0.5)),
+        sigma_t.r,
+        L::select(hero.lt(L::splat(1.5)), sigma_t.g, sigma_t.b),
+    )
+}
+
+/// Samples a free flight of at most `max_dist` in a medium of extinction
+/// `sigma_t` and single-scattering albedo `albedo`, for a walk with hero
+/// channel `hero` and channel-density ratios `ratios` (see [`FreeFlight`]).
+#[inline]
+pub fn free_flight<L: Lane>(
+    sigma_t: Rgb<L>,
+    albedo: Rgb<L>,
+    max_dist: L,
+    hero: L,
+    u_dist: L,
+    ratios: Rgb<L>,
+) -> FreeFlight<L> {
+    let zero = L::zero();
+    let sh = hero_sigma(sigma_t, hero);
+    let has = sh.gt(zero);
+    let t = L::div_or_zero(-(L::one() - u_dist).ln(), sh, has);
+    let collide = has & t.lt(max_dist);
+    let dist = L::select(collide, t, max_dist);
+    // T_c / T_h = exp(-(σc - σh) d), kept finite for absurd optical depths.
+    let rel = sigma_t.map(|s| {
+        (-(s - sh) * dist)
+            .clamp(L::splat(-87.0), L::splat(80.0))
+            .exp()
+    });
+    // At a collision the densities also carry σc / σh.
+    let sig = sigma_t.map(|s| L::div_or_zero(s, sh, has));
+    let y = Rgb::select(collide, sig * rel, rel);
+    let x = Rgb::select(collide, y * albedo, y);
+    let r = ratios * y;
+    let s = r.average();
+    let ok = s.gt(zero);
+    let inv = L::div_or_zero(L::one(), s, ok);
+    FreeFlight {
+        collide,
+        distance: dist,
+        weight: Rgb::select(ok, x.scale(inv), Rgb::zero()),
+        ratios: Rgb::select(ok, r.scale(inv), Rgb::one()),
+    }
+}
+
+/// The density in depth of a collision at distance `t` along a direction with
+/// `|d.z| = mu`: `p̄_s(t) / mu` (method.md §3, the 1/|cos| of the position-free RTE).
+#[inline]
+pub fn collision_density<L: Lane>(sigma_t: Rgb<L>, t: L, mu: L) -> L {
+    let tr = sigma_t.map(|s| (-(s * t)).exp());
+    (sigma_t * tr).average() / mu.max(L::splat(1e-30))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hg_is_normalized() {
+        // ∫ p dω = 2π ∫ p(μ) dμ, midpoint rule on a fine grid.
+        for g in [-0.9f64, -0.3, 0.0, 0.5, 0.9] {
+            let n = 200_000;
+            let mut s = 0.0;
+            for i in 0..n {
+                let mu = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                s += hg_eval(g, mu) * 2.0 / n as f64;
+            }
+            s *= 2.0 * std::f64::consts::PI;
+            assert!((s - 1.0).abs() < 1e-3, "g = {g}: {s}");
+        }
+    }
+
+    #[test]
+    fn free_flight_grey_weights_are_albedo_and_one() {
+        let st = Rgb::<f64>::splat(2.0);
+        let al = Rgb::<f64>::splat(0.7);
+        let one = Rgb::one();
+        let ff = free_flight(st, al, 10.0, 0.0, 0.5, one);
+        assert!(ff.collide);
+        assert!((ff.weight.r - 0.7).abs() < 1e-12);
+        let ff = free_flight(st, al, 0.01, 2.0, 0.5, one);
+        assert!(!ff.collide);
+        assert!((ff.weight.g - 1.0).abs() < 1e-12);
+    }
+}

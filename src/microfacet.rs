@@ -1,0 +1,182 @@
+//! Microfacet distributions: GGX (Trowbridge–Reitz) and Beckmann, anisotropic,
+//! with Smith shadowing-masking and normal sampling.
+//!
+//! All functions work in the interface frame (z = macro normal) and take the
+//! distribution per lane, so lanes at different interfaces can share one call.
+//!
+//! * Shadowing: `G = 1 / (1 + Λ(a) + Λ(b))` (height-correlated, the default, as
+//!   in pbrt-v4) or `G = G1(a) G1(b)` (separable, as in Mitsuba), chosen per
+//!   interface by [`Microfacet::separable`].
+//! * Sampling: GGX samples the distribution of visible normals exactly (Heitz
+//!   2018), density `D_a(m) = G1(a) max(0, a·m) D(m) / |a.z|`. Beckmann samples
+//!   `D(m) cos θm` (Walter et al. 2007), density `D(m) |m.z|`; its visible-normal
+//!   sampler has no closed form.
+
+use crate::lane::{Lane, LaneMask, V3};
+
+/// One microfacet distribution per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Microfacet<L: Lane> {
+    /// Roughness along x.
+    pub alpha_x: L,
+    /// Roughness along y.
+    pub alpha_y: L,
+    /// Lanes using Beckmann (others use GGX).
+    pub beckmann: L::Mask,
+    /// Lanes using the separable Smith term (others: height-correlated).
+    pub separable: L::Mask,
+}
+
+impl<L: Lane> Microfacet<L> {
+    /// Isotropic GGX with height-correlated shadowing.
+    pub fn ggx(alpha: L) -> Self {
+        Microfacet {
+            alpha_x: alpha,
+            alpha_y: alpha,
+            beckmann: L::Mask::splat(false),
+            separable: L::Mask::splat(false),
+        }
+    }
+
+    /// `(αx² wx² + αy² wy²) / wz²`, i.e. α² tan²θ in the direction's azimuth.
+    /// Grazing directions are kept finite by a floor on wz².
+    #[inline]
+    fn alpha2_tan2(&self, w: V3<L>) -> L {
+        let num = self.alpha_x.sqr() * w.x.sqr() + self.alpha_y.sqr() * w.y.sqr();
+        num / w.z.sqr().max(L::splat(1e-30))
+    }
+
+    /// The normal distribution D(m) (zero below the macro surface).
+    #[inline]
+    pub fn d(&self, m: V3<L>) -> L {
+        let up = m.z.gt(L::zero());
+        let ax = self.alpha_x;
+        let ay = self.alpha_y;
+        let inv_pi_axay = L::one() / (L::splat(std::f64::consts::PI) * ax * ay);
+        // GGX: 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²), with no division by mz.
+        let q = m.x.sqr() / ax.sqr() + m.y.sqr() / ay.sqr();
+        let ggx = inv_pi_axay / (q + m.z.sqr()).sqr();
+        let d = if self.beckmann.any() {
+            let mz2 = m.z.sqr().max(L::splat(1e-15));
+            let e = q / mz2;
+            let beck = L::select(
+                e.lt(L::splat(80.0)),
+                inv_pi_axay / (mz2 * mz2) * (-e).exp(),
+                L::zero(),
+            );
+            L::select(self.beckmann, beck, ggx)
+        } else {
+            ggx
+        };
+        L::select(up, d, L::zero())
+    }
+
+    /// Smith's Λ(w).
+    #[inline]
+    pub fn lambda(&self, w: V3<L>) -> L {
+        let t = self.alpha2_tan2(w);
+        // (sqrt(1 + t) - 1) / 2 written without cancellation for small t.
+        let ggx = t / (L::splat(2.0) * ((L::one() + t).sqrt() + L::one()));
+        if self.beckmann.any() {
+            // Walter et al.'s rational fit in a = 1 / (α tanθ).
+            let ok = t.gt(L::zero());
+            let a = L::div_or_zero(L::one(), t.sqrt(), ok);
+            let a = L::select(ok, a, L::splat(1e30));
+            let fit = (L::one() - L::splat(1.259) * a + L::splat(0.396) * a * a)
+                / (L::splat(3.535) * a + L::splat(2.181) * a * a);
+            let beck = L::select(a.lt(L::splat(1.6)), fit, L::zero());
+            L::select(self.beckmann, beck, ggx)
+        } else {
+            ggx
+        }
+    }
+
+    /// Masking G1(w) = 1 / (1 + Λ(w)).
+    #[inline]
+    pub fn g1(&self, w: V3<L>) -> L {
+        L::one() / (L::one() + self.lambda(w))
+    }
+
+    /// Shadowing-masking for the pair (a, b).
+    #[inline]
+    pub fn g(&self, a: V3<L>, b: V3<L>) -> L {
+        let la = self.lambda(a);
+        let lb = self.lambda(b);
+        let corr = L::one() / (L::one() + la + lb);
+        if self.separable.any() {
+            let sep = L::one() / ((L::one() + la) * (L::one() + lb));
+            L::select(self.separable, sep, corr)
+        } else {
+            corr
+        }
+    }
+
+    /// Samples a microfacet normal (on the +z side) as seen from `w`, which may
+    /// lie on either side. See the module docs for the densities.
+    #[inline]
+    pub fn sample(&self, w: V3<L>, u1: L, u2: L) -> V3<L> {
+        let w = V3::select(w.z.lt(L::zero()), -w, w);
+        let ggx = self.sample_ggx_visible(w, u1, u2);
+        if self.beckmann.any() {
+            V3::select(self.beckmann, self.sample_beckmann(u1, u2), ggx)
+        } else {
+            ggx
+        }
+    }
+
+    /// The density of [`Microfacet::sample`] producing `m`, seen from `w`.
+    #[inline]
+    pub fn pdf(&self, w: V3<L>, m: V3<L>) -> L {
+        let d = self.d(m);
+        let wz = w.z.abs();
+        let wm = w.dot(m) * w.z.sign();
+        let ok = wz.gt(L::zero()) & wm.gt(L::zero());
+        let visible = L::div_or_zero(self.g1(w) * wm * d, wz, ok);
+        if self.beckmann.any() {
+            L::select(self.beckmann, d * m.z.max(L::zero()), visible)
+        } else {
+            visible
+        }
+    }
+
+    /// Heitz (2018), "Sampling the GGX distribution of visible normals".
+    #[inline]
+    fn sample_ggx_visible(&self, w: V3<L>, u1: L, u2: L) -> V3<L> {
+        let ax = self.alpha_x;
+        let ay = self.alpha_y;
+        let vh = V3::new(ax * w.x, ay * w.y, w.z).normalize_or_z();
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        let has = len2.gt(L::zero());
+        let inv = L::div_or_zero(L::one(), len2.sqrt(), has);
+        let t1 = V3::select(
+            has,
+            V3::new(-vh.y * inv, vh.x * inv, L::zero()),
+            V3::new(L::one(), L::zero(), L::zero()),
+        );
+        // t2 = vh × t1
+        let t2 = V3::new(
+            vh.y * t1.z - vh.z * t1.y,
+            vh.z * t1.x - vh.x * t1.z,
+            vh.x * t1.y - vh.y * t1.x,
+        );
+        let r = u1.sqrt();
+        let (sp, cp) = u2.sin_cos_turns();
+        let p1 = r * cp;
+        let p2 = r * sp;
+        let s = L::splat(0.5) * (L::one() + vh.z);
+        let p2 = (L::one() - s) * (L::one() - p1 * p1).safe_sqrt() + s * p2;
+        let pz = (L::one() - p1 * p1 - p2 * p2).safe_sqrt();
+        let nh = t1 * p1 + t2 * p2 + vh * pz;
+        V3::new(ax * nh.x, ay * nh.y, nh.z.max(L::splat(1e-7))).normalize_or_z()
+    }
+
+    /// Beckmann normals with density D(m) cos θm: Gaussian slopes by Box–Muller.
+    #[inline]
+    fn sample_beckmann(&self, u1: L, u2: L) -> V3<L> {
+        let r = (-(L::one() - u1).ln()).safe_sqrt();
+        let (s, c) = u2.sin_cos_turns();
+        let sx = self.alpha_x * r * c;
+        let sy = self.alpha_y * r * s;
+        V3::new(-sx, -sy, L::one()).normalize_or_z()
+    }
+}
