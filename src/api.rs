@@ -58,16 +58,25 @@ pub struct Direction([f64; 3]);
 impl Direction {
     /// Normalizes `v`, or says why it is not a direction.
     pub fn new(argument: &'static str, v: Vec3) -> Result<Self, QueryError> {
-        let value = v.to_array();
-        if !v.is_finite() {
+        Self::from_f64(argument, [v.x as f64, v.y as f64, v.z as f64])
+    }
+
+    /// Normalizes `d` (f64 components), or says why it is not a direction.
+    pub fn from_f64(argument: &'static str, d: [f64; 3]) -> Result<Self, QueryError> {
+        let value = d.map(|x| x as f32);
+        if !d.iter().all(|x| x.is_finite()) {
             return Err(QueryError::NonFinite { argument, value });
         }
-        let d = [v.x as f64, v.y as f64, v.z as f64];
         let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if !(l > 1e-30) {
+        if !(l > 1e-30) || !l.is_finite() {
             return Err(QueryError::ZeroLength { argument, value });
         }
         Ok(Direction(d.map(|x| x / l)))
+    }
+
+    /// As a glam vector (f32).
+    pub fn to_vec3(self) -> Vec3 {
+        Vec3::new(self.0[0] as f32, self.0[1] as f32, self.0[2] as f32)
     }
     /// The unit vector in f64.
     pub fn get(self) -> [f64; 3] {

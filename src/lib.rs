@@ -55,6 +55,7 @@ pub mod lane;
 pub mod math;
 pub mod medium;
 pub mod microfacet;
+pub mod query;
 pub mod rng;
 pub mod stack;
 
