@@ -68,7 +68,7 @@ impl Direction {
             return Err(QueryError::NonFinite { argument, value });
         }
         let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if !(l > 1e-30) || !l.is_finite() {
+        if l.is_nan() || l <= 1e-30 || !l.is_finite() {
             return Err(QueryError::ZeroLength { argument, value });
         }
         Ok(Direction(d.map(|x| x / l)))

@@ -20,10 +20,10 @@ impl MeanVar {
     pub fn push(&mut self, x: [f64; 3]) {
         self.n += 1;
         let n = self.n as f64;
-        for c in 0..3 {
-            let d = x[c] - self.mean[c];
-            self.mean[c] += d / n;
-            self.m2[c] += d * (x[c] - self.mean[c]);
+        for ((m, m2), x) in self.mean.iter_mut().zip(&mut self.m2).zip(x) {
+            let d = x - *m;
+            *m += d / n;
+            *m2 += d * (x - *m);
         }
     }
     /// Merges another accumulator (Chan et al.), so batches can be combined in
@@ -68,8 +68,8 @@ impl MeanVar {
     /// reflection), which adds no variance.
     pub fn estimate_plus(&self, d: [f64; 3]) -> Estimate {
         let mut e = self.estimate();
-        for c in 0..3 {
-            e.value[c] += d[c];
+        for (v, d) in e.value.iter_mut().zip(d) {
+            *v += d;
         }
         e
     }

@@ -162,7 +162,7 @@ impl<S: Scalar> ScalarEngine<S> {
             return true;
         }
         let q = beta.max_channel().min(S::one());
-        if !(q > S::zero()) {
+        if !q.gt(S::zero()) {
             return false;
         }
         if u < q {
@@ -239,7 +239,7 @@ impl<S: Scalar> ScalarEngine<S> {
                         beta *= ff.weight;
                         ratios = ff.ratios;
                         if !ff.collide {
-                            if !(mu > S::zero()) {
+                            if mu <= S::zero() {
                                 return None;
                             }
                             i = next_i;
@@ -377,7 +377,7 @@ impl<S: Scalar> ScalarEngine<S> {
             let u = S::splat(rng.uniform() as f64);
             if events > self.settings.rr_start {
                 let q = v.max_channel().min(S::one());
-                if !(u < q) {
+                if !u.lt(q) {
                     return;
                 }
                 v = v.scale(S::one() / q);
@@ -534,7 +534,7 @@ impl<S: Scalar> ScalarEngine<S> {
                         beta *= ff.weight;
                         ratios = ff.ratios;
                         if !ff.collide {
-                            if !(mu > S::zero()) {
+                            if mu <= S::zero() {
                                 return acc;
                             }
                             i = next_i;

@@ -121,22 +121,17 @@ pub enum InterfaceDesc {
 }
 
 /// Phase function of a medium.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum PhaseDesc {
     /// Isotropic scattering.
+    #[default]
     Isotropic,
     /// Henyey–Greenstein with asymmetry `g` in (-1, 1).
     Hg {
         /// Mean cosine of the scattering angle.
         g: f64,
     },
-}
-
-impl Default for PhaseDesc {
-    fn default() -> Self {
-        PhaseDesc::Isotropic
-    }
 }
 
 /// A homogeneous medium below an interface.
