@@ -43,6 +43,11 @@ pub struct InterfaceLanes<L: Lane> {
     pub k: Rgb<L>,
     /// Lambertian albedo.
     pub albedo: Rgb<L>,
+    /// Run every code path whatever the lanes need: the unspecialized walk
+    /// that benchmarks compare against. Results are identical, only slower.
+    /// (Normally a kind's code runs only if some lane is of that kind, and
+    /// microfacet code only if some lane is rough.)
+    pub run_all: bool,
 }
 
 /// The result of sampling an interface.
@@ -61,9 +66,39 @@ pub struct BsdfSample<L: Lane> {
 }
 
 impl<L: Lane> InterfaceLanes<L> {
+    /// Lane `j` takes the interface `table[index(j)]` (whose entries are
+    /// one-lane values): for walks whose lanes sit at different interfaces.
+    pub fn gather<T: Lane>(table: &[InterfaceLanes<T>], index: impl Fn(usize) -> usize) -> Self {
+        let v = |f: &dyn Fn(&InterfaceLanes<T>) -> T| L::from_fn(|j| f(&table[index(j)]).lane(0));
+        let m = |f: &dyn Fn(&InterfaceLanes<T>) -> T::Mask| {
+            L::Mask::from_fn(|j| f(&table[index(j)]).lane(0))
+        };
+        let rgb = |f: &dyn Fn(&InterfaceLanes<T>) -> Rgb<T>| {
+            Rgb::new(v(&|t| f(t).r), v(&|t| f(t).g), v(&|t| f(t).b))
+        };
+        InterfaceLanes {
+            n_above: v(&|t| t.n_above),
+            n_below: v(&|t| t.n_below),
+            mf: Microfacet {
+                alpha_x: v(&|t| t.mf.alpha_x),
+                alpha_y: v(&|t| t.mf.alpha_y),
+                beckmann: m(&|t| t.mf.beckmann),
+                separable: m(&|t| t.mf.separable),
+            },
+            smooth: m(&|t| t.smooth),
+            dielectric: m(&|t| t.dielectric),
+            conductor: m(&|t| t.conductor),
+            diffuse: m(&|t| t.diffuse),
+            eta: rgb(&|t| t.eta),
+            k: rgb(&|t| t.k),
+            albedo: rgb(&|t| t.albedo),
+            run_all: table.iter().any(|t| t.run_all),
+        }
+    }
+
     /// `(n_a, n_b)`: the IORs on the side of `a` and on the other side.
     #[inline]
-    fn sides(&self, a: V3<L>) -> (L, L) {
+    pub fn sides(&self, a: V3<L>) -> (L, L) {
         let above = a.z.gt(L::zero());
         (
             L::select(above, self.n_above, self.n_below),
@@ -99,13 +134,18 @@ impl<L: Lane> InterfaceLanes<L> {
         };
         let a_up = a.z.gt(zero);
         let rough = !self.smooth;
+        let any_rough = self.run_all || rough.any();
+        // Microfacet normal (smooth lanes: the macro normal), on the +z side.
+        let m_up = if any_rough {
+            V3::select(self.smooth, V3::z_axis(), self.mf.sample(a, u1, u2))
+        } else {
+            V3::z_axis()
+        };
 
-        if self.dielectric.any() {
+        if self.run_all || self.dielectric.any() {
             let (n_a, n_b) = self.sides(a);
             let eta = self.eta();
-            // Microfacet normal (smooth lanes: the macro normal), on a's side.
-            let m_up = V3::select(self.smooth, V3::z_axis(), self.mf.sample(a, u1, u2));
-            let m = V3::select(a_up, m_up, -m_up);
+            let m = V3::select(a_up, m_up, -m_up); // on a's side
             let am = a.dot(m);
             let f = fresnel::dielectric(a.dot(m_up), eta);
             let (t_dir, t_ok) = fresnel::refract(a, m, n_b / n_a);
@@ -115,9 +155,15 @@ impl<L: Lane> InterfaceLanes<L> {
             let ok = self.dielectric & am.gt(zero) & side_ok & (reflect | t_ok);
             // Weight: (G / G1-like ratio) × (Fresnel / selection probability).
             let fresnel_w = L::select(transmit_only, L::one() - f, L::one());
-            let w_rough = self.rough_weight(a, b, m_up);
+            let (w_rough, pdf) = if any_rough {
+                (
+                    self.rough_weight(a, b, m_up),
+                    L::select(rough, self.pdf(a, b, transmit_only), zero),
+                )
+            } else {
+                (L::one(), zero)
+            };
             let w = L::select(self.smooth, L::one(), w_rough) * fresnel_w;
-            let pdf = L::select(rough, self.pdf(a, b, transmit_only), zero);
             let ok = ok & (self.smooth | pdf.gt(zero));
             out.b = V3::select(self.dielectric, b, out.b);
             out.weight = Rgb::select(ok, Rgb::splat(w), out.weight);
@@ -125,12 +171,19 @@ impl<L: Lane> InterfaceLanes<L> {
             out.valid = out.valid | ok;
         }
 
-        if self.conductor.any() {
-            let m = V3::select(self.smooth, V3::z_axis(), self.mf.sample(a, u1, u2));
+        if self.run_all || self.conductor.any() {
+            let m = m_up;
             let b = a.reflect(m);
             let f = fresnel::conductor(a.dot(m), self.eta, self.k);
-            let w = L::select(self.smooth, L::one(), self.rough_weight(a, b, m));
-            let pdf = L::select(rough, self.pdf(a, b, transmit_only), zero);
+            let (w_rough, pdf) = if any_rough {
+                (
+                    self.rough_weight(a, b, m),
+                    L::select(rough, self.pdf(a, b, transmit_only), zero),
+                )
+            } else {
+                (L::one(), zero)
+            };
+            let w = L::select(self.smooth, L::one(), w_rough);
             let ok = self.conductor
                 & a_up
                 & b.z.gt(zero)
@@ -142,7 +195,7 @@ impl<L: Lane> InterfaceLanes<L> {
             out.valid = out.valid | ok;
         }
 
-        if self.diffuse.any() {
+        if self.run_all || self.diffuse.any() {
             let b = sample_cosine_hemisphere(u1, u2);
             let pdf = b.z * L::splat(std::f64::consts::FRAC_1_PI);
             let ok = self.diffuse & a_up & pdf.gt(zero) & !transmit_only;
@@ -204,7 +257,7 @@ impl<L: Lane> InterfaceLanes<L> {
         let cos_ok = cos_a.gt(zero) & cos_b.gt(zero);
         let mut f = Rgb::zero();
 
-        if (self.dielectric & rough).any() {
+        if self.run_all || (self.dielectric & rough).any() {
             let (h, ok) = self.half_vector(a, b, reflection);
             let ok = ok & self.dielectric & rough & cos_ok;
             let d = self.mf.d(h);
@@ -226,7 +279,7 @@ impl<L: Lane> InterfaceLanes<L> {
             f = Rgb::select(ok, Rgb::splat(v), f);
         }
 
-        if (self.conductor & rough).any() {
+        if self.run_all || (self.conductor & rough).any() {
             let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero);
             let h = (a + b).normalize_or_z();
             let d = self.mf.d(h);
@@ -236,7 +289,7 @@ impl<L: Lane> InterfaceLanes<L> {
             f = Rgb::select(ok, fr.scale(s), f);
         }
 
-        if self.diffuse.any() {
+        if self.run_all || self.diffuse.any() {
             let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero);
             let v = self.albedo.scale(L::splat(std::f64::consts::FRAC_1_PI));
             f = Rgb::select(ok, v, f);
@@ -253,7 +306,7 @@ impl<L: Lane> InterfaceLanes<L> {
         let reflection = (a.z * b.z).gt(zero);
         let mut p = zero;
 
-        if (self.dielectric & rough).any() {
+        if self.run_all || (self.dielectric & rough).any() {
             let (h, ok) = self.half_vector(a, b, reflection);
             let ok = ok & self.dielectric & rough & !(reflection & transmit_only);
             let pm = self.mf.pdf(a, h);
@@ -272,7 +325,7 @@ impl<L: Lane> InterfaceLanes<L> {
             p = L::select(ok, L::select(reflection, pr, pt), p);
         }
 
-        if (self.conductor & rough).any() {
+        if self.run_all || (self.conductor & rough).any() {
             let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
             let h = (a + b).normalize_or_z();
             let ah = a.dot(h);
@@ -280,7 +333,7 @@ impl<L: Lane> InterfaceLanes<L> {
             p = L::select(ok, v, p);
         }
 
-        if self.diffuse.any() {
+        if self.run_all || self.diffuse.any() {
             let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
             p = L::select(ok, b.z * L::splat(std::f64::consts::FRAC_1_PI), p);
         }

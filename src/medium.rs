@@ -114,6 +114,48 @@ pub fn free_flight<L: Lane>(
     }
 }
 
+/// Free flight in a medium whose `sigma_t` is the same in every channel:
+/// no spectral MIS is needed, so the channel ratios pass through unchanged and
+/// the weight is the albedo at a collision, 1 otherwise. (The general
+/// [`free_flight`] gives the same result with more work.)
+#[inline]
+pub fn free_flight_grey<L: Lane>(
+    sigma_t: L,
+    albedo: Rgb<L>,
+    max_dist: L,
+    u_dist: L,
+    ratios: Rgb<L>,
+) -> FreeFlight<L> {
+    let has = sigma_t.gt(L::zero());
+    let t = L::div_or_zero(-(L::one() - u_dist).ln(), sigma_t, has);
+    let collide = has & t.lt(max_dist);
+    FreeFlight {
+        collide,
+        distance: L::select(collide, t, max_dist),
+        weight: Rgb::select(collide, albedo, Rgb::one()),
+        ratios,
+    }
+}
+
+/// Free flight with the variant the medium needs: [`free_flight_grey`] when
+/// `grey` (the same `sigma_t` in every channel), [`free_flight`] otherwise.
+#[inline]
+pub fn sample_free_flight<L: Lane>(
+    sigma_t: Rgb<L>,
+    albedo: Rgb<L>,
+    grey: bool,
+    max_dist: L,
+    hero: L,
+    u_dist: L,
+    ratios: Rgb<L>,
+) -> FreeFlight<L> {
+    if grey {
+        free_flight_grey(sigma_t.r, albedo, max_dist, u_dist, ratios)
+    } else {
+        free_flight(sigma_t, albedo, max_dist, hero, u_dist, ratios)
+    }
+}
+
 /// The density in depth of a collision at distance `t` along a direction with
 /// `|d.z| = mu`: `p̄_s(t) / mu` (method.md §3, the 1/|cos| of the position-free RTE).
 #[inline]

@@ -74,3 +74,44 @@ impl MeanVar {
         e
     }
 }
+
+/// Walks are reduced in blocks of this many consecutive samples.
+pub const BLOCK: u64 = 256;
+
+/// Reduces one query's walk values in the canonical order that makes results
+/// independent of threads and batching: samples in blocks of [`BLOCK`], each
+/// block accumulated in sample order, blocks merged in block order. The scalar
+/// engine pushes in sample order; the wavefront engine reduces each finished
+/// block the same way and merges blocks by index, so the two agree bit for bit
+/// whenever their walks do.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BlockReducer {
+    total: MeanVar,
+    block: MeanVar,
+}
+
+impl BlockReducer {
+    /// Empty.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Adds the next sample's value.
+    #[inline]
+    pub fn push(&mut self, x: [f64; 3]) {
+        self.block.push(x);
+        if self.block.count() == BLOCK {
+            self.total.merge(&self.block);
+            self.block = MeanVar::new();
+        }
+    }
+    /// Adds a whole block (the next one in order).
+    pub fn push_block(&mut self, b: &MeanVar) {
+        debug_assert_eq!(self.block.count(), 0);
+        self.total.merge(b);
+    }
+    /// The reduction of everything pushed.
+    pub fn finish(mut self) -> MeanVar {
+        self.total.merge(&self.block);
+        self.total
+    }
+}

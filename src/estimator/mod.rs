@@ -1,17 +1,22 @@
-//! Estimators of the layered BSDF: what they share.
+//! Estimators of the layered BSDF.
 //!
 //! * [`scalar`]: the reference, one walk at a time, generic over `f32` (the
 //!   reference) and `f64` (the accuracy oracle).
+//! * [`events`]: the event kernels both engines call, written once over lanes.
+//! * [`layout`]: the stack's topology as the walks see it.
+//! * [`pdf`]: the fast approximate pdf of `sample`.
 //!
 //! Both follow `docs/method.md`; the differences from the paper and from the
 //! authors' code are listed in `docs/architecture.md`.
 
 mod accumulate;
+pub mod events;
+pub mod layout;
 mod orient;
 pub mod pdf;
 pub mod scalar;
 
-pub use accumulate::MeanVar;
+pub use accumulate::{BlockReducer, MeanVar, BLOCK};
 pub(crate) use orient::orient;
 
 /// Walk controls shared by the estimators.
@@ -74,18 +79,4 @@ pub struct Sample {
     pub reflection: bool,
     /// Every event of the walk was a delta (the direction is a specular one).
     pub specular: bool,
-}
-
-/// Power heuristic with exponent 2 for a strategy of density `a` against `b`.
-#[inline]
-pub fn power_heuristic(a: f64, b: f64) -> f64 {
-    let a2 = a * a;
-    let b2 = b * b;
-    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
-        a2 / (a2 + b2)
-    } else if a.is_infinite() {
-        1.0
-    } else {
-        0.0
-    }
 }

@@ -21,7 +21,7 @@ mod simd;
 mod v3;
 
 pub use rgb::Rgb;
-pub use simd::{F32x8, M8};
+pub use simd::{BitLanes, F32x16, F32x8, Wide, M16, M8};
 pub use v3::V3;
 
 use std::fmt::Debug;
@@ -42,6 +42,8 @@ pub trait LaneMask:
 {
     /// The same value in every lane.
     fn splat(b: bool) -> Self;
+    /// Builds a mask lane by lane.
+    fn from_fn(f: impl FnMut(usize) -> bool) -> Self;
     /// True if any lane is set.
     fn any(self) -> bool;
     /// True if every lane is set.
@@ -163,6 +165,10 @@ impl LaneMask for bool {
     #[inline]
     fn splat(b: bool) -> Self {
         b
+    }
+    #[inline]
+    fn from_fn(mut f: impl FnMut(usize) -> bool) -> Self {
+        f(0)
     }
     #[inline]
     fn any(self) -> bool {

@@ -1,240 +1,365 @@
-//! The eight-wide instance of [`Lane`], on `wide::f32x8`.
+//! The SIMD instances of [`Lane`]: [`F32x8`] on `wide::f32x8` (the wavefront
+//! engine's default) and [`F32x16`] on `wide::f32x16` (measured beside it).
 //!
 //! This file and `crate::rng`'s lane generator are the only places that touch
-//! `wide`. With `-C target-cpu=x86-64-v3` (or any target with AVX) an `F32x8` is
-//! one 256-bit register; on baseline x86-64 `wide` runs it as two SSE halves,
-//! with identical results.
+//! `wide`. With `-C target-cpu=x86-64-v3` (AVX2 + FMA) an `F32x8` is one 256-bit
+//! register; on baseline x86-64 `wide` runs it as two SSE halves, with identical
+//! results. An `F32x16` is one AVX-512 register with `-C target-cpu=native` on a
+//! CPU that has it, and two AVX2 halves otherwise.
+//!
+//! Both widths implement [`Wide`]: what the wavefront engine needs beyond the
+//! arithmetic of [`Lane`] (gathers and scatters of walk columns, and the 32-bit
+//! integer lanes of the random number generator).
 
 use super::{Lane, LaneBits, LaneMask};
 use std::ops::{
-    Add, AddAssign, BitAnd, BitOr, BitXor, Div, DivAssign, Mul, MulAssign, Neg, Not, Sub, SubAssign,
+    Add, AddAssign, BitAnd, BitOr, BitXor, Div, DivAssign, Mul, MulAssign, Neg, Not, Shl, Shr, Sub,
+    SubAssign,
 };
-use wide::{f32x8, i32x8, u32x8};
 
-/// Eight f32 lanes.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(transparent)]
-pub struct F32x8(pub f32x8);
-
-/// Eight boolean lanes (all bits set or all clear, as `wide` expects).
-#[derive(Clone, Copy, Debug)]
-#[repr(transparent)]
-pub struct M8(pub f32x8);
-
-impl F32x8 {
-    /// Lanes as an array.
-    #[inline]
-    pub fn to_array(self) -> [f32; 8] {
-        self.0.to_array()
-    }
-    /// From an array of lanes.
-    #[inline]
-    pub fn from_array(a: [f32; 8]) -> Self {
-        F32x8(f32x8::from(a))
-    }
-    /// The raw bits of each lane.
-    #[inline]
-    pub fn to_bits(self) -> wide::u32x8 {
-        self.0.to_bits()
-    }
-    /// From raw bits per lane.
-    #[inline]
-    pub fn from_bits(b: wide::u32x8) -> Self {
-        F32x8(f32x8::from_bits(b))
-    }
+/// Unsigned 32-bit integer lanes: the state of the lane random number generator.
+pub trait BitLanes:
+    Copy
+    + Send
+    + Sync
+    + Add<Output = Self>
+    + BitXor<Output = Self>
+    + BitOr<Output = Self>
+    + Shl<u32, Output = Self>
+    + Shr<u32, Output = Self>
+{
 }
 
-impl M8 {
+/// A SIMD lane type the wavefront engine runs on.
+pub trait Wide: Lane + LaneBits {
+    /// 32-bit unsigned integers, one per lane.
+    type Bits: BitLanes;
+    /// Loads `col[idx[j]]` into lane `j` (`idx.len() == LANES`).
+    fn gather(col: &[f32], idx: &[u32]) -> Self;
+    /// Stores lane `j` into `col[idx[j]]` where `m` is set.
+    fn scatter(self, col: &mut [f32], idx: &[u32], m: Self::Mask);
+    /// Loads `col[idx[j]]` into integer lane `j`.
+    fn gather_bits(col: &[u32], idx: &[u32]) -> Self::Bits;
+    /// Stores integer lane `j` into `col[idx[j]]` where `m` is set.
+    fn scatter_bits(b: Self::Bits, col: &mut [u32], idx: &[u32], m: Self::Mask);
+    /// `t` where `m` is set, `f` elsewhere.
+    fn select_bits(m: Self::Mask, t: Self::Bits, f: Self::Bits) -> Self::Bits;
+    /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that `rng::to_unit` makes.
+    fn bits_to_unit(b: Self::Bits) -> Self;
     /// One bit per lane, lane 0 in bit 0.
-    #[inline]
-    pub fn bitmask(self) -> u32 {
-        self.0.to_bitmask()
-    }
-    /// From one bool per lane.
-    #[inline]
-    pub fn from_bools(b: [bool; 8]) -> Self {
-        let t = f32::from_bits(u32::MAX);
-        M8(f32x8::from(b.map(|x| if x { t } else { 0.0 })))
-    }
+    fn bitmask(m: Self::Mask) -> u32;
+    /// The mask with lane `j` set where bit `j` of `bits` is.
+    fn mask_from_bitmask(bits: u32) -> Self::Mask;
+    /// Lanes as an array of f32 (length `LANES`).
+    fn to_f32s(self) -> Vec<f32>;
 }
 
-impl BitAnd for M8 {
-    type Output = M8;
-    #[inline]
-    fn bitand(self, o: M8) -> M8 {
-        M8(self.0 & o.0)
-    }
-}
-impl BitOr for M8 {
-    type Output = M8;
-    #[inline]
-    fn bitor(self, o: M8) -> M8 {
-        M8(self.0 | o.0)
-    }
-}
-impl BitXor for M8 {
-    type Output = M8;
-    #[inline]
-    fn bitxor(self, o: M8) -> M8 {
-        M8(self.0 ^ o.0)
-    }
-}
-impl Not for M8 {
-    type Output = M8;
-    #[inline]
-    fn not(self) -> M8 {
-        M8(!self.0)
-    }
-}
+macro_rules! wide_lane {
+    (
+        $(#[$doc:meta])* $name:ident,
+        $(#[$mdoc:meta])* $mask:ident,
+        $f:ident, $u:ident, $i:ident, $n:literal, $from_i:ident
+    ) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, Default, PartialEq)]
+        #[repr(transparent)]
+        pub struct $name(pub wide::$f);
 
-impl LaneMask for M8 {
-    #[inline]
-    fn splat(b: bool) -> Self {
-        M8(f32x8::splat(if b { f32::from_bits(u32::MAX) } else { 0.0 }))
-    }
-    #[inline]
-    fn any(self) -> bool {
-        self.0.any()
-    }
-    #[inline]
-    fn all(self) -> bool {
-        self.0.all()
-    }
-    #[inline]
-    fn lane(self, i: usize) -> bool {
-        self.0.to_bitmask() & (1 << i) != 0
-    }
-}
+        $(#[$mdoc])*
+        #[derive(Clone, Copy, Debug)]
+        #[repr(transparent)]
+        pub struct $mask(pub wide::$f);
 
-macro_rules! binop {
-    ($tr:ident, $f:ident, $atr:ident, $af:ident, $op:tt) => {
-        impl $tr for F32x8 {
-            type Output = F32x8;
+        impl $name {
+            /// Lanes as an array.
             #[inline]
-            fn $f(self, o: F32x8) -> F32x8 {
-                F32x8(self.0 $op o.0)
+            pub fn to_array(self) -> [f32; $n] {
+                self.0.to_array()
+            }
+            /// From an array of lanes.
+            #[inline]
+            pub fn from_array(a: [f32; $n]) -> Self {
+                $name(wide::$f::from(a))
+            }
+            /// The raw bits of each lane.
+            #[inline]
+            pub fn to_bits(self) -> wide::$u {
+                self.0.to_bits()
+            }
+            /// From raw bits per lane.
+            #[inline]
+            pub fn from_bits(b: wide::$u) -> Self {
+                $name(wide::$f::from_bits(b))
             }
         }
-        impl $atr for F32x8 {
+
+        impl $mask {
+            /// One bit per lane, lane 0 in bit 0.
             #[inline]
-            fn $af(&mut self, o: F32x8) {
+            pub fn bitmask(self) -> u32 {
+                self.0.to_bitmask()
+            }
+            /// From one bool per lane.
+            #[inline]
+            pub fn from_bools(b: [bool; $n]) -> Self {
+                let t = f32::from_bits(u32::MAX);
+                $mask(wide::$f::from(b.map(|x| if x { t } else { 0.0 })))
+            }
+        }
+
+        impl BitAnd for $mask {
+            type Output = $mask;
+            #[inline]
+            fn bitand(self, o: $mask) -> $mask {
+                $mask(self.0 & o.0)
+            }
+        }
+        impl BitOr for $mask {
+            type Output = $mask;
+            #[inline]
+            fn bitor(self, o: $mask) -> $mask {
+                $mask(self.0 | o.0)
+            }
+        }
+        impl BitXor for $mask {
+            type Output = $mask;
+            #[inline]
+            fn bitxor(self, o: $mask) -> $mask {
+                $mask(self.0 ^ o.0)
+            }
+        }
+        impl Not for $mask {
+            type Output = $mask;
+            #[inline]
+            fn not(self) -> $mask {
+                $mask(!self.0)
+            }
+        }
+
+        impl LaneMask for $mask {
+            #[inline]
+            fn splat(b: bool) -> Self {
+                $mask(wide::$f::splat(if b { f32::from_bits(u32::MAX) } else { 0.0 }))
+            }
+            #[inline]
+            fn from_fn(f: impl FnMut(usize) -> bool) -> Self {
+                $mask::from_bools(std::array::from_fn(f))
+            }
+            #[inline]
+            fn any(self) -> bool {
+                self.0.any()
+            }
+            #[inline]
+            fn all(self) -> bool {
+                self.0.all()
+            }
+            #[inline]
+            fn lane(self, i: usize) -> bool {
+                self.0.to_bitmask() & (1 << i) != 0
+            }
+        }
+
+        wide_lane!(@binop $name, Add, add, AddAssign, add_assign, +);
+        wide_lane!(@binop $name, Sub, sub, SubAssign, sub_assign, -);
+        wide_lane!(@binop $name, Mul, mul, MulAssign, mul_assign, *);
+        wide_lane!(@binop $name, Div, div, DivAssign, div_assign, /);
+
+        impl Neg for $name {
+            type Output = $name;
+            #[inline]
+            fn neg(self) -> $name {
+                $name(-self.0)
+            }
+        }
+
+        impl Lane for $name {
+            type Mask = $mask;
+            const LANES: usize = $n;
+            #[inline]
+            fn splat(v: f64) -> Self {
+                $name(wide::$f::splat(v as f32))
+            }
+            #[inline]
+            fn from_fn(mut f: impl FnMut(usize) -> f64) -> Self {
+                $name(wide::$f::from(std::array::from_fn::<f32, $n, _>(|i| f(i) as f32)))
+            }
+            #[inline]
+            fn lane(self, i: usize) -> f64 {
+                self.0.to_array()[i] as f64
+            }
+            #[inline]
+            fn sqrt(self) -> Self {
+                $name(self.0.sqrt())
+            }
+            #[inline]
+            fn abs(self) -> Self {
+                $name(self.0.abs())
+            }
+            #[inline]
+            fn min(self, o: Self) -> Self {
+                // `if self < o { self } else { o }`, the scalar instance's definition.
+                $name(self.0.simd_lt(o.0).select(self.0, o.0))
+            }
+            #[inline]
+            fn max(self, o: Self) -> Self {
+                $name(self.0.simd_gt(o.0).select(self.0, o.0))
+            }
+            #[inline]
+            fn floor(self) -> Self {
+                $name(self.0.floor())
+            }
+            #[inline]
+            fn exp(self) -> Self {
+                crate::math::fastmath::exp(self)
+            }
+            #[inline]
+            fn exp_m1(self) -> Self {
+                crate::math::fastmath::exp_m1(self)
+            }
+            #[inline]
+            fn ln(self) -> Self {
+                crate::math::fastmath::ln(self)
+            }
+            #[inline]
+            fn sin_cos_turns(self) -> (Self, Self) {
+                crate::math::fastmath::sin_cos_turns(self)
+            }
+            #[inline]
+            fn lt(self, o: Self) -> $mask {
+                $mask(self.0.simd_lt(o.0))
+            }
+            #[inline]
+            fn le(self, o: Self) -> $mask {
+                $mask(self.0.simd_le(o.0))
+            }
+            #[inline]
+            fn gt(self, o: Self) -> $mask {
+                $mask(self.0.simd_gt(o.0))
+            }
+            #[inline]
+            fn ge(self, o: Self) -> $mask {
+                $mask(self.0.simd_ge(o.0))
+            }
+            #[inline]
+            fn eq(self, o: Self) -> $mask {
+                $mask(self.0.simd_eq(o.0))
+            }
+            #[inline]
+            fn is_finite(self) -> $mask {
+                $mask(self.0.is_finite())
+            }
+            #[inline]
+            fn select(m: $mask, t: Self, f: Self) -> Self {
+                $name(m.0.select(t.0, f.0))
+            }
+        }
+
+        impl LaneBits for $name {
+            #[inline]
+            fn pow2i(n: Self) -> Self {
+                let i: wide::$i = (n.0 + wide::$f::splat(127.0)).round_int();
+                let u: wide::$u = wide::bytemuck::cast(i);
+                $name(wide::$f::from_bits(u << 23))
+            }
+            #[inline]
+            fn frexp(self) -> (Self, Self) {
+                let b = self.0.to_bits();
+                let e: wide::$i = wide::bytemuck::cast((b >> 23) & wide::$u::splat(0xff));
+                let m = (b & wide::$u::splat(0x807f_ffff)) | wide::$u::splat(0x3f00_0000);
+                (
+                    $name(wide::$f::from_bits(m)),
+                    $name(wide::$f::$from_i(e) - wide::$f::splat(126.0)),
+                )
+            }
+        }
+
+        impl BitLanes for wide::$u {}
+
+        impl Wide for $name {
+            type Bits = wide::$u;
+            #[inline]
+            fn gather(col: &[f32], idx: &[u32]) -> Self {
+                $name(wide::$f::from(std::array::from_fn::<f32, $n, _>(|j| {
+                    col[idx[j] as usize]
+                })))
+            }
+            #[inline]
+            fn scatter(self, col: &mut [f32], idx: &[u32], m: $mask) {
+                let a = self.0.to_array();
+                let bits = m.bitmask();
+                for j in 0..$n {
+                    if bits & (1 << j) != 0 {
+                        col[idx[j] as usize] = a[j];
+                    }
+                }
+            }
+            #[inline]
+            fn gather_bits(col: &[u32], idx: &[u32]) -> wide::$u {
+                wide::$u::from(std::array::from_fn::<u32, $n, _>(|j| col[idx[j] as usize]))
+            }
+            #[inline]
+            fn scatter_bits(b: wide::$u, col: &mut [u32], idx: &[u32], m: $mask) {
+                let a = b.to_array();
+                let bits = m.bitmask();
+                for j in 0..$n {
+                    if bits & (1 << j) != 0 {
+                        col[idx[j] as usize] = a[j];
+                    }
+                }
+            }
+            #[inline]
+            fn select_bits(m: $mask, t: wide::$u, f: wide::$u) -> wide::$u {
+                let m: wide::$u = m.0.to_bits();
+                (t & m) | (f & !m)
+            }
+            #[inline]
+            fn bits_to_unit(b: wide::$u) -> Self {
+                // Below 2^24, so the signed conversion is exact.
+                let i: wide::$i = wide::bytemuck::cast(b >> 8);
+                $name(wide::$f::$from_i(i) * wide::$f::splat(1.0 / 16_777_216.0))
+            }
+            #[inline]
+            fn bitmask(m: $mask) -> u32 {
+                m.bitmask()
+            }
+            #[inline]
+            fn mask_from_bitmask(bits: u32) -> $mask {
+                $mask::from_bools(std::array::from_fn(|j| bits & (1 << j) != 0))
+            }
+            fn to_f32s(self) -> Vec<f32> {
+                self.0.to_array().to_vec()
+            }
+        }
+    };
+    (@binop $name:ident, $tr:ident, $f:ident, $atr:ident, $af:ident, $op:tt) => {
+        impl $tr for $name {
+            type Output = $name;
+            #[inline]
+            fn $f(self, o: $name) -> $name {
+                $name(self.0 $op o.0)
+            }
+        }
+        impl $atr for $name {
+            #[inline]
+            fn $af(&mut self, o: $name) {
                 self.0 = self.0 $op o.0;
             }
         }
     };
 }
-binop!(Add, add, AddAssign, add_assign, +);
-binop!(Sub, sub, SubAssign, sub_assign, -);
-binop!(Mul, mul, MulAssign, mul_assign, *);
-binop!(Div, div, DivAssign, div_assign, /);
 
-impl Neg for F32x8 {
-    type Output = F32x8;
-    #[inline]
-    fn neg(self) -> F32x8 {
-        F32x8(-self.0)
-    }
-}
+wide_lane!(
+    /// Eight f32 lanes.
+    F32x8,
+    /// Eight boolean lanes (all bits set or all clear, as `wide` expects).
+    M8,
+    f32x8, u32x8, i32x8, 8, from_i32x8
+);
 
-impl Lane for F32x8 {
-    type Mask = M8;
-    const LANES: usize = 8;
-    #[inline]
-    fn splat(v: f64) -> Self {
-        F32x8(f32x8::splat(v as f32))
-    }
-    #[inline]
-    fn from_fn(mut f: impl FnMut(usize) -> f64) -> Self {
-        F32x8(f32x8::from(std::array::from_fn::<f32, 8, _>(|i| {
-            f(i) as f32
-        })))
-    }
-    #[inline]
-    fn lane(self, i: usize) -> f64 {
-        self.0.to_array()[i] as f64
-    }
-    #[inline]
-    fn sqrt(self) -> Self {
-        F32x8(self.0.sqrt())
-    }
-    #[inline]
-    fn abs(self) -> Self {
-        F32x8(self.0.abs())
-    }
-    #[inline]
-    fn min(self, o: Self) -> Self {
-        // `if self < o { self } else { o }`, the scalar instance's definition.
-        F32x8(self.0.simd_lt(o.0).select(self.0, o.0))
-    }
-    #[inline]
-    fn max(self, o: Self) -> Self {
-        F32x8(self.0.simd_gt(o.0).select(self.0, o.0))
-    }
-    #[inline]
-    fn floor(self) -> Self {
-        F32x8(self.0.floor())
-    }
-    #[inline]
-    fn exp(self) -> Self {
-        crate::math::fastmath::exp(self)
-    }
-    #[inline]
-    fn exp_m1(self) -> Self {
-        crate::math::fastmath::exp_m1(self)
-    }
-    #[inline]
-    fn ln(self) -> Self {
-        crate::math::fastmath::ln(self)
-    }
-    #[inline]
-    fn sin_cos_turns(self) -> (Self, Self) {
-        crate::math::fastmath::sin_cos_turns(self)
-    }
-    #[inline]
-    fn lt(self, o: Self) -> M8 {
-        M8(self.0.simd_lt(o.0))
-    }
-    #[inline]
-    fn le(self, o: Self) -> M8 {
-        M8(self.0.simd_le(o.0))
-    }
-    #[inline]
-    fn gt(self, o: Self) -> M8 {
-        M8(self.0.simd_gt(o.0))
-    }
-    #[inline]
-    fn ge(self, o: Self) -> M8 {
-        M8(self.0.simd_ge(o.0))
-    }
-    #[inline]
-    fn eq(self, o: Self) -> M8 {
-        M8(self.0.simd_eq(o.0))
-    }
-    #[inline]
-    fn is_finite(self) -> M8 {
-        M8(self.0.is_finite())
-    }
-    #[inline]
-    fn select(m: M8, t: Self, f: Self) -> Self {
-        F32x8(m.0.select(t.0, f.0))
-    }
-}
-
-impl LaneBits for F32x8 {
-    #[inline]
-    fn pow2i(n: Self) -> Self {
-        let i: i32x8 = (n.0 + f32x8::splat(127.0)).round_int();
-        let u: u32x8 = wide::bytemuck::cast(i);
-        F32x8(f32x8::from_bits(u << 23))
-    }
-    #[inline]
-    fn frexp(self) -> (Self, Self) {
-        let b = self.0.to_bits();
-        let e: i32x8 = wide::bytemuck::cast((b >> 23) & u32x8::splat(0xff));
-        let m = (b & u32x8::splat(0x807f_ffff)) | u32x8::splat(0x3f00_0000);
-        (
-            F32x8(f32x8::from_bits(m)),
-            F32x8(f32x8::from_i32x8(e) - f32x8::splat(126.0)),
-        )
-    }
-}
+wide_lane!(
+    /// Sixteen f32 lanes.
+    F32x16,
+    /// Sixteen boolean lanes.
+    M16,
+    f32x16, u32x16, i32x16, 16, from_i32x16
+);

@@ -517,6 +517,7 @@ impl LayerStack {
             eta: Rgb::from_array(it.eta),
             k: Rgb::from_array(it.k),
             albedo: Rgb::from_array(it.albedo),
+            run_all: false,
         }
     }
 }

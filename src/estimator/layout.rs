@@ -1,0 +1,177 @@
+//! The stack's topology as the walks see it: which layer a direction leaving an
+//! interface enters, how far it is to the next boundary, where the exit is.
+//! Shared by every engine so that they take the same decisions.
+//!
+//! A walk's position is `(layer, z)`: layer `l` lies between interfaces `l` and
+//! `l + 1`, and `z` is the depth below interface `l` (so `0 <= z <= thickness`).
+
+use crate::lane::{Lane, Rgb};
+use crate::stack::{LayerStack, Medium};
+
+/// What a layer asks of a walk crossing it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayerKind {
+    /// No medium (or one that neither scatters nor attenuates): crossed for free.
+    Clear,
+    /// Attenuates without scattering: crossed with its transmittance, no free flight.
+    Absorbing,
+    /// Scatters: free-flight sampling, collisions, phase sampling.
+    Scattering,
+}
+
+/// One medium's parameters in a lane type (splatted: the same in every lane).
+#[derive(Clone, Copy, Debug)]
+pub struct MediumLanes<L: Lane> {
+    /// What the layer asks of a walk.
+    pub kind: LayerKind,
+    /// Geometric thickness (0 for a clear layer).
+    pub thickness: L,
+    /// Extinction per unit thickness, per channel.
+    pub sigma_t: Rgb<L>,
+    /// Single-scattering albedo per channel.
+    pub albedo: Rgb<L>,
+    /// Henyey–Greenstein asymmetry (0: isotropic).
+    pub g: L,
+    /// The same `sigma_t` in every channel: free flights need no spectral MIS.
+    pub grey: bool,
+}
+
+impl<L: Lane> MediumLanes<L> {
+    /// The medium of layer `l` of `stack` (a clear layer if it has none).
+    pub fn new(stack: &LayerStack, l: usize) -> Self {
+        match stack.medium(l) {
+            Some(m) => Self::from_medium(m),
+            None => MediumLanes {
+                kind: LayerKind::Clear,
+                thickness: L::zero(),
+                sigma_t: Rgb::zero(),
+                albedo: Rgb::zero(),
+                g: L::zero(),
+                grey: true,
+            },
+        }
+    }
+
+    fn from_medium(m: &Medium) -> Self {
+        let kind = if m.scatters() {
+            LayerKind::Scattering
+        } else if m.attenuates() {
+            LayerKind::Absorbing
+        } else {
+            LayerKind::Clear
+        };
+        MediumLanes {
+            kind,
+            thickness: L::splat(m.thickness),
+            sigma_t: Rgb::from_array(m.sigma_t),
+            albedo: Rgb::from_array(m.albedo),
+            g: L::splat(m.g),
+            grey: m.sigma_t[0] == m.sigma_t[1] && m.sigma_t[1] == m.sigma_t[2],
+        }
+    }
+
+    /// Transmittance over a depth `dz` along a direction with `|d.z| = mu`
+    /// (1 in a clear layer).
+    #[inline]
+    pub fn transmittance(&self, dz: L, mu: L) -> Rgb<L> {
+        match self.kind {
+            LayerKind::Clear => Rgb::one(),
+            _ => crate::medium::transmittance(self.sigma_t, dz, mu),
+        }
+    }
+}
+
+/// Where a direction leaving an interface goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Next {
+    /// Into layer `l`, entering at its bottom (`from_below`, depth = thickness)
+    /// or at its top (depth 0).
+    Layer {
+        /// The layer.
+        l: usize,
+        /// Entered through its bottom interface (travelling up).
+        from_below: bool,
+    },
+    /// Out of the stack through the top.
+    OutTop,
+    /// Out of the stack through the bottom.
+    OutBottom,
+}
+
+/// The interfaces and layers of a stack, as indices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Layout {
+    /// Number of interfaces.
+    pub n: usize,
+}
+
+impl Layout {
+    /// The layout of `stack`.
+    pub fn new(stack: &LayerStack) -> Self {
+        Layout { n: stack.len() }
+    }
+
+    /// Where a direction leaving interface `i` upwards (`up`) or downwards goes.
+    #[inline]
+    pub fn next(&self, i: usize, up: bool) -> Next {
+        match (up, i) {
+            (true, 0) => Next::OutTop,
+            (true, _) => Next::Layer {
+                l: i - 1,
+                from_below: true,
+            },
+            (false, _) if i + 1 == self.n => Next::OutBottom,
+            (false, _) => Next::Layer {
+                l: i,
+                from_below: false,
+            },
+        }
+    }
+
+    /// The interface a walk in layer `l` travelling up (`up`) or down reaches.
+    #[inline]
+    pub fn boundary(&self, l: usize, up: bool) -> usize {
+        if up {
+            l
+        } else {
+            l + 1
+        }
+    }
+
+    /// The interface light from direction `w` (pointing away from the stack)
+    /// enters or leaves through: the top for `w.z > 0`, the bottom otherwise.
+    #[inline]
+    pub fn outer(&self, above: bool) -> usize {
+        if above {
+            0
+        } else {
+            self.n - 1
+        }
+    }
+
+    /// For exit interface `e`: the layer next to it and the interface across
+    /// that layer (`None` for a one-interface stack, which has no interior).
+    /// Continuations from there reach the exit directly.
+    #[inline]
+    pub fn exit_region(&self, e: usize) -> Option<(usize, usize)> {
+        match (e, self.n) {
+            (_, 1) => None,
+            (0, _) => Some((0, 1)),
+            _ => Some((self.n - 2, self.n - 2)),
+        }
+    }
+}
+
+/// Depth left to the boundary a direction heads for, from depth `z` in a layer
+/// of thickness `h`: `z` going up, `h - z` going down (never negative).
+#[inline]
+pub fn depth_to_boundary<L: Lane>(z: L, h: L, up: L::Mask) -> L {
+    L::select(up, z, (h - z).max(L::zero()))
+}
+
+/// Depth after travelling a distance `t` along `d` from depth `z` (depth grows
+/// downwards), kept inside the layer.
+#[inline]
+pub fn move_depth<L: Lane>(z: L, dz: L, t: L, h: L) -> L {
+    (z - dz * t).clamp(L::zero(), h)
+}
