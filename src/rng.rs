@@ -129,7 +129,7 @@ impl<W: Wide> LaneRng<W> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lane::{F32x16, F32x8, Lane, LaneMask};
+    use crate::lane::{F32x16, F32x8, LaneMask};
 
     fn lanes_match_scalar<W: Wide>() {
         let n = W::LANES;
