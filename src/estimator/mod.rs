@@ -15,6 +15,7 @@ pub mod layout;
 mod orient;
 pub mod pdf;
 pub mod scalar;
+pub mod wavefront;
 
 pub use accumulate::{BlockReducer, MeanVar, BLOCK};
 pub(crate) use orient::orient;
