@@ -96,6 +96,31 @@ impl<L: Lane> InterfaceLanes<L> {
         }
     }
 
+    /// Lane by lane, `a` where `m` is set and `b` elsewhere.
+    pub fn select(m: L::Mask, a: &Self, b: &Self) -> Self {
+        let v = |x: L, y: L| L::select(m, x, y);
+        let mk = |x: L::Mask, y: L::Mask| (m & x) | (!m & y);
+        let rgb = |x: Rgb<L>, y: Rgb<L>| Rgb::select(m, x, y);
+        InterfaceLanes {
+            n_above: v(a.n_above, b.n_above),
+            n_below: v(a.n_below, b.n_below),
+            mf: Microfacet {
+                alpha_x: v(a.mf.alpha_x, b.mf.alpha_x),
+                alpha_y: v(a.mf.alpha_y, b.mf.alpha_y),
+                beckmann: mk(a.mf.beckmann, b.mf.beckmann),
+                separable: mk(a.mf.separable, b.mf.separable),
+            },
+            smooth: mk(a.smooth, b.smooth),
+            dielectric: mk(a.dielectric, b.dielectric),
+            conductor: mk(a.conductor, b.conductor),
+            diffuse: mk(a.diffuse, b.diffuse),
+            eta: rgb(a.eta, b.eta),
+            k: rgb(a.k, b.k),
+            albedo: rgb(a.albedo, b.albedo),
+            run_all: a.run_all || b.run_all,
+        }
+    }
+
     /// `(n_a, n_b)`: the IORs on the side of `a` and on the other side.
     #[inline]
     pub fn sides(&self, a: V3<L>) -> (L, L) {

@@ -31,10 +31,21 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// The 128-bit initial state of stream `(seed, query, sample, stream)`.
 pub fn seed_state(seed: u64, query: u64, sample: u64, stream: Stream) -> [u32; 4] {
-    const G: u64 = 0x9e37_79b9_7f4a_7c15;
+    seed_state_from(query_prefix(seed, query), sample, stream)
+}
+
+const G: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// The part of the seeding hash that depends on `(seed, query)` only, so a
+/// batch computes it once per query.
+pub fn query_prefix(seed: u64, query: u64) -> u64 {
     let k = mix64(seed.wrapping_add(G));
-    let k = mix64(k ^ query.wrapping_mul(G));
-    let k = mix64(k ^ sample.wrapping_add(0x632b_e59b_d9b4_e019).wrapping_mul(G));
+    mix64(k ^ query.wrapping_mul(G))
+}
+
+/// [`seed_state`] from a [`query_prefix`].
+pub fn seed_state_from(prefix: u64, sample: u64, stream: Stream) -> [u32; 4] {
+    let k = mix64(prefix ^ sample.wrapping_add(0x632b_e59b_d9b4_e019).wrapping_mul(G));
     let k = mix64(k ^ (stream as u64 + 1).wrapping_mul(0xd6e8_feb8_6659_fd93));
     let a = mix64(k.wrapping_add(G));
     let b = mix64(k.wrapping_add(G.wrapping_mul(2)));
@@ -96,12 +107,45 @@ impl<W: Wide> LaneRng<W> {
         }
     }
 
+    /// Lane `j` starts from state `state(j)`.
+    #[inline]
+    pub fn from_states(state: impl Fn(usize) -> [u32; 4]) -> Self {
+        let mut cols = [[0u32; 64]; 4];
+        for j in 0..W::LANES {
+            for (col, v) in cols.iter_mut().zip(state(j)) {
+                col[j] = v;
+            }
+        }
+        let ident: [u32; 64] = std::array::from_fn(|j| j as u32);
+        LaneRng {
+            s: std::array::from_fn(|k| W::gather_bits(&cols[k], &ident[..W::LANES])),
+        }
+    }
+
     /// Stores the states back where `m` is set.
     #[inline]
     pub fn scatter(&self, cols: &mut [Vec<u32>; 4], idx: &[u32], m: W::Mask) {
         for (k, col) in cols.iter_mut().enumerate() {
             W::scatter_bits(self.s[k], col, idx, m);
         }
+    }
+
+    /// From the four state words of every lane.
+    #[inline]
+    pub fn from_bits(s: [W::Bits; 4]) -> Self {
+        LaneRng { s }
+    }
+
+    /// The four state words of every lane.
+    #[inline]
+    pub fn to_bits(&self) -> [W::Bits; 4] {
+        self.s
+    }
+
+    /// The state of lane `j`.
+    #[inline]
+    pub fn lane_state(&self, j: usize) -> [u32; 4] {
+        std::array::from_fn(|k| W::bits_lane(self.s[k], j))
     }
 
     /// The next uniform in `[0, 1)` of every lane in `m`; other lanes keep

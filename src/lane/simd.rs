@@ -42,6 +42,8 @@ pub trait Wide: Lane + LaneBits {
     fn gather_bits(col: &[u32], idx: &[u32]) -> Self::Bits;
     /// Stores integer lane `j` into `col[idx[j]]` where `m` is set.
     fn scatter_bits(b: Self::Bits, col: &mut [u32], idx: &[u32], m: Self::Mask);
+    /// Integer lane `j`.
+    fn bits_lane(b: Self::Bits, j: usize) -> u32;
     /// `t` where `m` is set, `f` elsewhere.
     fn select_bits(m: Self::Mask, t: Self::Bits, f: Self::Bits) -> Self::Bits;
     /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that `rng::to_unit` makes.
@@ -52,6 +54,32 @@ pub trait Wide: Lane + LaneBits {
     fn mask_from_bitmask(bits: u32) -> Self::Mask;
     /// Lanes as an array of f32 (length `LANES`).
     fn to_f32s(self) -> Vec<f32>;
+    /// The bits of each lane as an integer lane.
+    fn to_bit_lanes(self) -> Self::Bits;
+    /// Integer lanes reinterpreted as floats.
+    fn from_bit_lanes(b: Self::Bits) -> Self;
+    /// Loads fields `first..first + LANES` of records `recs[idx[j]]` and
+    /// transposes them: `out[k]` gets field `first + k` of every lane's record.
+    fn load_block<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize, out: &mut [Self]);
+    /// The inverse of [`Wide::load_block`]: stores fields `first..first + LANES`
+    /// of every lane's record, the last lane first (where `idx` repeats an
+    /// index, the lowest lane's record is the one that stays).
+    fn store_block<const R: usize>(vals: &[Self], recs: &mut [[f32; R]], idx: &[u32], first: usize);
+}
+
+/// Eight rows of eight floats, transposed.
+#[inline]
+fn transpose8(rows: [wide::f32x8; 8]) -> [wide::f32x8; 8] {
+    wide::f32x8::transpose(rows)
+}
+
+/// Loads an 8×8 block: rows are records `idx[j]`, columns fields `first..first + 8`.
+#[inline]
+fn rows8<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [wide::f32x8; 8] {
+    std::array::from_fn(|j| {
+        let r = &recs[idx[j] as usize][first..first + 8];
+        wide::f32x8::from(<[f32; 8]>::try_from(r).expect("8 fields"))
+    })
 }
 
 macro_rules! wide_lane {
@@ -308,6 +336,10 @@ macro_rules! wide_lane {
                 }
             }
             #[inline]
+            fn bits_lane(b: wide::$u, j: usize) -> u32 {
+                b.to_array()[j]
+            }
+            #[inline]
             fn select_bits(m: $mask, t: wide::$u, f: wide::$u) -> wide::$u {
                 let m: wide::$u = m.0.to_bits();
                 (t & m) | (f & !m)
@@ -328,6 +360,22 @@ macro_rules! wide_lane {
             }
             fn to_f32s(self) -> Vec<f32> {
                 self.0.to_array().to_vec()
+            }
+            #[inline]
+            fn to_bit_lanes(self) -> wide::$u {
+                self.0.to_bits()
+            }
+            #[inline]
+            fn from_bit_lanes(b: wide::$u) -> Self {
+                $name(wide::$f::from_bits(b))
+            }
+            #[inline(always)]
+            fn load_block<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize, out: &mut [Self]) {
+                $name::load_block_impl(recs, idx, first, out)
+            }
+            #[inline(always)]
+            fn store_block<const R: usize>(vals: &[Self], recs: &mut [[f32; R]], idx: &[u32], first: usize) {
+                $name::store_block_impl(vals, recs, idx, first)
             }
         }
     };
@@ -363,3 +411,79 @@ wide_lane!(
     M16,
     f32x16, u32x16, i32x16, 16, from_i32x16
 );
+
+impl F32x8 {
+    #[inline(always)]
+    fn load_block_impl<const R: usize>(
+        recs: &[[f32; R]],
+        idx: &[u32],
+        first: usize,
+        out: &mut [Self],
+    ) {
+        let t = transpose8(rows8(recs, idx, first));
+        for (o, v) in out.iter_mut().zip(t) {
+            *o = F32x8(v);
+        }
+    }
+    #[inline(always)]
+    fn store_block_impl<const R: usize>(
+        vals: &[Self],
+        recs: &mut [[f32; R]],
+        idx: &[u32],
+        first: usize,
+    ) {
+        let rows = transpose8(std::array::from_fn(|k| vals[k].0));
+        for j in (0..8).rev() {
+            recs[idx[j] as usize][first..first + 8].copy_from_slice(&rows[j].to_array());
+        }
+    }
+}
+
+impl F32x16 {
+    // A 16×16 transpose as four 8×8 ones (wide's own f32x16 transpose is
+    // lane by lane).
+    #[inline]
+    fn load_block_impl<const R: usize>(
+        recs: &[[f32; R]],
+        idx: &[u32],
+        first: usize,
+        out: &mut [Self],
+    ) {
+        let mut half = [[[0.0f32; 8]; 16]; 2]; // [slot half][field][lane in half]
+        for (h, lanes) in [&idx[..8], &idx[8..16]].into_iter().enumerate() {
+            for fh in 0..2 {
+                let t = transpose8(rows8(recs, lanes, first + 8 * fh));
+                for (k, v) in t.into_iter().enumerate() {
+                    half[h][8 * fh + k] = v.to_array();
+                }
+            }
+        }
+        for (k, o) in out.iter_mut().enumerate().take(16) {
+            let mut a = [0.0f32; 16];
+            a[..8].copy_from_slice(&half[0][k]);
+            a[8..].copy_from_slice(&half[1][k]);
+            *o = F32x16::from_array(a);
+        }
+    }
+    #[inline]
+    fn store_block_impl<const R: usize>(
+        vals: &[Self],
+        recs: &mut [[f32; R]],
+        idx: &[u32],
+        first: usize,
+    ) {
+        let lanes: [[f32; 16]; 16] = std::array::from_fn(|k| vals[k].to_array());
+        for h in (0..2).rev() {
+            for fh in 0..2 {
+                let rows = transpose8(std::array::from_fn(|k| {
+                    let l = &lanes[8 * fh + k][8 * h..8 * h + 8];
+                    wide::f32x8::from(<[f32; 8]>::try_from(l).expect("8 lanes"))
+                }));
+                for j in (0..8).rev() {
+                    let r = &mut recs[idx[8 * h + j] as usize];
+                    r[first + 8 * fh..first + 8 * fh + 8].copy_from_slice(&rows[j].to_array());
+                }
+            }
+        }
+    }
+}

@@ -109,9 +109,8 @@ pub(crate) enum Mode {
 /// The queries of a batch, oriented and in f32 columns.
 pub(crate) struct Queries {
     pub mode: Mode,
-    pub seed: u64,
-    /// Seeding key per query.
-    pub key: Vec<u64>,
+    /// Seeding prefix per query (`rng::query_prefix(seed, key)`).
+    pub prefix: Vec<u64>,
     /// Light can enter (else every walk of the query is zero).
     pub valid: Vec<bool>,
     /// Mirrored (two-sided opaque stack lit from below).
@@ -165,8 +164,11 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     table: Vec<InterfaceLanes<f32>>,
     /// Layers as the plan runs them.
     media: Vec<MediumLanes<W>>,
-    /// Layers in f32.
-    media_f32: Vec<MediumLanes<f32>>,
+    /// Layers as the stack has them (for the chain's transmittances).
+    media_spec: Vec<MediumLanes<W>>,
+    /// The rough exits `(exit, layer next to it, interface across)`: where
+    /// path continuations connect.
+    exits: Vec<(usize, usize, usize)>,
     slots: usize,
 }
 
@@ -195,7 +197,18 @@ impl<W: Wide> Wavefront<W> {
                 }
             })
             .collect();
+        let layout = Layout::new(stack);
+        let mut exits = vec![0];
+        if stack.transmissive() && n > 1 {
+            exits.push(n - 1);
+        }
+        let exits = exits
+            .into_iter()
+            .filter(|&e| !stack.interface(e).smooth)
+            .filter_map(|e| layout.exit_region(e).map(|(l0, k0)| (e, l0, k0)))
+            .collect();
         Wavefront {
+            exits,
             stack: stack.clone(),
             layout: Layout::new(stack),
             settings,
@@ -203,7 +216,7 @@ impl<W: Wide> Wavefront<W> {
             ifaces,
             table: (0..n).map(|i| stack.interface_lanes::<f32>(i)).collect(),
             media,
-            media_f32: (0..n.saturating_sub(1))
+            media_spec: (0..n.saturating_sub(1))
                 .map(|l| MediumLanes::new(stack, l))
                 .collect(),
             slots: SLOTS_PER_LANE * W::LANES,
@@ -237,8 +250,7 @@ impl<W: Wide> Wavefront<W> {
         let f3 = || [vec![0.0f32; m], vec![0.0f32; m], vec![0.0f32; m]];
         let mut q = Queries {
             mode,
-            seed,
-            key: Vec::with_capacity(m),
+            prefix: Vec::with_capacity(m),
             valid: vec![false; m],
             flipped: vec![false; m],
             wi: f3(),
@@ -247,7 +259,7 @@ impl<W: Wide> Wavefront<W> {
             e_out: vec![0.0; m],
         };
         for (k, &(wi, wo, key)) in pairs.iter().enumerate() {
-            q.key.push(key);
+            q.prefix.push(crate::rng::query_prefix(seed, key));
             let Some(o) = super::orient(&self.stack, wi, wo) else {
                 continue;
             };

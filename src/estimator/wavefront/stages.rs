@@ -5,7 +5,7 @@
 //! (`estimator::scalar`) operation for operation, with masks where the scalar
 //! code returns early.
 
-use super::walks::{Chunk, Link, Walks, FREE};
+use super::walks::{Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{depth_to_boundary, move_depth, LayerKind, Next};
@@ -14,7 +14,7 @@ use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, V3};
 use crate::medium;
-use crate::rng::{seed_state, LaneRng, Stream};
+use crate::rng::{seed_state_from, LaneRng, Stream};
 
 /// A wave during one task: the walks, the task's outputs, the free slots.
 struct Wave<'a> {
@@ -181,27 +181,11 @@ impl<W: Wide> Wavefront<W> {
 
     /// Writes a new walk's scalar state into `slot`.
     fn init_walk(&self, q: &Queries, ws: &mut Walks, slot: u32, query: u32, w: u32, k: u64) {
-        let s = slot as usize;
         let qi = query as usize;
-        ws.key[s] = q.e_in[qi];
-        ws.walk[s] = w;
-        ws.query[s] = query;
-        ws.z[s] = 0.0;
-        for c in 0..3 {
-            ws.d[c][s] = -q.wi[c][qi];
-            ws.beta[c][s] = 1.0;
-            ws.ratios[c][s] = 1.0;
-            ws.acc[c][s] = 0.0;
-        }
-        ws.events[s] = 0.0;
-        ws.order[s] = 0.0;
-        ws.first[s] = 1.0;
-        ws.specular[s] = 1.0;
-        let st = seed_state(q.seed, q.key[qi], k, Stream::Walk);
-        for (c, v) in st.into_iter().enumerate() {
-            ws.rng[c][s] = v;
-        }
-        ws.chain[s].clear();
+        let d = [-q.wi[0][qi], -q.wi[1][qi], -q.wi[2][qi]];
+        let wo = [q.wo[0][qi], q.wo[1][qi], q.wo[2][qi]];
+        let rng = seed_state_from(q.prefix[qi], k, Stream::Walk);
+        ws.init(slot as usize, q.e_in[qi], w, query, d, wo, q.e_out[qi], rng);
     }
 
     /// The lane part of starting walks: the hero channel and (eval) the
@@ -214,95 +198,70 @@ impl<W: Wide> Wavefront<W> {
             }
             let idx = &idx[..W::LANES];
             let active = W::mask_from_bitmask(lane_bits(chunk.len()));
-            let mut rng = LaneRng::<W>::gather(&ws.rng, idx);
-            let hero = events::hero_channel(rng.uniform(active));
-            hero.scatter(&mut ws.hero, idx, active);
-            rng.scatter(&mut ws.rng, idx, active);
+            let mut c = Chunk::<W>::gather(ws, idx, active, Stage::Launch);
+            c.hero = events::hero_channel(c.rng.uniform(active));
             if q.mode == Mode::Eval && self.layout.n >= 2 {
-                self.launch_chains(q, ws, chunk, idx, active);
+                self.launch_chain(q, ws, &mut c, chunk, idx);
             }
+            c.scatter(ws, idx, Stage::Launch);
         }
     }
 
     /// Samples the adjoint chains of new eval walks (scalar:
-    /// `ScalarEngine::adjoint_chain`).
-    fn launch_chains(
+    /// `ScalarEngine::adjoint_chain`). The first link goes to the walk
+    /// record; further links (smooth exits only) to the slot's overflow list.
+    fn launch_chain(
         &self,
         q: &Queries,
         ws: &mut Walks,
+        c: &mut Chunk<W>,
         chunk: &[(u32, u64)],
         idx: &[u32],
-        active: W::Mask,
     ) {
         let n = self.layout.n;
-        let qs: Vec<u32> = idx.iter().map(|&s| ws.query[s as usize]).collect();
-        let states: [Vec<u32>; 4] = {
-            let st: Vec<[u32; 4]> = (0..W::LANES)
-                .map(|j| {
-                    let (_, k) = chunk[j.min(chunk.len() - 1)];
-                    seed_state(q.seed, q.key[qs[j] as usize], k, Stream::Adjoint)
-                })
-                .collect();
-            std::array::from_fn(|c| st.iter().map(|s| s[c]).collect())
-        };
-        let lidx: Vec<u32> = (0..W::LANES as u32).collect();
-        let mut rng = LaneRng::<W>::gather(&states, &lidx);
-        let wo = V3::new(
-            W::gather(&q.wo[0], &qs),
-            W::gather(&q.wo[1], &qs),
-            W::gather(&q.wo[2], &qs),
-        );
-        let e_out = W::gather(&q.e_out, &qs);
-        let exit = InterfaceLanes::<W>::gather(&self.table, |j| e_out.lane(j) as usize);
+        let active = c.active;
+        let mut rng = LaneRng::<W>::from_states(|j| {
+            let (_, k) = chunk[j.min(chunk.len() - 1)];
+            let qi = ws.query[idx[j] as usize] as usize;
+            seed_state_from(q.prefix[qi], k, Stream::Adjoint)
+        });
+        let top = c.e_out.eq(W::zero());
+        let exit = InterfaceLanes::select(top, &self.ifaces[0], &self.ifaces[n - 1]);
         let u = (
             rng.uniform(active),
             rng.uniform(active),
             rng.uniform(active),
         );
-        let (conn, ok) = events::chain_start(&exit, wo, u);
-        let mut alive = ok & active & exit.smooth;
-        for j in Chunk::<W>::lanes(ok & active) {
-            let e = e_out.lane(j) as usize;
-            let (layer, start) = self.layout.exit_region(e).expect("n >= 2");
-            let c = conn_lane(&conn, j);
-            ws.chain[idx[j] as usize].push(self.link(c, layer, start));
-        }
+        let (conn, ok) = events::chain_start(&exit, c.wo, u);
+        let ok = ok & active;
+        // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
+        let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
+        let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
+        let t = self.full_crossing(layer, conn.u.z.abs());
+        let mut last = LinkLanes {
+            conn,
+            t,
+            layer,
+            start,
+        };
+        c.link0 = last;
+        c.links = W::select(ok, W::one(), W::zero());
         // Continue through delta interfaces while the chain stays smooth.
+        let mut alive = ok & exit.smooth;
         let mut events_n = 1u32;
         let mut len = 1usize;
         while alive.any() && len < MAX_CHAIN {
-            let lasts: Vec<Link> = (0..W::LANES)
-                .map(|j| {
-                    if alive.lane(j) {
-                        *ws.chain[idx[j] as usize].last().expect("chain started")
-                    } else {
-                        NO_LINK
-                    }
-                })
-                .collect();
-            let jj: Vec<usize> = lasts
-                .iter()
-                .map(|k| {
-                    if k.start == u16::MAX {
-                        0
-                    } else {
-                        k.start as usize
-                    }
-                })
-                .collect();
-            let iface = InterfaceLanes::<W>::gather(&self.table, |j| jj[j]);
+            let j = W::select(alive, last.start, W::zero());
+            let iface = InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize);
             let cont = alive & iface.smooth;
             if !cont.any() {
                 break;
             }
-            let (last, t) = links_to_lanes::<W>(&lasts);
             let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
-            let (c2, ok2) = events::chain_step(&iface, &last, t, u);
+            let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
             let up = c2.u.z.lt(W::zero());
-            let mut next_alive = cont & ok2;
-            let jl = W::from_fn(|j| jj[j] as f64);
-            let out = W::select(up, jl, W::splat(n as f64 - 1.0) - jl).eq(W::zero());
-            next_alive = next_alive & !out;
+            let out = W::select(up, j, W::splat(n as f64 - 1.0) - j).eq(W::zero());
+            let mut next_alive = cont & ok2 & !out;
             events_n += 1;
             let ur = rng.uniform(next_alive);
             let (v, surv) = events::roulette(
@@ -313,71 +272,96 @@ impl<W: Wide> Wavefront<W> {
                 None,
             );
             next_alive = next_alive & surv;
-            let c2 = Connection { v, ..c2 };
-            for j in Chunk::<W>::lanes(next_alive) {
-                let lane_up = up.lane(j);
-                let Next::Layer { l, .. } = self.layout.next(jj[j], lane_up) else {
-                    unreachable!("exits were masked out")
-                };
-                let start = self.layout.boundary(l, lane_up);
-                ws.chain[idx[j] as usize].push(self.link(conn_lane(&c2, j), l, start));
+            // Light reached interface j travelling along u: it crossed layer
+            // j-1 from interface j-1 (going down) or layer j from j+1 (going up).
+            let layer = W::select(up, j - W::one(), j);
+            let start = W::select(up, j - W::one(), j + W::one());
+            let layer = W::select(next_alive, layer, W::zero());
+            let conn = Connection { v, ..c2 };
+            last = LinkLanes {
+                conn,
+                t: self.full_crossing(layer, conn.u.z.abs()),
+                layer,
+                start,
+            };
+            c.links = W::select(next_alive, c.links + W::one(), c.links);
+            for k in Chunk::<W>::lanes(next_alive) {
+                ws.chain[idx[k] as usize].push(Link {
+                    conn: conn_lane(&last.conn, k),
+                    t_full: rgb_lane(last.t, k),
+                    layer: last.layer.lane(k) as u16,
+                    start: last.start.lane(k) as u16,
+                });
             }
             alive = next_alive;
             len += 1;
         }
     }
 
-    /// A chain link with its full-crossing transmittance (f32, as the scalar
-    /// engine computes it at each use).
-    fn link(&self, conn: Connection<f32>, layer: usize, start: usize) -> Link {
-        let m = &self.media_f32[layer];
-        Link {
-            conn,
-            t_full: m.transmittance(m.thickness, conn.u.z.abs()),
-            layer: layer as u16,
-            start: start as u16,
+    /// Transmittance of a full crossing of layer `layer` (per lane) along a
+    /// direction with `|d.z| = mu`, as the scalar engine computes it.
+    fn full_crossing(&self, layer: W, mu: W) -> Rgb<W> {
+        let mut t = Rgb::one();
+        for (l, m) in self.media_spec.iter().enumerate() {
+            let here = layer.eq(W::splat(l as f64));
+            if here.any() {
+                t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
+            }
         }
+        t
     }
 
-    /// Lanes of the chunk's walks' `k`-th links (or [`NO_LINK`]), and whether
-    /// any lane has one.
-    fn links_k(ws: &Walks, idx: &[u32], active: W::Mask, k: usize) -> Option<Vec<Link>> {
+    /// Lanes of the chunk's walks' overflow links `k` (link `k + 1` of the
+    /// chain; [`NO_LINK`] where a lane has none), if any lane has one.
+    fn overflow_links(ws: &Walks, idx: &[u32], active: W::Mask, k: usize) -> Option<[Link; 64]> {
         let mut any = false;
-        let links = (0..W::LANES)
-            .map(|j| match ws.chain[idx[j] as usize].get(k) {
-                Some(l) if active.lane(j) => {
-                    any = true;
-                    *l
-                }
-                _ => NO_LINK,
-            })
-            .collect();
+        let mut links = [NO_LINK; 64];
+        for j in Chunk::<W>::lanes(active) {
+            if let Some(l) = ws.chain[idx[j] as usize].get(k) {
+                any = true;
+                links[j] = *l;
+            }
+        }
         any.then_some(links)
     }
 
-    /// Per-lane query directions and exits for eval.
-    fn query_lanes(q: &Queries, ws: &Walks, idx: &[u32]) -> (V3<W>, W) {
-        let qs: Vec<u32> = idx.iter().map(|&s| ws.query[s as usize]).collect();
-        let wo = V3::new(
-            W::gather(&q.wo[0], &qs),
-            W::gather(&q.wo[1], &qs),
-            W::gather(&q.wo[2], &qs),
-        );
-        (wo, W::gather(&q.e_out, &qs))
-    }
-
-    /// The exits a walk of this stack can leave through, with their regions.
-    fn exits(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
-        let n = self.layout.n;
-        let last = if self.stack.transmissive() && n > 1 {
-            vec![0, n - 1]
-        } else {
-            vec![0]
-        };
-        last.into_iter().filter_map(move |e| {
-            let (l0, k0) = self.layout.exit_region(e)?;
-            (!self.stack.interface(e).smooth).then_some((e, l0, k0))
-        })
+    /// Adds next-event estimation through every link of the lanes in
+    /// `m` whose link passes `wanted`, with `contribution(link)` per unit
+    /// throughput. Link order is the scalar engine's: the first link, then
+    /// the overflow list.
+    fn connect_links(
+        ws: &Walks,
+        idx: &[u32],
+        m: W::Mask,
+        c: &mut Chunk<W>,
+        wanted: impl Fn(&LinkLanes<W>) -> W::Mask,
+        contribution: impl Fn(&LinkLanes<W>) -> Rgb<W>,
+    ) {
+        let nl = c.links;
+        let first = c.link0;
+        let mm = m & nl.gt(W::splat(0.5)) & wanted(&first);
+        if mm.any() {
+            c.acc = Rgb::select(mm, c.acc + c.beta * contribution(&first), c.acc);
+        }
+        let more = m & nl.gt(W::splat(1.5));
+        let mut k = 0;
+        while more.any() {
+            let Some(links) = Self::overflow_links(ws, idx, more, k) else {
+                break;
+            };
+            let (conn, t) = links_to_lanes::<W>(&links);
+            let lk = LinkLanes {
+                conn,
+                t,
+                layer: W::from_fn(|j| links[j].layer as f64),
+                start: W::from_fn(|j| links[j].start as f64),
+            };
+            let mm = more & wanted(&lk);
+            if mm.any() {
+                c.acc = Rgb::select(mm, c.acc + c.beta * contribution(&lk), c.acc);
+            }
+            k += 1;
+        }
     }
 
     /// One interface event for a chunk of walks at interface `i`.
@@ -392,27 +376,23 @@ impl<W: Wide> Wavefront<W> {
         let n = self.layout.n;
         let eval = q.mode == Mode::Eval;
         let mis = self.settings.mis;
-        let mut c = Chunk::<W>::gather(wave.ws, idx, active);
+        let stage = Stage::Interface { eval };
+        let mut c = Chunk::<W>::gather(wave.ws, idx, active, stage);
         let iface = &self.ifaces[i];
         let a = -c.d;
-        let (wo, e_out) = if eval {
-            Self::query_lanes(q, wave.ws, idx)
-        } else {
-            (V3::z_axis(), W::zero())
-        };
+        let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from this surface vertex.
         if eval {
-            let mut k = 0;
-            while let Some(links) = Self::links_k(wave.ws, idx, active, k) {
-                let starts = W::from_fn(|j| links[j].start as f64);
-                let m = active & starts.eq(W::splat(i as f64));
-                if m.any() {
-                    let (conn, t) = links_to_lanes::<W>(&links);
-                    let add = c.beta * events::connect_surface(iface, a, c.first, &conn, t, mis);
-                    c.acc = Rgb::select(m, c.acc + add, c.acc);
-                }
-                k += 1;
-            }
+            let at_i = W::splat(i as f64);
+            let first = c.first;
+            Self::connect_links(
+                wave.ws,
+                idx,
+                active,
+                &mut c,
+                |k| k.start.eq(at_i),
+                |k| events::connect_surface(iface, a, first, &k.conn, k.t, mis),
+            );
         }
         // Scatter at the interface.
         let (us, u1, u2) = (
@@ -430,7 +410,7 @@ impl<W: Wide> Wavefront<W> {
         let up = d.z.gt(W::zero());
         // Path continuation towards a rough exit.
         if eval {
-            for (e, l0, k0) in self.exits() {
+            for &(e, l0, k0) in &self.exits {
                 if k0 != i {
                     continue;
                 }
@@ -483,7 +463,7 @@ impl<W: Wide> Wavefront<W> {
                 c.beta = Rgb::select(ok, c.beta * med.transmittance(dz, mu), c.beta);
             }
         }
-        c.scatter(wave.ws, idx);
+        c.scatter(wave.ws, idx, stage);
         for j in Chunk::<W>::lanes(active) {
             let slot = idx[j];
             if exited.lane(j) {
@@ -502,7 +482,8 @@ impl<W: Wide> Wavefront<W> {
     fn layer_stage(&self, q: &Queries, wave: &mut Wave, idx: &[u32], active: W::Mask, l: usize) {
         let eval = q.mode == Mode::Eval;
         let mis = self.settings.mis;
-        let mut c = Chunk::<W>::gather(wave.ws, idx, active);
+        let stage = Stage::Layer { eval };
+        let mut c = Chunk::<W>::gather(wave.ws, idx, active, stage);
         let med = &self.media[l];
         let h = med.thickness;
         let d = c.d;
@@ -532,27 +513,24 @@ impl<W: Wide> Wavefront<W> {
         };
         col = col & !over;
         c.z = W::select(col, move_depth(c.z, d.z, ff.distance, h), c.z);
-        let (wo, e_out) = if eval {
-            Self::query_lanes(q, wave.ws, idx)
-        } else {
-            (V3::z_axis(), W::zero())
-        };
+        let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
         if eval {
-            let mut k = 0;
-            while let Some(links) = Self::links_k(wave.ws, idx, col, k) {
-                let layers = W::from_fn(|j| links[j].layer as f64);
-                let m = col & layers.eq(W::splat(l as f64));
-                if m.any() {
-                    let (conn, _) = links_to_lanes::<W>(&links);
-                    let u = conn.u;
-                    let dz_e = depth_to_boundary(c.z, h, u.z.gt(W::zero()));
+            let at_l = W::splat(l as f64);
+            let z = c.z;
+            Self::connect_links(
+                wave.ws,
+                idx,
+                col,
+                &mut c,
+                |k| k.layer.eq(at_l),
+                |k| {
+                    let u = k.conn.u;
+                    let dz_e = depth_to_boundary(z, h, u.z.gt(W::zero()));
                     let t = med.transmittance(dz_e, u.z.abs());
-                    let add = c.beta * events::connect_collision(med.g, d, &conn, t, mis);
-                    c.acc = Rgb::select(m, c.acc + add, c.acc);
-                }
-                k += 1;
-            }
+                    events::connect_collision(med.g, d, &k.conn, t, mis)
+                },
+            );
         }
         let u1 = c.rng.uniform(col);
         let u2 = c.rng.uniform(col);
@@ -560,7 +538,7 @@ impl<W: Wide> Wavefront<W> {
         c.specular = c.specular & !col;
         // Path continuation from the collision towards a rough exit.
         if eval && mis {
-            for (e, l0, _) in self.exits() {
+            for &(e, l0, _) in &self.exits {
                 if l0 != l {
                     continue;
                 }
@@ -589,7 +567,7 @@ impl<W: Wide> Wavefront<W> {
         let (b2, surv) = events::walk_roulette(c.beta, c.events, u, &self.settings);
         c.beta = Rgb::select(col, b2, c.beta);
         let scattered = col & surv;
-        c.scatter(wave.ws, idx);
+        c.scatter(wave.ws, idx, stage);
         let n = self.layout.n;
         for j in Chunk::<W>::lanes(active) {
             let slot = idx[j];
@@ -650,7 +628,7 @@ impl<W: Wide> Wavefront<W> {
                         let st: Vec<[u32; 4]> = lq
                             .iter()
                             .map(|&qq| {
-                                seed_state(q.seed, q.key[qq as usize], k as u64, Stream::Pdf)
+                                seed_state_from(q.prefix[qq as usize], k as u64, Stream::Pdf)
                             })
                             .collect();
                         std::array::from_fn(|c| st.iter().map(|s| s[c]).collect())
