@@ -7,11 +7,13 @@
 //! silent NaN.
 
 use crate::estimator::scalar::ScalarEngine;
+use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront};
 use crate::estimator::{Albedo, Estimate, Sample, Settings};
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::LayerStack;
 use glam::Vec3;
 use std::fmt;
+use std::sync::Arc;
 
 /// A direction argument that cannot be used.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,20 +86,82 @@ impl Direction {
     }
 }
 
+/// Which engine answers a query. Both give the same results for the same
+/// seeds (walk by walk, up to rare rounding differences; tested).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Engine {
+    /// The scalar reference: one walk at a time.
+    Scalar,
+    /// The SIMD wavefront engine (the default): walks in lanes, batches over
+    /// threads.
+    #[default]
+    Wavefront,
+}
+
+impl std::str::FromStr for Engine {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "scalar" => Ok(Engine::Scalar),
+            "wavefront" => Ok(Engine::Wavefront),
+            _ => Err(format!(
+                "unknown engine {s:?} (expected scalar or wavefront)"
+            )),
+        }
+    }
+}
+
+/// A query of a batch that cannot be used: which one, and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BatchError {
+    /// Index of the query in the batch.
+    pub index: usize,
+    /// What is wrong with it.
+    pub error: QueryError,
+}
+
+impl fmt::Display for BatchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "query {}: {}", self.index, self.error)
+    }
+}
+
+impl std::error::Error for BatchError {}
+
 /// A layered BSDF ready to query.
 ///
 /// Every query is deterministic: its random streams are seeded from the
-/// BSDF's seed and a query key. The single-query methods derive the key from
-/// the directions' bits (so the same `(wi, wo)` always gives the same answer,
-/// and different directions get independent streams); the `_with` variants
-/// take the key explicitly.
+/// BSDF's seed and a query key. The plain methods derive the key from the
+/// directions' bits (so the same `(wi, wo)` always gives the same answer, on
+/// either engine, alone or in a batch); the `_keyed` variants take the keys
+/// explicitly, so that a renderer can draw fresh noise per call.
+///
+/// ```
+/// use strata::{Engine, LayeredBsdf, LayerStack};
+/// use glam::Vec3;
+/// let stack = LayerStack::from_toml_str(r#"
+///     [[layers]]
+///     interface = { kind = "dielectric", ior = 1.5 }
+///     [[layers]]
+///     interface = { kind = "diffuse", albedo = 0.8 }
+/// "#).unwrap();
+/// let bsdf = LayeredBsdf::new(stack).samples(512);
+/// let pairs = [(Vec3::Z, Vec3::new(0.5, 0.0, 0.8)), (Vec3::new(0.3, 0.0, 0.9), Vec3::Z)];
+/// let batch = bsdf.eval_batch(&pairs).unwrap();
+/// // A batch answers exactly what single queries answer, on either engine.
+/// let single = bsdf.clone().engine(Engine::Scalar).eval(pairs[1].0, pairs[1].1).unwrap();
+/// assert_eq!(batch[1].value, single.value);
+/// ```
 #[derive(Clone, Debug)]
 pub struct LayeredBsdf {
     scalar: ScalarEngine<f32>,
+    wave: Wavefront<DefaultWide>,
     settings: Settings,
+    engine: Engine,
     samples: u64,
     pdf_samples: u32,
     seed: u64,
+    pool: Option<Arc<rayon::ThreadPool>>,
 }
 
 impl LayeredBsdf {
@@ -115,10 +179,13 @@ impl LayeredBsdf {
     pub fn with_settings(stack: LayerStack, settings: Settings) -> Self {
         LayeredBsdf {
             scalar: ScalarEngine::new(&stack, settings),
+            wave: Wavefront::new(&stack, settings, Plan::Specialized),
             settings,
+            engine: Engine::default(),
             samples: Self::DEFAULT_SAMPLES,
             pdf_samples: Self::DEFAULT_PDF_SAMPLES,
             seed: 0,
+            pool: None,
         }
     }
 
@@ -140,6 +207,20 @@ impl LayeredBsdf {
         self
     }
 
+    /// Chooses the engine.
+    pub fn engine(mut self, engine: Engine) -> Self {
+        self.engine = engine;
+        self
+    }
+
+    /// Runs the wavefront engine's batches on a pool of `n` threads (by
+    /// default, rayon's global pool). Results do not depend on it.
+    pub fn threads(mut self, n: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
+        self.pool = Some(Arc::new(pool));
+        Ok(self)
+    }
+
     /// The stack.
     pub fn stack(&self) -> &LayerStack {
         self.scalar.stack()
@@ -155,16 +236,23 @@ impl LayeredBsdf {
         &self.scalar
     }
 
+    /// The wavefront engine.
+    pub fn wavefront(&self) -> &Wavefront<DefaultWide> {
+        &self.wave
+    }
+
+    fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(p) => p.install(f),
+            None => f(),
+        }
+    }
+
+    // ------------------------------------------------------------ single queries
+
     /// `f(wi, wo)` (without the cosine) with its standard error.
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Result<Estimate, QueryError> {
-        let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
-        Ok(self.scalar.eval(
-            a.get(),
-            b.get(),
-            self.samples,
-            self.seed,
-            direction_key(wi, wo),
-        ))
+        self.eval_with(wi, wo, self.samples, direction_key(wi, wo))
     }
 
     /// `f(wi, wo)` from `samples` walks with query key `query`.
@@ -176,38 +264,172 @@ impl LayeredBsdf {
         query: u64,
     ) -> Result<Estimate, QueryError> {
         let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
-        Ok(self
-            .scalar
-            .eval(a.get(), b.get(), samples, self.seed, query))
+        Ok(match self.engine {
+            Engine::Scalar => self
+                .scalar
+                .eval(a.get(), b.get(), samples, self.seed, query),
+            Engine::Wavefront => self.install(|| {
+                self.wave
+                    .eval_batch(&[(a.get(), b.get())], samples, self.seed, &[query])
+                    .0[0]
+            }),
+        })
     }
 
     /// Samples an outgoing direction for light from `wi`; `None` if the walk
     /// was absorbed. `sample_index` selects the random stream.
     pub fn sample(&self, wi: Vec3, sample_index: u64) -> Result<Option<Sample>, QueryError> {
-        let a = Direction::new("wi", wi)?;
-        let mut rng = WalkRng::new(self.seed, direction_key(wi, wi), sample_index, Stream::Walk);
-        Ok(self.scalar.sample(a.get(), &mut rng))
+        Ok(self
+            .sample_batch_keyed(&[wi], &[direction_key(wi, wi)], &[sample_index])
+            .map_err(|e| e.error)?[0])
     }
 
     /// The approximate pdf of `wo` for `sample(wi)` (see [`crate::estimator::pdf`]).
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> Result<f32, QueryError> {
-        let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
-        Ok(self.scalar.pdf(
-            a.get(),
-            b.get(),
-            self.pdf_samples,
-            self.seed,
-            direction_key(wi, wo),
-        ) as f32)
+        Ok(self.pdf_batch(&[(wi, wo)]).map_err(|e| e.error)?[0])
     }
 
     /// Reflected and transmitted fractions of light from `wi`, from `n` walks.
     pub fn albedo(&self, wi: Vec3, n: u64) -> Result<Albedo, QueryError> {
-        let a = Direction::new("wi", wi)?;
         Ok(self
-            .scalar
-            .albedo(a.get(), n, self.seed, direction_key(wi, wi)))
+            .albedo_batch_keyed(&[wi], n, &[direction_key(wi, wi)])
+            .map_err(|e| e.error)?[0])
     }
+
+    // ------------------------------------------------------------------ batches
+
+    /// `f(wi, wo)` for every pair, `samples()` walks each; query keys from
+    /// the directions (the same answers as [`LayeredBsdf::eval`]).
+    pub fn eval_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<Estimate>, BatchError> {
+        let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
+        self.eval_batch_keyed(pairs, self.samples, &keys)
+    }
+
+    /// `f(wi, wo)` for every pair with `samples` walks and explicit keys.
+    pub fn eval_batch_keyed(
+        &self,
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Estimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        Ok(match self.engine {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys)
+                .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
+                .collect(),
+            Engine::Wavefront => {
+                self.install(|| self.wave.eval_batch(&dirs, samples, self.seed, keys).0)
+            }
+        })
+    }
+
+    /// One sampled direction per incident direction; `sample_index[k]`
+    /// selects query `k`'s random stream; keys from the directions.
+    pub fn sample_batch(
+        &self,
+        wis: &[Vec3],
+        sample_index: &[u64],
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let keys: Vec<u64> = wis.iter().map(|&a| direction_key(a, a)).collect();
+        self.sample_batch_keyed(wis, &keys, sample_index)
+    }
+
+    /// [`LayeredBsdf::sample_batch`] with explicit keys.
+    pub fn sample_batch_keyed(
+        &self,
+        wis: &[Vec3],
+        keys: &[u64],
+        sample_index: &[u64],
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let dirs = directions1(wis)?;
+        Ok(match self.engine {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys.iter().zip(sample_index))
+                .map(|(&a, (&k, &i))| {
+                    let mut rng = WalkRng::new(self.seed, k, i, Stream::Walk);
+                    self.scalar.sample(a, &mut rng)
+                })
+                .collect(),
+            Engine::Wavefront => self.install(|| {
+                self.wave
+                    .sample_batch(&dirs, self.seed, keys, sample_index)
+                    .0
+            }),
+        })
+    }
+
+    /// The approximate pdf for every pair; keys from the directions.
+    pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
+        let dirs = directions2(pairs)?;
+        let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
+        let p: Vec<f64> = match self.engine {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(&keys)
+                .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
+                .collect(),
+            Engine::Wavefront => self.install(|| {
+                self.wave
+                    .pdf_batch(&dirs, self.pdf_samples, self.seed, &keys)
+            }),
+        };
+        Ok(p.into_iter().map(|x| x as f32).collect())
+    }
+
+    /// Directional albedo of every incident direction, `n` walks each; keys
+    /// from the directions.
+    pub fn albedo_batch(&self, wis: &[Vec3], n: u64) -> Result<Vec<Albedo>, BatchError> {
+        let keys: Vec<u64> = wis.iter().map(|&a| direction_key(a, a)).collect();
+        self.albedo_batch_keyed(wis, n, &keys)
+    }
+
+    /// [`LayeredBsdf::albedo_batch`] with explicit keys.
+    pub fn albedo_batch_keyed(
+        &self,
+        wis: &[Vec3],
+        n: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Albedo>, BatchError> {
+        let dirs = directions1(wis)?;
+        Ok(match self.engine {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys)
+                .map(|(&a, &k)| self.scalar.albedo(a, n, self.seed, k))
+                .collect(),
+            Engine::Wavefront => {
+                self.install(|| self.wave.albedo_batch(&dirs, n, self.seed, keys).0)
+            }
+        })
+    }
+}
+
+fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
+    wis.iter()
+        .enumerate()
+        .map(|(index, &w)| {
+            Direction::new("wi", w)
+                .map(|d| d.get())
+                .map_err(|error| BatchError { index, error })
+        })
+        .collect()
+}
+
+fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<([f64; 3], [f64; 3])>, BatchError> {
+    pairs
+        .iter()
+        .enumerate()
+        .map(|(index, &(a, b))| {
+            let e = |error| BatchError { index, error };
+            Ok((
+                Direction::new("wi", a).map_err(e)?.get(),
+                Direction::new("wo", b).map_err(e)?.get(),
+            ))
+        })
+        .collect()
 }
 
 /// A query key from the bits of two directions.

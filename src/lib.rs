@@ -59,6 +59,6 @@ pub mod query;
 pub mod rng;
 pub mod stack;
 
-pub use api::{Direction, LayeredBsdf, QueryError};
+pub use api::{BatchError, Direction, Engine, LayeredBsdf, QueryError};
 pub use estimator::{Albedo, Estimate, Sample, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, StackError};

@@ -373,22 +373,44 @@ impl<S: Scalar> ScalarEngine<S> {
     /// exact first-order term, with its standard error.
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
         let mut red = BlockReducer::new();
+        let direct = self.eval_walks(wi, wo, n, seed, query, |x| red.push(x));
+        red.finish().estimate_plus(direct)
+    }
+
+    /// Each walk's value of the unidirectional estimator, in sample order
+    /// (without the first-order term): for parity tests and diagnostics.
+    pub fn eval_walk_values(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Vec<[f64; 3]> {
+        let mut v = Vec::with_capacity(n as usize);
+        self.eval_walks(wi, wo, n, seed, query, |x| v.push(x));
+        v
+    }
+
+    /// Runs the `n` walks of an eval query, handing each walk's value to
+    /// `f`; returns the first-order term.
+    fn eval_walks(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+        mut f: impl FnMut([f64; 3]),
+    ) -> [f64; 3] {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
-            for _ in 0..n {
-                red.push([0.0; 3]);
-            }
-            return red.finish().estimate();
+            (0..n).for_each(|_| f([0.0; 3]));
+            return [0.0; 3];
         };
         let wi = v3::<S>(o.wi);
         let wo = v3::<S>(o.apply(wo));
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
-        // First-order term: the entrance alone, when it is also the exit.
-        let direct = if e_in == e_out {
-            rgb_f64(self.ifaces[e_in].eval(wi, wo))
-        } else {
-            [0.0; 3]
-        };
         let mut chain = Vec::with_capacity(8);
         for k in 0..n {
             let mut rng_a = WalkRng::new(seed, query, k, Stream::Adjoint);
@@ -403,9 +425,14 @@ impl<S: Scalar> ScalarEngine<S> {
             };
             let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
             self.walk(wi, Some(&mut c), &mut rng);
-            red.push(rgb_f64(c.acc));
+            f(rgb_f64(c.acc));
         }
-        red.finish().estimate_plus(direct)
+        // First-order term: the entrance alone, when it is also the exit.
+        if e_in == e_out {
+            rgb_f64(self.ifaces[e_in].eval(wi, wo))
+        } else {
+            [0.0; 3]
+        }
     }
 }
 

@@ -41,7 +41,7 @@ use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::{Albedo, Estimate, Sample, Settings};
 use crate::interface::InterfaceLanes;
-use crate::lane::{F32x8, Wide};
+use crate::lane::{F32x8, Wide, V3};
 use crate::stack::LayerStack;
 use rayon::prelude::*;
 use walks::Walks;
@@ -149,6 +149,13 @@ pub(crate) struct WalkOut {
     pub reflection: bool,
     /// Sample: every event was a delta.
     pub specular: bool,
+}
+
+/// The estimate of `samples` walks that all gave zero.
+fn zero_estimate(samples: u64) -> Estimate {
+    let mut r = BlockReducer::new();
+    (0..samples).for_each(|_| r.push([0.0; 3]));
+    r.finish().estimate()
 }
 
 /// The layered BSDF on SIMD lanes, prepared for one stack.
@@ -299,10 +306,20 @@ impl<W: Wide> Wavefront<W> {
         if start < units.len() {
             tasks.push(&units[start..]);
         }
+        // A wave no larger than the largest task (a single query needs few slots).
+        let largest = tasks
+            .iter()
+            .map(|t| t.iter().map(|u| u.count as usize).sum::<usize>())
+            .max()
+            .unwrap_or(0);
+        let slots = self
+            .slots
+            .min(largest.div_ceil(W::LANES) * W::LANES)
+            .max(W::LANES);
         let results: Vec<(Vec<WalkOut>, Stats)> = tasks
             .par_iter()
             .map_init(
-                || Walks::new(self.slots),
+                || Walks::new(slots),
                 |ws, task| {
                     let mut out = Vec::new();
                     let stats = self.run_task(queries, task, ws, &mut out);
@@ -366,6 +383,62 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> (Vec<Estimate>, Stats) {
+        let (queries, units, outs, stats) = self.eval_walks(pairs, samples, seed, keys);
+        let sums = Self::reduce(&units, &outs, pairs.len(), |o| o.value.map(|x| x as f64));
+        let est = (0..pairs.len())
+            .map(|q| {
+                if !queries.valid[q] {
+                    return zero_estimate(samples);
+                }
+                let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
+                let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
+                let e_in = queries.e_in[q] as usize;
+                // First-order term: the entrance alone, when it is also the exit.
+                let direct = if e_in == queries.e_out[q] as usize {
+                    super::scalar::rgb_f64(self.table[e_in].eval(wi, wo))
+                } else {
+                    [0.0; 3]
+                };
+                sums[q].estimate_plus(direct)
+            })
+            .collect();
+        (est, stats)
+    }
+
+    /// Each walk's value of the unidirectional estimator (without the
+    /// first-order term), query by query in sample order: for parity tests
+    /// and diagnostics.
+    pub fn eval_walk_values(
+        &self,
+        pairs: &[([f64; 3], [f64; 3])],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+    ) -> Vec<Vec<[f64; 3]>> {
+        let (queries, units, outs, _) = self.eval_walks(pairs, samples, seed, keys);
+        let mut v = vec![Vec::new(); pairs.len()];
+        for q in 0..pairs.len() {
+            if !queries.valid[q] {
+                v[q] = vec![[0.0; 3]; samples as usize];
+            }
+        }
+        let mut at = 0;
+        for u in &units {
+            for o in &outs[at..at + u.count as usize] {
+                v[u.query as usize].push(o.value.map(|x| x as f64));
+            }
+            at += u.count as usize;
+        }
+        v
+    }
+
+    fn eval_walks(
+        &self,
+        pairs: &[([f64; 3], [f64; 3])],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+    ) -> (Queries, Vec<Unit>, Vec<WalkOut>, Stats) {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
@@ -378,34 +451,7 @@ impl<W: Wide> Wavefront<W> {
             .filter(|u| queries.valid[u.query as usize])
             .collect();
         let (outs, stats) = self.run(&queries, &units);
-        let sums = Self::reduce(&units, &outs, pairs.len(), |o| o.value.map(|x| x as f64));
-        let est = (0..pairs.len())
-            .map(|q| {
-                if !queries.valid[q] {
-                    let mut r = BlockReducer::new();
-                    (0..samples).for_each(|_| r.push([0.0; 3]));
-                    return r.finish().estimate();
-                }
-                let wi = super::scalar::v3::<f32>([
-                    queries.wi[0][q] as f64,
-                    queries.wi[1][q] as f64,
-                    queries.wi[2][q] as f64,
-                ]);
-                let wo = super::scalar::v3::<f32>([
-                    queries.wo[0][q] as f64,
-                    queries.wo[1][q] as f64,
-                    queries.wo[2][q] as f64,
-                ]);
-                let e_in = queries.e_in[q] as usize;
-                let direct = if e_in == queries.e_out[q] as usize {
-                    super::scalar::rgb_f64(self.table[e_in].eval(wi, wo))
-                } else {
-                    [0.0; 3]
-                };
-                sums[q].estimate_plus(direct)
-            })
-            .collect();
-        (est, stats)
+        (queries, units, outs, stats)
     }
 
     /// Directional albedo of every incident direction, `samples` walks each.
@@ -435,11 +481,7 @@ impl<W: Wide> Wavefront<W> {
         };
         let r = Self::reduce(&units, &outs, wis.len(), pick(true));
         let t = Self::reduce(&units, &outs, wis.len(), pick(false));
-        let zero = || {
-            let mut r = BlockReducer::new();
-            (0..samples).for_each(|_| r.push([0.0; 3]));
-            r.finish().estimate()
-        };
+        let zero = || zero_estimate(samples);
         let res = (0..wis.len())
             .map(|q| {
                 if queries.valid[q] {
