@@ -418,7 +418,10 @@ fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
         .collect()
 }
 
-fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<([f64; 3], [f64; 3])>, BatchError> {
+/// A validated `(wi, wo)` pair.
+type Pair = ([f64; 3], [f64; 3]);
+
+fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
     pairs
         .iter()
         .enumerate()

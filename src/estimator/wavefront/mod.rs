@@ -416,12 +416,17 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
     ) -> Vec<Vec<[f64; 3]>> {
         let (queries, units, outs, _) = self.eval_walks(pairs, samples, seed, keys);
-        let mut v = vec![Vec::new(); pairs.len()];
-        for q in 0..pairs.len() {
-            if !queries.valid[q] {
-                v[q] = vec![[0.0; 3]; samples as usize];
-            }
-        }
+        let mut v: Vec<Vec<[f64; 3]>> = queries
+            .valid
+            .iter()
+            .map(|&ok| {
+                if ok {
+                    Vec::new()
+                } else {
+                    vec![[0.0; 3]; samples as usize]
+                }
+            })
+            .collect();
         let mut at = 0;
         for u in &units {
             for o in &outs[at..at + u.count as usize] {
