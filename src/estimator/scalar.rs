@@ -62,6 +62,11 @@ struct Exit<S: Lane> {
     specular: bool,
 }
 
+/// Counts a walk's events (interface events and collisions), for the walk
+/// length statistics of the stability reports.
+#[derive(Clone, Copy, Debug, Default)]
+struct Counter(u32);
+
 /// The layered BSDF, one walk at a time.
 #[derive(Clone, Debug)]
 pub struct ScalarEngine<S: Scalar> {
@@ -146,6 +151,7 @@ impl<S: Scalar> ScalarEngine<S> {
         wi: V3<S>,
         mut connect: Option<&mut Connect<'_, S>>,
         rng: &mut WalkRng,
+        length: &mut Counter,
     ) -> Option<Exit<S>> {
         let mis = self.settings.mis;
         let hero = events::hero_channel(Self::u(rng));
@@ -177,6 +183,7 @@ impl<S: Scalar> ScalarEngine<S> {
             beta *= s.weight;
             specular &= s.delta;
             events += 1;
+            length.0 = events;
             let d = s.b;
             let next = self.layout.next(i, d.z > S::zero());
             // Path continuation: the new direction reaches a rough exit.
@@ -263,6 +270,7 @@ impl<S: Scalar> ScalarEngine<S> {
                         }
                         d = dn;
                         events += 1;
+                        length.0 = events;
                         if !self.survive(&mut beta, events, rng) {
                             return None;
                         }
@@ -279,9 +287,21 @@ impl<S: Scalar> ScalarEngine<S> {
     /// The analog random walk from `wi` (method.md §5). `None` if the walk was
     /// absorbed (or `wi` sees nothing). Directions are in the stack's frame.
     pub fn sample(&self, wi: [f64; 3], rng: &mut WalkRng) -> Option<Sample> {
+        self.sample_counted(wi, rng).0
+    }
+
+    /// [`ScalarEngine::sample`], also returning the walk's number of events
+    /// (interface events and medium collisions; 0 if no light enters).
+    pub fn sample_counted(&self, wi: [f64; 3], rng: &mut WalkRng) -> (Option<Sample>, u32) {
+        let mut n = Counter::default();
+        let s = self.sample_inner(wi, rng, &mut n);
+        (s, n.0)
+    }
+
+    fn sample_inner(&self, wi: [f64; 3], rng: &mut WalkRng, n: &mut Counter) -> Option<Sample> {
         let o = super::orient(&self.stack, wi, None)?;
         let wi_v = v3::<S>(o.wi);
-        let ex = self.walk(wi_v, None, rng)?;
+        let ex = self.walk(wi_v, None, rng, n)?;
         let wo = o.apply([ex.d.x.lane(0), ex.d.y.lane(0), ex.d.z.lane(0)]);
         Some(Sample {
             wo: glam::Vec3::new(wo[0] as f32, wo[1] as f32, wo[2] as f32),
@@ -424,7 +444,7 @@ impl<S: Scalar> ScalarEngine<S> {
                 acc: Rgb::zero(),
             };
             let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
-            self.walk(wi, Some(&mut c), &mut rng);
+            self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
             f(rgb_f64(c.acc));
         }
         // First-order term: the entrance alone, when it is also the exit.
