@@ -2,7 +2,7 @@
 //!
 //! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`.
 
-use crate::common::load_material;
+use crate::common::{load_material, stdout_failure};
 use std::io::Write;
 use std::path::PathBuf;
 use strata::LayeredBsdf;
@@ -20,7 +20,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     phi: f64,
     /// Walks.
-    #[arg(long, default_value_t = 100_000, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 100_000, value_parser = crate::common::positive)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
@@ -58,5 +58,5 @@ pub fn run(args: Args) -> Result<(), String> {
         "R": a.reflected.value, "T": a.transmitted.value,
         "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
     });
-    writeln!(std::io::stdout(), "{line}").map_err(|e| format!("cannot write to stdout: {e}"))
+    writeln!(std::io::stdout(), "{line}").or_else(stdout_failure)
 }

@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Walks per plotted BSDF value; the tables use 16 times as many.
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 1024, value_parser = crate::common::positive)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
@@ -106,6 +106,27 @@ enum Answer {
     Eval(Estimate, f32),
 }
 
+/// Appends a line to the output buffer (a `String`: writing cannot fail).
+macro_rules! outln {
+    ($o:expr) => {
+        $o.push('\n')
+    };
+    ($o:expr, $($t:tt)*) => {{
+        use std::fmt::Write as _;
+        let _ = writeln!($o, $($t)*);
+    }};
+}
+
+/// Writes the buffer to stdout and empties it. A closed pipe only stops the
+/// printing: the figures are still written.
+fn emit(o: &mut String) -> Result<(), String> {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    let r = out.write_all(o.as_bytes()).and_then(|()| out.flush());
+    o.clear();
+    r.or_else(crate::common::stdout_failure)
+}
+
 /// Runs `strata demo`.
 pub fn run(args: Args) -> Result<(), String> {
     let start = Instant::now();
@@ -176,7 +197,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let computed = start.elapsed();
 
     // Tables.
-    println!(
+    let mut o = String::new();
+    let o = &mut o;
+    outln!(
+        o,
         "strata demo: {} built-in materials (examples/materials/), {} walks per plotted value, \
          {} per table entry, seed {}.",
         bsdfs.len(),
@@ -184,7 +208,8 @@ pub fn run(args: Args) -> Result<(), String> {
         n_table,
         args.seed
     );
-    println!(
+    outln!(
+        o,
         "Values are mean ± one standard error per RGB channel. Directions lie in the plane of \
          incidence: wi at polar angle θi (azimuth 0), wo at signed angle θo (+ on the side of wi, \
          − on the mirror side, |θo| > 90° is transmission). f is in 1/sr, without the cosine."
@@ -197,34 +222,38 @@ pub fn run(args: Args) -> Result<(), String> {
         let mine: Vec<(&Job, &Answer)> =
             jobs.iter().zip(&answers).filter(|(j, _)| pick(j)).collect();
         let desc = b.stack().desc().description.clone().unwrap_or_default();
-        println!();
-        println!("== {name}: {desc}");
-        print_albedos(&mine, b.stack().transmissive());
-        print_values(&mine);
+        outln!(o);
+        outln!(o, "== {name}: {desc}");
+        print_albedos(o, &mine, b.stack().transmissive());
+        print_values(o, &mine);
         figures.push((
             name.clone(),
             figure(name, &desc, b.stack(), &mine, args.samples),
         ));
     }
 
+    emit(o)?;
+
     // Figures: render all in memory, then write each atomically.
     let pngs: Vec<(String, Vec<u8>)> = figures
         .par_iter()
         .map(|(name, fig)| render_png(fig).map(|png| (name.clone(), png)))
         .collect::<Result<_, _>>()?;
-    println!();
+    outln!(o);
     for (name, png) in &pngs {
         let path = args.out.join(format!("{name}.png"));
         write_atomic(&path, png).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
-        println!("wrote {}", path.display());
+        outln!(o, "wrote {}", path.display());
+        emit(o)?;
     }
-    println!(
+    outln!(
+        o,
         "estimates took {:.1} s, all done in {:.1} s on {} threads",
         computed.as_secs_f64(),
         start.elapsed().as_secs_f64(),
         rayon::current_num_threads()
     );
-    Ok(())
+    emit(o)
 }
 
 /// Signed outgoing angles of the lobe plots: every degree but grazing (±90°).
@@ -273,7 +302,7 @@ fn pm(v: f64, e: f64) -> String {
     format!("{v:.d$}±{e:.d$}")
 }
 
-fn print_albedos(mine: &[(&Job, &Answer)], transmissive: bool) {
+fn print_albedos(o: &mut String, mine: &[(&Job, &Answer)], transmissive: bool) {
     let mut head = format!(
         "  {:>4}  {:>16} {:>16} {:>16}",
         "θi", "R red", "R green", "R blue"
@@ -281,7 +310,8 @@ fn print_albedos(mine: &[(&Job, &Answer)], transmissive: bool) {
     if transmissive {
         head += &format!("  {:>16} {:>16} {:>16}", "T red", "T green", "T blue");
     }
-    println!(
+    outln!(
+        o,
         "  Directional albedo: R reflected, T transmitted{}",
         if transmissive {
             ""
@@ -289,7 +319,7 @@ fn print_albedos(mine: &[(&Job, &Answer)], transmissive: bool) {
             " (opaque stack: T = 0)"
         }
     );
-    println!("{head}");
+    outln!(o, "{head}");
     for (j, a) in mine {
         if let (Job::Albedo { theta, .. }, Answer::Albedo(a)) = (j, a) {
             let r = &a.reflected;
@@ -309,16 +339,25 @@ fn print_albedos(mine: &[(&Job, &Answer)], transmissive: bool) {
                     pm(t.value[2], t.stderr[2])
                 );
             }
-            println!("{line}");
+            outln!(o, "{line}");
         }
     }
 }
 
-fn print_values(mine: &[(&Job, &Answer)]) {
-    println!("  BSDF values f(wi, wo) in 1/sr, and the approximate pdf of sample()");
-    println!(
+fn print_values(o: &mut String, mine: &[(&Job, &Answer)]) {
+    outln!(
+        o,
+        "  BSDF values f(wi, wo) in 1/sr, and the approximate pdf of sample()"
+    );
+    outln!(
+        o,
         "  {:>4} {:>5}  {:>18} {:>18} {:>18}  {:>9}",
-        "θi", "θo", "f red", "f green", "f blue", "pdf"
+        "θi",
+        "θo",
+        "f red",
+        "f green",
+        "f blue",
+        "pdf"
     );
     for (j, a) in mine {
         if let (
@@ -331,7 +370,8 @@ fn print_values(mine: &[(&Job, &Answer)]) {
             Answer::Eval(e, p),
         ) = (j, a)
         {
-            println!(
+            outln!(
+                o,
                 "  {:>3}° {:>4}°  {:>18} {:>18} {:>18}  {:>9.4}",
                 theta,
                 psi,

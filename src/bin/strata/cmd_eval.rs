@@ -8,7 +8,8 @@
 //! or non-finite direction) stops the run with an error naming its line number;
 //! the answers to the lines before it have already been printed.
 
-use crate::common::load_material;
+use crate::common::{load_material, stdout_failure};
+use serde::Serialize;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 use strata::query::parse_query_line;
@@ -21,11 +22,19 @@ pub struct Args {
     #[arg(long)]
     material: PathBuf,
     /// Walks per query.
-    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, default_value_t = 4096, value_parser = crate::common::positive)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+}
+
+/// One output line (fields in this order).
+#[derive(Serialize)]
+struct Answer {
+    f: [f64; 3],
+    stderr: [f64; 3],
+    pdf: f32,
 }
 
 /// Runs `strata eval`.
@@ -51,12 +60,15 @@ pub fn run(args: Args) -> Result<(), String> {
         let p = bsdf
             .pdf(wi, wo)
             .map_err(|e| format!("stdin line {line_no}: {e}"))?;
-        writeln!(
-            out,
-            "{}",
-            serde_json::json!({"f": e.value, "stderr": e.stderr, "pdf": p})
-        )
-        .map_err(|e| format!("cannot write to stdout: {e}"))?;
+        let answer = Answer {
+            f: e.value,
+            stderr: e.stderr,
+            pdf: p,
+        };
+        let answer = serde_json::to_string(&answer).map_err(|e| format!("cannot format: {e}"))?;
+        if let Err(e) = writeln!(out, "{answer}") {
+            return stdout_failure(e);
+        }
     }
     Ok(())
 }

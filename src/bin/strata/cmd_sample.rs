@@ -4,8 +4,10 @@
 //! An absorbed walk (or light arriving where the stack sees nothing) prints
 //! `{"wo":null,"weight":[0.0,0.0,0.0],"reflection":null,"specular":null}`, so the
 //! mean of `weight` over all lines is an unbiased estimate of the albedo R + T.
+//! If stdout is closed early (`| head`), the command stops quietly.
 
-use crate::common::{load_material, parse_vec3};
+use crate::common::{load_material, parse_vec3, stdout_failure};
+use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
 use strata::LayeredBsdf;
@@ -28,6 +30,15 @@ pub struct Args {
     seed: u64,
 }
 
+/// One output line (fields in this order).
+#[derive(Serialize)]
+struct Line {
+    wo: Option<[f32; 3]>,
+    weight: [f32; 3],
+    reflection: Option<bool>,
+    specular: Option<bool>,
+}
+
 /// Runs `strata sample`.
 pub fn run(args: Args) -> Result<(), String> {
     let wi = parse_vec3("--wi", &args.wi)?;
@@ -43,21 +54,23 @@ pub fn run(args: Args) -> Result<(), String> {
             .sample(wi, k)
             .map_err(|e| format!("--wi {}: {e}", args.wi))?;
         let line = match s {
-            Some(s) => serde_json::json!({
-                "wo": s.wo.to_array(),
-                "weight": s.weight,
-                "reflection": s.reflection,
-                "specular": s.specular,
-            }),
-            None => serde_json::json!({
-                "wo": null,
-                "weight": [0.0, 0.0, 0.0],
-                "reflection": null,
-                "specular": null,
-            }),
+            Some(s) => Line {
+                wo: Some(s.wo.to_array()),
+                weight: s.weight,
+                reflection: Some(s.reflection),
+                specular: Some(s.specular),
+            },
+            None => Line {
+                wo: None,
+                weight: [0.0; 3],
+                reflection: None,
+                specular: None,
+            },
         };
-        writeln!(out, "{line}").map_err(|e| format!("cannot write to stdout: {e}"))?;
+        let line = serde_json::to_string(&line).map_err(|e| format!("cannot format: {e}"))?;
+        if let Err(e) = writeln!(out, "{line}") {
+            return stdout_failure(e);
+        }
     }
-    out.flush()
-        .map_err(|e| format!("cannot write to stdout: {e}"))
+    out.flush().or_else(stdout_failure)
 }

@@ -30,3 +30,23 @@ pub fn parse_vec3(flag: &str, text: &str) -> Result<glam::Vec3, String> {
     }
     Ok(glam::Vec3::from(v))
 }
+
+/// Parses a count that must be at least 1 (clap names the flag and value).
+pub fn positive(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("not a whole number: {e}")),
+    }
+}
+
+/// What a failed write to stdout means: a closed pipe (`strata ... | head`)
+/// means the reader has what it wants, so the command stops quietly
+/// (`Ok(())`); any other failure is an error.
+pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        Ok(())
+    } else {
+        Err(format!("cannot write to stdout: {e}"))
+    }
+}
