@@ -817,3 +817,29 @@ fn demo_with_an_impossible_output_path_fails_and_leaves_nothing() {
     assert_eq!(left, ["clear_coat_lambertian.png"], "left behind: {left:?}");
     assert!(out_dir.join("clear_coat_lambertian.png").is_dir());
 }
+
+#[test]
+fn example_materials_round_trip_through_toml_and_json() {
+    // The description a stack keeps can be written out and read back.
+    for p in example_files() {
+        let s = LayerStack::from_path(&p).unwrap();
+        let t = toml::to_string(s.desc()).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert_eq!(LayerStack::from_toml_str(&t).unwrap(), s, "{t}");
+        let j = serde_json::to_string(s.desc()).unwrap();
+        assert_eq!(LayerStack::from_json_str(&j).unwrap(), s, "{j}");
+    }
+    // Integers are numbers, and one number is an RGB grey.
+    let a = LayerStack::from_toml_str(
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 2 }\n\
+         medium = { thickness = 1, sigma_t = 3, albedo = [1, 0.5, 0] }\n\
+         [[layers]]\ninterface = { kind = \"diffuse\", albedo = 1 }\n",
+    )
+    .unwrap();
+    let m = a.medium(0).unwrap();
+    assert_eq!(
+        (m.thickness, m.sigma_t, m.albedo),
+        (1.0, [3.0; 3], [1.0, 0.5, 0.0])
+    );
+    assert_eq!(a.interface(0).n_below, 2.0);
+    assert_eq!(a.interface(1).albedo, [1.0; 3]);
+}
