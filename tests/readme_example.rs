@@ -33,10 +33,8 @@ fn readme_example() -> Result<(), Box<dyn std::error::Error>> {
     }
     let pdf = bsdf.pdf(wi, wo)?; // approximate density of sample(), for MIS
     let a = bsdf.albedo(wi, 10_000)?; // reflected and transmitted fractions
-    println!(
-        "pdf = {pdf}, R = {:?}, T = {:?}",
-        a.reflected.value, a.transmitted.value
-    );
+    let (r, t) = (a.reflected.value, a.transmitted.value);
+    println!("pdf = {pdf}, R = {r:?}, T = {t:?}");
     // README example end
 
     // What the example claims, checked.
