@@ -169,6 +169,10 @@ pub struct LayerDesc {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialDesc {
+    /// Free text saying what the material models (ignored by the physics; JSON
+    /// has no comments, so this is where a JSON file says what it is).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
     /// IOR of the exterior above the top interface.
     #[serde(default = "one")]
     pub exterior_ior: f64,

@@ -1,7 +1,11 @@
 //! `strata albedo`: reflected and transmitted fractions for one incident direction.
+//!
+//! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`.
 
+use crate::common::{load_material, stdout_failure};
+use std::io::Write;
 use std::path::PathBuf;
-use strata::{LayerStack, LayeredBsdf};
+use strata::LayeredBsdf;
 
 /// Arguments of `strata albedo`.
 #[derive(clap::Args)]
@@ -10,44 +14,49 @@ pub struct Args {
     #[arg(long)]
     material: PathBuf,
     /// Polar angle of incidence in degrees (0 = normal; above 90 = from below).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     theta: f64,
     /// Azimuth of incidence in degrees.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     phi: f64,
     /// Walks.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = crate::common::positive)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
 }
 
+/// The unit direction at polar angle `theta_deg` and azimuth `phi_deg`.
+pub fn direction(theta_deg: f64, phi_deg: f64) -> glam::Vec3 {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    glam::Vec3::new(
+        (t.sin() * p.cos()) as f32,
+        (t.sin() * p.sin()) as f32,
+        t.cos() as f32,
+    )
+}
+
+/// Runs `strata albedo`.
 pub fn run(args: Args) -> Result<(), String> {
     if !args.theta.is_finite() || !(0.0..=180.0).contains(&args.theta) {
         return Err(format!(
-            "--theta {} must be in [0, 180] degrees",
+            "--theta {}: must be in [0, 180] degrees",
             args.theta
         ));
     }
     if !args.phi.is_finite() {
-        return Err(format!("--phi {} must be finite", args.phi));
+        return Err(format!("--phi {}: must be finite", args.phi));
     }
-    let stack = LayerStack::from_path(&args.material).map_err(|e| e.to_string())?;
+    let stack = load_material(&args.material)?;
     let bsdf = LayeredBsdf::new(stack).seed(args.seed);
-    let (t, p) = (args.theta.to_radians(), args.phi.to_radians());
-    let wi = glam::Vec3::new(
-        (t.sin() * p.cos()) as f32,
-        (t.sin() * p.sin()) as f32,
-        t.cos() as f32,
-    );
-    let a = bsdf.albedo(wi, args.samples).map_err(|e| e.to_string())?;
-    println!(
-        "{}",
-        serde_json::json!({
-            "R": a.reflected.value, "T": a.transmitted.value,
-            "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
-        })
-    );
-    Ok(())
+    let wi = direction(args.theta, args.phi);
+    let a = bsdf
+        .albedo(wi, args.samples)
+        .map_err(|e| format!("--theta {} --phi {}: {e}", args.theta, args.phi))?;
+    let line = serde_json::json!({
+        "R": a.reflected.value, "T": a.transmitted.value,
+        "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
+    });
+    writeln!(std::io::stdout(), "{line}").or_else(stdout_failure)
 }

@@ -1,8 +1,12 @@
 //! `strata`: the command-line tool. One file per subcommand.
 
 mod cmd_albedo;
+mod cmd_demo;
 mod cmd_eval;
+mod cmd_sample;
+mod common;
 mod output;
+mod plot;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -21,6 +25,10 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Directional albedo: reflected and transmitted fractions.
     Albedo(cmd_albedo::Args),
+    /// Sample outgoing directions: one JSON line {"wo":[..],"weight":[..],..} per walk.
+    Sample(cmd_sample::Args),
+    /// The main job on built-in materials: tables of albedos and BSDF values, PNG lobe plots.
+    Demo(cmd_demo::Args),
 }
 
 fn main() -> ExitCode {
@@ -28,6 +36,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Albedo(a) => cmd_albedo::run(a),
+        Command::Sample(a) => cmd_sample::run(a),
+        Command::Demo(a) => cmd_demo::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,52 @@
+//! Helpers shared by the subcommands: loading materials and parsing vectors,
+//! with errors that name the flag and the value.
+
+use std::path::Path;
+use strata::LayerStack;
+
+/// Loads and validates the material file given by `--material`.
+pub fn load_material(path: &Path) -> Result<LayerStack, String> {
+    LayerStack::from_path(path).map_err(|e| format!("--material {}: {e}", path.display()))
+}
+
+/// Parses `x,y,z` (three finite numbers) given for `flag`.
+pub fn parse_vec3(flag: &str, text: &str) -> Result<glam::Vec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!(
+            "{flag} {text}: expected three numbers x,y,z separated by commas, got {}",
+            parts.len()
+        ));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        let x: f32 = p
+            .parse()
+            .map_err(|_| format!("{flag} {text}: {p:?} is not a number"))?;
+        if !x.is_finite() {
+            return Err(format!("{flag} {text}: {p} is not a finite number"));
+        }
+        *slot = x;
+    }
+    Ok(glam::Vec3::from(v))
+}
+
+/// Parses a count that must be at least 1 (clap names the flag and value).
+pub fn positive(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("not a whole number: {e}")),
+    }
+}
+
+/// What a failed write to stdout means: a closed pipe (`strata ... | head`)
+/// means the reader has what it wants, so the command stops quietly
+/// (`Ok(())`); any other failure is an error.
+pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        Ok(())
+    } else {
+        Err(format!("cannot write to stdout: {e}"))
+    }
+}
