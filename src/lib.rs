@@ -52,6 +52,7 @@ pub mod estimator;
 pub mod fresnel;
 pub mod interface;
 pub mod lane;
+pub mod materials;
 pub mod math;
 pub mod medium;
 pub mod microfacet;

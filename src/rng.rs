@@ -85,6 +85,22 @@ impl WalkRng {
     }
 }
 
+/// One step of Xoshiro128++ on a raw state: the next output, exactly what
+/// rand_xoshiro's generator gives from the same state (tested). For code that
+/// keeps a walk's state in its own storage (the wavefront engine).
+#[inline]
+pub fn xoshiro_step(s: &mut [u32; 4]) -> u32 {
+    let out = s[0].wrapping_add(s[3]).rotate_left(7).wrapping_add(s[0]);
+    let t = s[1] << 9;
+    s[2] ^= s[0];
+    s[3] ^= s[1];
+    s[1] ^= s[2];
+    s[0] ^= s[3];
+    s[2] ^= t;
+    s[3] = s[3].rotate_left(11);
+    out
+}
+
 /// Maps 32 random bits to `[0, 1)` with 24 bits of resolution.
 #[inline]
 pub fn to_unit(x: u32) -> f32 {
@@ -204,6 +220,15 @@ mod tests {
     fn lane_rng_is_rand_xoshiro_bit_for_bit() {
         lanes_match_scalar::<F32x8>();
         lanes_match_scalar::<F32x16>();
+    }
+
+    #[test]
+    fn scalar_step_is_rand_xoshiro_bit_for_bit() {
+        let mut s = seed_state(3, 4, 5, Stream::Adjoint);
+        let mut r = WalkRng::new(3, 4, 5, Stream::Adjoint);
+        for _ in 0..1000 {
+            assert_eq!(xoshiro_step(&mut s), r.next_u32());
+        }
     }
 
     #[test]

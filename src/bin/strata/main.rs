@@ -1,6 +1,7 @@
 //! `strata`: the command-line tool. One file per subcommand.
 
 mod cmd_albedo;
+mod cmd_bench;
 mod cmd_demo;
 mod cmd_eval;
 mod cmd_sample;
@@ -29,6 +30,8 @@ enum Command {
     Sample(cmd_sample::Args),
     /// The main job on built-in materials: tables of albedos and BSDF values, PNG lobe plots.
     Demo(cmd_demo::Args),
+    /// Throughput of the scalar reference and the wavefront engine on the representative stacks.
+    Bench(cmd_bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -38,6 +41,7 @@ fn main() -> ExitCode {
         Command::Albedo(a) => cmd_albedo::run(a),
         Command::Sample(a) => cmd_sample::run(a),
         Command::Demo(a) => cmd_demo::run(a),
+        Command::Bench(a) => cmd_bench::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

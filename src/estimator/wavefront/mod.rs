@@ -151,6 +151,30 @@ pub(crate) struct WalkOut {
     pub specular: bool,
 }
 
+thread_local! {
+    /// Waves kept for reuse by this thread (a few, of the sizes last used).
+    static WAVES: std::cell::RefCell<Vec<Walks>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Runs `f` on a wave of `slots` slots, reusing one this thread kept.
+fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
+    let kept = WAVES.with(|w| {
+        let mut w = w.borrow_mut();
+        let i = w.iter().position(|x| x.slots() == slots)?;
+        Some(w.swap_remove(i))
+    });
+    let mut ws = kept.unwrap_or_else(|| Walks::new(slots));
+    let r = f(&mut ws);
+    WAVES.with(|w| {
+        let mut w = w.borrow_mut();
+        if w.len() >= 4 {
+            w.remove(0);
+        }
+        w.push(ws);
+    });
+    r
+}
+
 /// The estimate of `samples` walks that all gave zero.
 fn zero_estimate(samples: u64) -> Estimate {
     let mut r = BlockReducer::new();
@@ -318,14 +342,13 @@ impl<W: Wide> Wavefront<W> {
             .max(W::LANES);
         let results: Vec<(Vec<WalkOut>, Stats)> = tasks
             .par_iter()
-            .map_init(
-                || Walks::new(slots),
-                |ws, task| {
+            .map(|task| {
+                with_wave(slots, |ws| {
                     let mut out = Vec::new();
                     let stats = self.run_task(queries, task, ws, &mut out);
                     (out, stats)
-                },
-            )
+                })
+            })
             .collect();
         let mut stats = Stats::default();
         let mut all = Vec::with_capacity(units.iter().map(|u| u.count as usize).sum());

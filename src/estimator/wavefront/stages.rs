@@ -14,7 +14,7 @@ use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, V3};
 use crate::medium;
-use crate::rng::{seed_state_from, LaneRng, Stream};
+use crate::rng::{seed_state_from, to_unit, xoshiro_step, LaneRng, Stream};
 
 /// A wave during one task: the walks, the task's outputs, the free slots.
 struct Wave<'a> {
@@ -184,13 +184,27 @@ impl<W: Wide> Wavefront<W> {
         let qi = query as usize;
         let d = [-q.wi[0][qi], -q.wi[1][qi], -q.wi[2][qi]];
         let wo = [q.wo[0][qi], q.wo[1][qi], q.wo[2][qi]];
-        let rng = seed_state_from(q.prefix[qi], k, Stream::Walk);
-        ws.init(slot as usize, q.e_in[qi], w, query, d, wo, q.e_out[qi], rng);
+        let mut state = seed_state_from(q.prefix[qi], k, Stream::Walk);
+        // The hero channel takes the stream's first uniform, as in the scalar walk.
+        let hero = events::hero_channel(to_unit(xoshiro_step(&mut state)));
+        ws.init(
+            slot as usize,
+            q.e_in[qi],
+            w,
+            query,
+            d,
+            wo,
+            q.e_out[qi],
+            state,
+            hero,
+        );
     }
 
-    /// The lane part of starting walks: the hero channel and (eval) the
-    /// adjoint chain.
+    /// The lane part of starting eval walks: the adjoint chain.
     fn launch(&self, q: &Queries, ws: &mut Walks, launched: &[(u32, u64)]) {
+        if q.mode != Mode::Eval || self.layout.n < 2 {
+            return;
+        }
         for chunk in launched.chunks(W::LANES) {
             let mut idx = [chunk[0].0; 64];
             for (j, &(s, _)) in chunk.iter().enumerate() {
@@ -199,10 +213,7 @@ impl<W: Wide> Wavefront<W> {
             let idx = &idx[..W::LANES];
             let active = W::mask_from_bitmask(lane_bits(chunk.len()));
             let mut c = Chunk::<W>::gather(ws, idx, active, Stage::Launch);
-            c.hero = events::hero_channel(c.rng.uniform(active));
-            if q.mode == Mode::Eval && self.layout.n >= 2 {
-                self.launch_chain(q, ws, &mut c, chunk, idx);
-            }
+            self.launch_chain(q, ws, &mut c, chunk, idx);
             c.scatter(ws, idx, Stage::Launch);
         }
     }
@@ -252,11 +263,14 @@ impl<W: Wide> Wavefront<W> {
         let mut len = 1usize;
         while alive.any() && len < MAX_CHAIN {
             let j = W::select(alive, last.start, W::zero());
-            let iface = InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize);
-            let cont = alive & iface.smooth;
+            // Only delta interfaces continue the chain (checked before the
+            // per-lane gather of the interfaces, which is costly).
+            let smooth = W::Mask::from_fn(|k| self.stack.interface(j.lane(k) as usize).smooth);
+            let cont = alive & smooth;
             if !cont.any() {
                 break;
             }
+            let iface = InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize);
             let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
             let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
             let up = c2.u.z.lt(W::zero());

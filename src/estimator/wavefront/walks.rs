@@ -127,6 +127,7 @@ impl Walks {
         wo: [f32; 3],
         e_out: f32,
         rng: [u32; 4],
+        hero: f32,
     ) {
         self.key[s] = key;
         self.walk[s] = walk;
@@ -143,6 +144,7 @@ impl Walks {
         r[f::FIRST] = 1.0;
         r[f::SPECULAR] = 1.0;
         r[f::Z] = 0.0;
+        r[f::HERO] = hero;
         r[f::LINKS] = 0.0;
         for (k, v) in rng.into_iter().enumerate() {
             r[f::RNG + k] = f32::from_bits(v);
