@@ -1,16 +1,51 @@
 //! `strata`: the command-line tool. One file per subcommand.
+//!
+//! Each subcommand is a module `cmd_NAME` with `pub struct Args` (clap) and
+//! `pub fn run(Args) -> Result<(), String>`. Adding one is one line in the
+//! `commands!` list below (plus its help text as a doc comment). Every error
+//! is printed to stderr as `strata: MESSAGE` with a non-zero exit status.
 
-mod cmd_albedo;
-mod cmd_bench;
-mod cmd_demo;
-mod cmd_eval;
-mod cmd_sample;
 mod common;
 mod output;
 mod plot;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+
+/// Declares the subcommand modules, the `Command` enum and its dispatch from
+/// one list of `Variant => module` entries.
+macro_rules! commands {
+    ($($(#[$doc:meta])* $variant:ident => $module:ident,)*) => {
+        $(mod $module;)*
+
+        /// The subcommands.
+        #[derive(Subcommand)]
+        enum Command {
+            $($(#[$doc])* $variant($module::Args),)*
+        }
+
+        impl Command {
+            fn run(self) -> Result<(), String> {
+                match self {
+                    $(Command::$variant(args) => $module::run(args),)*
+                }
+            }
+        }
+    };
+}
+
+commands! {
+    /// Evaluate f(wi, wo): JSON lines {"wi":[..],"wo":[..]} on stdin, one JSON line per query on stdout.
+    Eval => cmd_eval,
+    /// Directional albedo: reflected and transmitted fractions.
+    Albedo => cmd_albedo,
+    /// Sample outgoing directions: one JSON line {"wo":[..],"weight":[..],..} per walk.
+    Sample => cmd_sample,
+    /// The main job on built-in materials: tables of albedos and BSDF values, PNG lobe plots.
+    Demo => cmd_demo,
+    /// Throughput of the scalar reference and the wavefront engine on the representative stacks.
+    Bench => cmd_bench,
+}
 
 /// Layered BSDFs by position-free Monte Carlo.
 #[derive(Parser)]
@@ -20,30 +55,8 @@ struct Cli {
     command: Command,
 }
 
-#[derive(Subcommand)]
-enum Command {
-    /// Evaluate f(wi, wo): JSON lines {"wi":[..],"wo":[..]} on stdin, one JSON line per query on stdout.
-    Eval(cmd_eval::Args),
-    /// Directional albedo: reflected and transmitted fractions.
-    Albedo(cmd_albedo::Args),
-    /// Sample outgoing directions: one JSON line {"wo":[..],"weight":[..],..} per walk.
-    Sample(cmd_sample::Args),
-    /// The main job on built-in materials: tables of albedos and BSDF values, PNG lobe plots.
-    Demo(cmd_demo::Args),
-    /// Throughput of the scalar reference and the wavefront engine on the representative stacks.
-    Bench(cmd_bench::Args),
-}
-
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Eval(a) => cmd_eval::run(a),
-        Command::Albedo(a) => cmd_albedo::run(a),
-        Command::Sample(a) => cmd_sample::run(a),
-        Command::Demo(a) => cmd_demo::run(a),
-        Command::Bench(a) => cmd_bench::run(a),
-    };
-    match result {
+    match Cli::parse().command.run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("strata: {e}");

@@ -260,13 +260,14 @@ where
     };
     for &r in &rings {
         chart.draw_series(LineSeries::new(arc(r, a_lo, a_hi), grid.stroke_width(1)))?;
-        // Ring labels along the surface line, where every lobe is near zero.
+        // Ring labels along the surface line (where every lobe is near zero),
+        // ending at their ring.
         chart.draw_series(std::iter::once(Text::new(
             fmt_value(r),
             (r, 0.0),
             font(14.0)
                 .color(&RGBColor(90, 90, 90))
-                .pos(Pos::new(HPos::Center, VPos::Top)),
+                .pos(Pos::new(HPos::Right, VPos::Top)),
         )))?;
     }
     let mut a = a_lo;
