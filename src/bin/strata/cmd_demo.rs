@@ -31,28 +31,13 @@ pub struct Args {
     seed: u64,
 }
 
-/// The built-in materials: `(file stem, TOML text)`.
-pub const MATERIALS: &[(&str, &str)] = &[
-    (
-        "clear_coat_lambertian",
-        include_str!("../../../examples/materials/clear_coat_lambertian.toml"),
-    ),
-    (
-        "coated_copper",
-        include_str!("../../../examples/materials/coated_copper.toml"),
-    ),
-    (
-        "varnished_wood",
-        include_str!("../../../examples/materials/varnished_wood.toml"),
-    ),
-    (
-        "scattering_slab",
-        include_str!("../../../examples/materials/scattering_slab.toml"),
-    ),
-    (
-        "validation1",
-        include_str!("../../../examples/materials/validation1.toml"),
-    ),
+/// The built-in materials the demo shows (names in `strata::materials`).
+pub const MATERIALS: &[&str] = &[
+    "clear_coat_lambertian",
+    "coated_copper",
+    "varnished_wood",
+    "scattering_slab",
+    "validation1",
 ];
 
 /// Incidence angles of the albedo table (degrees).
@@ -140,10 +125,10 @@ pub fn run(args: Args) -> Result<(), String> {
 
     let bsdfs: Vec<(String, LayeredBsdf)> = MATERIALS
         .iter()
-        .map(|(name, text)| {
-            LayerStack::from_toml_str(text)
+        .map(|&name| {
+            strata::materials::builtin(name)
                 .map(|s| (name.to_string(), LayeredBsdf::new(s).seed(args.seed)))
-                .map_err(|e| format!("built-in material {name}: {e}"))
+                .ok_or_else(|| format!("unknown built-in material {name}"))
         })
         .collect::<Result<_, _>>()?;
 
