@@ -1,0 +1,70 @@
+//! Estimators, scalar reference against the wavefront engine, on the
+//! representative stacks (`strata::materials::REPRESENTATIVE`): the same eval
+//! batch (same seeds, so the same walks) on the scalar engine, on the
+//! wavefront on one thread, and on the wavefront's specialized and general
+//! walks. Throughput is in queries per second.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use std::hint::black_box;
+use strata::estimator::scalar::ScalarEngine;
+use strata::estimator::wavefront::{Plan, Wavefront};
+use strata::lane::F32x8;
+use strata::Settings;
+
+const QUERIES: usize = 16;
+const SAMPLES: u64 = 256;
+
+fn pairs() -> Vec<([f64; 3], [f64; 3])> {
+    let dir = |t: f64, p: f64| {
+        let (t, p) = (t.to_radians(), p.to_radians());
+        [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
+    };
+    (0..QUERIES)
+        .map(|k| {
+            let u = (k as f64 + 0.5) / QUERIES as f64;
+            (dir(80.0 * u, 0.0), dir(80.0 * (1.0 - u), 137.0 * k as f64))
+        })
+        .collect()
+}
+
+fn estimators(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let pairs = pairs();
+    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    for &name in strata::materials::REPRESENTATIVE {
+        let stack = strata::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("eval/{name}"));
+        g.throughput(Throughput::Elements(QUERIES as u64));
+        let sc = ScalarEngine::<f32>::new(&stack, Settings::default());
+        g.bench_function(BenchmarkId::new("scalar", 1), |b| {
+            b.iter(|| {
+                let s: f64 = pairs
+                    .iter()
+                    .zip(&keys)
+                    .map(|(&(wi, wo), &k)| sc.eval(wi, wo, SAMPLES, 1, k).value[0])
+                    .sum();
+                black_box(s)
+            })
+        });
+        for (label, plan) in [
+            ("wavefront", Plan::Specialized),
+            ("wavefront-general", Plan::General),
+        ] {
+            let wf = Wavefront::<F32x8>::new(&stack, Settings::default(), plan);
+            g.bench_function(BenchmarkId::new(label, 1), |b| {
+                b.iter(|| pool.install(|| black_box(wf.eval_batch(&pairs, SAMPLES, 1, &keys).0)))
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
+    targets = estimators
+}
+criterion_main!(benches);
