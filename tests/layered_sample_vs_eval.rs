@@ -23,10 +23,10 @@
 //!   by about 1.6× (mean z² about 0.4), which would blunt the aggregate check.
 //!
 //! Decision: per bin and channel z = (H_b - E_b) / √(σ_H² + σ_E²) must satisfy
-//! |z| < 4.5. There are ~1700 bin-channel comparisons below, about 600
+//! |z| < 4.5. There are ~1900 bin-channel comparisons below, about 650
 //! independent ones (the channels share their walks). Šidák: for a normal z,
 //! P(|z| > 4.5) = 6.8e-6 per comparison, so the family-wise false-alarm
-//! probability is 1 - (1 - 6.8e-6)^600 ≈ 0.4%; σ_E has about 31 degrees of
+//! probability is 1 - (1 - 6.8e-6)^650 ≈ 0.4%; σ_E has about 31 degrees of
 //! freedom (32 pairs), and were it the only error the tail would be that of
 //! Student's t₃₁, 9e-5 per comparison, 5% family-wise, so 4.5 is as low as
 //! the threshold can go. The seeds are fixed, so the test is deterministic.
@@ -242,6 +242,25 @@ const THREE_INTERFACES: &str = r#"
     interface = { kind = "conductor", preset = "Au", roughness = 0.3 }
 "#;
 
+const ANISOTROPIC: &str = r#"
+    [[layers]]
+    interface = { kind = "dielectric", ior = 1.6, roughness = [0.15, 0.5] }
+    medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.7, phase = { kind = "hg", g = 0.8 } }
+    [[layers]]
+    interface = { kind = "conductor", preset = "Au", roughness = [0.4, 0.2], distribution = "beckmann", shadowing = "separable" }
+"#;
+
+const SMOOTH_STACK: &str = r#"
+    [[layers]]
+    interface = { kind = "dielectric", ior = 1.5 }
+    medium = { thickness = 0.5, sigma_t = [0.2, 0.6, 1.0], albedo = 0.0 }
+    [[layers]]
+    interface = { kind = "dielectric", ior = 1.2 }
+    medium = { thickness = 1.0, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.4 } }
+    [[layers]]
+    interface = { kind = "diffuse", albedo = 0.7 }
+"#;
+
 #[test]
 fn scattering_varnish_sample_matches_eval() {
     for (q, theta) in [30.0, 75.0].into_iter().enumerate() {
@@ -297,4 +316,30 @@ fn smooth_coat_and_three_interfaces_sample_matches_eval() {
         wi: (45.0, 90.0),
     };
     check(&case, 300_000, 125, 41);
+}
+
+/// Anisotropic GGX over an anisotropic Beckmann conductor with separable
+/// shadowing: the lobes depend on φ, and Beckmann is not sampled by visible
+/// normals, so its sampling weights differ from GGX's.
+#[test]
+fn anisotropic_and_beckmann_sample_matches_eval() {
+    let case = Case {
+        label: "anisotropic / Beckmann",
+        toml: ANISOTROPIC,
+        wi: (55.0, 30.0),
+    };
+    check(&case, 300_000, 125, 50);
+}
+
+/// Two smooth interfaces above a scattering layer: next-event estimation
+/// reaches the deep layer only through a chain of delta refractions (with
+/// their Fresnel, η² and transmittance factors).
+#[test]
+fn smooth_chain_to_a_deep_medium_sample_matches_eval() {
+    let case = Case {
+        label: "smooth / absorber / smooth / scatterer / diffuse",
+        toml: SMOOTH_STACK,
+        wi: (35.0, 0.0),
+    };
+    check(&case, 300_000, 125, 60);
 }
