@@ -113,3 +113,33 @@ fn smooth_coat_over_lambertian_matches_closed_form_f64() {
         check_coat::<f64>(eta, &PAIRS[..4], 60_000, 12, "f64");
     }
 }
+
+/// The same closed form through the public API (`LayeredBsdf`), which
+/// normalizes glam directions and derives its own query keys.
+#[test]
+fn smooth_coat_over_lambertian_through_the_public_api() {
+    let eta = 1.5;
+    let st = stack(&format!(
+        r#"
+        [[layers]]
+        interface = {{ kind = "dielectric", ior = {eta} }}
+        [[layers]]
+        interface = {{ kind = "diffuse", albedo = [{}, {}, {}] }}
+        "#,
+        RHO[0], RHO[1], RHO[2]
+    ));
+    let bsdf = strata::LayeredBsdf::new(st).samples(60_000).seed(3);
+    let fb = fbar_inside(eta);
+    for &(ti, to, po) in &PAIRS[1..4] {
+        let (wi, wo) = (dir(ti, 0.0), dir(to, po));
+        // Not normalized on purpose: the API normalizes.
+        let e = bsdf
+            .eval(vec3(wi) * 2.5, vec3(wo) * 0.5)
+            .expect("valid directions");
+        for (c, &rho) in RHO.iter().enumerate() {
+            let exact = closed_form(eta, fb, rho, wi[2], wo[2]);
+            let what = format!("api: rho {rho} θi {ti} θo {to}");
+            assert_z(&what, e.value[c], exact, e.stderr[c], 4.0, 1e-4 * exact);
+        }
+    }
+}

@@ -192,29 +192,6 @@ impl Acc {
     }
 }
 
-/// Midpoint-rule integral over the hemisphere on the side of `sign` of
-/// `f(w) |cos θ|`, on an `n_mu × n_phi` grid in (cos θ, φ) (solid angle
-/// `dμ dφ`).
-pub fn hemisphere_integral(
-    sign: f64,
-    n_mu: usize,
-    n_phi: usize,
-    f: impl Fn([f64; 3]) -> f64,
-) -> f64 {
-    let (dmu, dphi) = (1.0 / n_mu as f64, 2.0 * PI / n_phi as f64);
-    let mut s = 0.0;
-    for i in 0..n_mu {
-        let mu = (i as f64 + 0.5) * dmu;
-        let st = (1.0 - mu * mu).sqrt();
-        for j in 0..n_phi {
-            let phi = (j as f64 + 0.5) * dphi;
-            let w = [st * phi.cos(), st * phi.sin(), sign * mu];
-            s += f(w) * mu;
-        }
-    }
-    s * dmu * dphi
-}
-
 /// SplitMix64: a tiny deterministic generator for quadrature jitter.
 #[derive(Clone, Debug)]
 pub struct SplitMix(pub u64);
