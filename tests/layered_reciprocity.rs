@@ -7,8 +7,8 @@
 //! from wi and connects to wo), so the two sides of each relation are
 //! independent estimates by different paths: a strong check of the
 //! next-event, MIS and η² bookkeeping. Each comparison is
-//! z = (a - b) / √(σa² + σb²) with |z| < 4: about 150 comparisons, a
-//! false-alarm probability below 1% for a random seed (seeds fixed). Every
+//! z = (a - b) / √(σa² + σb²) with |z| < 4: about 170 comparisons, a
+//! false-alarm probability of about 1% for a random seed (seeds fixed). Every
 //! estimate must also be precise (relative standard error < 10%), so that the
 //! n² factor of transmission (1.77 below) is far outside the tolerance.
 
