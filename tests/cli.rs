@@ -848,3 +848,69 @@ fn example_materials_round_trip_through_toml_and_json() {
     assert_eq!(a.interface(0).n_below, 2.0);
     assert_eq!(a.interface(1).albedo, [1.0; 3]);
 }
+
+#[test]
+fn engines_and_thread_counts_print_the_same_answers() {
+    let m = example("varnished_wood.toml");
+    let queries = "{\"wi\":[0,0,1],\"wo\":[0.3,0,1]}\n{\"wi\":[0.5,0.1,1],\"wo\":[-0.3,0.2,1]}\n";
+    let base = ["eval", "--material", &m, "--samples", "700"];
+    let reference = assert_ok(&run(
+        &[&base[..], &["--engine", "scalar"]].concat(),
+        queries,
+    ));
+    for extra in [
+        &["--engine", "wavefront"][..],
+        &["--threads", "1"],
+        &["--threads", "3"],
+    ] {
+        let out = assert_ok(&run(&[&base[..], extra].concat(), queries));
+        assert_eq!(out, reference, "eval {extra:?}");
+    }
+    let m = example("scattering_slab.toml");
+    let albedo = |extra: &[&str]| {
+        let args = [
+            &[
+                "albedo",
+                "--material",
+                &m,
+                "--theta",
+                "40",
+                "--samples",
+                "3000",
+            ][..],
+            extra,
+        ]
+        .concat();
+        assert_ok(&run(&args, ""))
+    };
+    assert_eq!(
+        albedo(&["--engine", "scalar"]),
+        albedo(&["--threads", "2"]),
+        "albedo"
+    );
+    let sample = |extra: &[&str]| {
+        let args = [
+            &[
+                "sample",
+                "--material",
+                &m,
+                "--wi",
+                "0.2,0,1",
+                "--count",
+                "300",
+            ][..],
+            extra,
+        ]
+        .concat();
+        assert_ok(&run(&args, ""))
+    };
+    assert_eq!(sample(&["--engine", "scalar"]), sample(&[]), "sample");
+    assert_fails_with(
+        &run(&[&base[..], &["--engine", "gpu"]].concat(), queries),
+        &["--engine", "gpu"],
+    );
+    assert_fails_with(
+        &run(&[&base[..], &["--threads", "0"]].concat(), queries),
+        &["--threads", "0"],
+    );
+}

@@ -2,6 +2,7 @@
 //!
 //! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`.
 
+use crate::common::EngineArgs;
 use crate::common::{load_material, stdout_failure};
 use std::io::Write;
 use std::path::PathBuf;
@@ -25,6 +26,8 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    #[command(flatten)]
+    engine: EngineArgs,
 }
 
 /// The unit direction at polar angle `theta_deg` and azimuth `phi_deg`.
@@ -49,7 +52,7 @@ pub fn run(args: Args) -> Result<(), String> {
         return Err(format!("--phi {}: must be finite", args.phi));
     }
     let stack = load_material(&args.material)?;
-    let bsdf = LayeredBsdf::new(stack).seed(args.seed);
+    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
     let wi = direction(args.theta, args.phi);
     let a = bsdf
         .albedo(wi, args.samples)

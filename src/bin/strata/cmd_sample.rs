@@ -6,7 +6,7 @@
 //! mean of `weight` over all lines is an unbiased estimate of the albedo R + T.
 //! If stdout is closed early (`| head`), the command stops quietly.
 
-use crate::common::{load_material, parse_vec3, stdout_failure};
+use crate::common::{load_material, parse_vec3, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -28,7 +28,12 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    #[command(flatten)]
+    engine: EngineArgs,
 }
+
+/// Walks sampled together (the wavefront engine batches them).
+const CHUNK: u64 = 1 << 16;
 
 /// One output line (fields in this order).
 #[derive(Serialize)]
@@ -43,16 +48,20 @@ struct Line {
 pub fn run(args: Args) -> Result<(), String> {
     let wi = parse_vec3("--wi", &args.wi)?;
     let stack = load_material(&args.material)?;
-    let bsdf = LayeredBsdf::new(stack).seed(args.seed);
+    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
     // Validate the direction once, naming the flag.
-    bsdf.sample(wi, 0)
-        .map_err(|e| format!("--wi {}: {e}", args.wi))?;
+    strata::Direction::new("wi", wi).map_err(|e| format!("--wi {}: {e}", args.wi))?;
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    for k in 0..args.count {
-        let s = bsdf
-            .sample(wi, k)
-            .map_err(|e| format!("--wi {}: {e}", args.wi))?;
+    let mut first = 0;
+    while first < args.count {
+        let n = CHUNK.min(args.count - first);
+        let index: Vec<u64> = (first..first + n).collect();
+        let samples = bsdf
+            .sample_batch(&vec![wi; n as usize], &index)
+            .map_err(|e| format!("--wi {}: {}", args.wi, e.error))?;
+        first += n;
+        for s in samples {
         let line = match s {
             Some(s) => Line {
                 wo: Some(s.wo.to_array()),
@@ -70,6 +79,7 @@ pub fn run(args: Args) -> Result<(), String> {
         let line = serde_json::to_string(&line).map_err(|e| format!("cannot format: {e}"))?;
         if let Err(e) = writeln!(out, "{line}") {
             return stdout_failure(e);
+        }
         }
     }
     out.flush().or_else(stdout_failure)

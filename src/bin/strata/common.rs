@@ -50,3 +50,29 @@ pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
         Err(format!("cannot write to stdout: {e}"))
     }
 }
+
+/// The engine flags shared by `eval`, `albedo` and `sample`.
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct EngineArgs {
+    /// Engine: the SIMD wavefront (default) or the scalar reference. Both give
+    /// the same results for the same seed.
+    #[arg(long, default_value = "wavefront")]
+    pub engine: strata::Engine,
+    /// Threads for the wavefront engine (default: every core). Results do not
+    /// depend on it.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub threads: Option<u64>,
+}
+
+impl EngineArgs {
+    /// Applies the flags to a BSDF.
+    pub fn apply(self, bsdf: strata::LayeredBsdf) -> Result<strata::LayeredBsdf, String> {
+        let bsdf = bsdf.engine(self.engine);
+        match self.threads {
+            Some(n) => bsdf
+                .threads(n as usize)
+                .map_err(|e| format!("--threads {n}: {e}")),
+            None => Ok(bsdf),
+        }
+    }
+}
