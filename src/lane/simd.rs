@@ -58,13 +58,14 @@ pub trait Wide: Lane + LaneBits {
     fn to_bit_lanes(self) -> Self::Bits;
     /// Integer lanes reinterpreted as floats.
     fn from_bit_lanes(b: Self::Bits) -> Self;
-    /// Loads fields `first..first + LANES` of records `recs[idx[j]]` and
-    /// transposes them: `out[k]` gets field `first + k` of every lane's record.
-    fn load_block<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize, out: &mut [Self]);
-    /// The inverse of [`Wide::load_block`]: stores fields `first..first + LANES`
-    /// of every lane's record, the last lane first (where `idx` repeats an
-    /// index, the lowest lane's record is the one that stays).
-    fn store_block<const R: usize>(vals: &[Self], recs: &mut [[f32; R]], idx: &[u32], first: usize);
+    /// Loads fields `first..first + 8` of records `recs[idx[j]]` (one record
+    /// per lane) and transposes them: element `k` holds field `first + k` of
+    /// every lane's record.
+    fn load8<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [Self; 8];
+    /// The inverse of [`Wide::load8`]: stores fields `first..first + 8` of
+    /// every lane's record, the last lane first (where `idx` repeats an index,
+    /// the lowest lane's record is the one that stays).
+    fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize);
 }
 
 /// Eight rows of eight floats, transposed.
@@ -370,12 +371,12 @@ macro_rules! wide_lane {
                 $name(wide::$f::from_bits(b))
             }
             #[inline(always)]
-            fn load_block<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize, out: &mut [Self]) {
-                $name::load_block_impl(recs, idx, first, out)
+            fn load8<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [Self; 8] {
+                $name::load8_impl(recs, idx, first)
             }
             #[inline(always)]
-            fn store_block<const R: usize>(vals: &[Self], recs: &mut [[f32; R]], idx: &[u32], first: usize) {
-                $name::store_block_impl(vals, recs, idx, first)
+            fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize) {
+                $name::store8_impl(vals, recs, idx, first)
             }
         }
     };
@@ -414,25 +415,17 @@ wide_lane!(
 
 impl F32x8 {
     #[inline(always)]
-    fn load_block_impl<const R: usize>(
-        recs: &[[f32; R]],
-        idx: &[u32],
-        first: usize,
-        out: &mut [Self],
-    ) {
-        let t = transpose8(rows8(recs, idx, first));
-        for (o, v) in out.iter_mut().zip(t) {
-            *o = F32x8(v);
-        }
+    fn load8_impl<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [Self; 8] {
+        transpose8(rows8(recs, idx, first)).map(F32x8)
     }
     #[inline(always)]
-    fn store_block_impl<const R: usize>(
-        vals: &[Self],
+    fn store8_impl<const R: usize>(
+        vals: [Self; 8],
         recs: &mut [[f32; R]],
         idx: &[u32],
         first: usize,
     ) {
-        let rows = transpose8(std::array::from_fn(|k| vals[k].0));
+        let rows = transpose8(vals.map(|v| v.0));
         for j in (0..8).rev() {
             recs[idx[j] as usize][first..first + 8].copy_from_slice(&rows[j].to_array());
         }
@@ -440,49 +433,34 @@ impl F32x8 {
 }
 
 impl F32x16 {
-    // A 16×16 transpose as four 8×8 ones (wide's own f32x16 transpose is
-    // lane by lane).
-    #[inline]
-    fn load_block_impl<const R: usize>(
-        recs: &[[f32; R]],
-        idx: &[u32],
-        first: usize,
-        out: &mut [Self],
-    ) {
-        let mut half = [[[0.0f32; 8]; 16]; 2]; // [slot half][field][lane in half]
-        for (h, lanes) in [&idx[..8], &idx[8..16]].into_iter().enumerate() {
-            for fh in 0..2 {
-                let t = transpose8(rows8(recs, lanes, first + 8 * fh));
-                for (k, v) in t.into_iter().enumerate() {
-                    half[h][8 * fh + k] = v.to_array();
-                }
-            }
-        }
-        for (k, o) in out.iter_mut().enumerate().take(16) {
+    // Two 8×8 transposes, one per half of the lanes.
+    #[inline(always)]
+    fn load8_impl<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [Self; 8] {
+        let lo = transpose8(rows8(recs, &idx[..8], first));
+        let hi = transpose8(rows8(recs, &idx[8..16], first));
+        std::array::from_fn(|k| {
             let mut a = [0.0f32; 16];
-            a[..8].copy_from_slice(&half[0][k]);
-            a[8..].copy_from_slice(&half[1][k]);
-            *o = F32x16::from_array(a);
-        }
+            a[..8].copy_from_slice(&lo[k].to_array());
+            a[8..].copy_from_slice(&hi[k].to_array());
+            F32x16::from_array(a)
+        })
     }
-    #[inline]
-    fn store_block_impl<const R: usize>(
-        vals: &[Self],
+    #[inline(always)]
+    fn store8_impl<const R: usize>(
+        vals: [Self; 8],
         recs: &mut [[f32; R]],
         idx: &[u32],
         first: usize,
     ) {
-        let lanes: [[f32; 16]; 16] = std::array::from_fn(|k| vals[k].to_array());
+        let lanes = vals.map(|v| v.to_array());
         for h in (0..2).rev() {
-            for fh in 0..2 {
-                let rows = transpose8(std::array::from_fn(|k| {
-                    let l = &lanes[8 * fh + k][8 * h..8 * h + 8];
-                    wide::f32x8::from(<[f32; 8]>::try_from(l).expect("8 lanes"))
-                }));
-                for j in (0..8).rev() {
-                    let r = &mut recs[idx[8 * h + j] as usize];
-                    r[first + 8 * fh..first + 8 * fh + 8].copy_from_slice(&rows[j].to_array());
-                }
+            let rows = transpose8(std::array::from_fn(|k| {
+                let l = &lanes[k][8 * h..8 * h + 8];
+                wide::f32x8::from(<[f32; 8]>::try_from(l).expect("8 lanes"))
+            }));
+            for j in (0..8).rev() {
+                let r = &mut recs[idx[8 * h + j] as usize];
+                r[first..first + 8].copy_from_slice(&rows[j].to_array());
             }
         }
     }

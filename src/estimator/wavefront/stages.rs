@@ -478,16 +478,18 @@ impl<W: Wide> Wavefront<W> {
             }
         }
         c.scatter(wave.ws, idx, stage);
+        let (exited, going) = (W::bitmask(exited), W::bitmask(cont & !stuck));
+        let up = W::bitmask(up);
         for j in Chunk::<W>::lanes(active) {
-            let slot = idx[j];
-            if exited.lane(j) {
+            let (slot, bit) = (idx[j], 1 << j);
+            if going & bit != 0 {
+                wave.ws.key[slot as usize] = keys[if up & bit != 0 { 0 } else { 1 }];
+            } else if exited & bit != 0 {
                 let o = self.exit_out(q, wave.ws, slot, &c, j);
                 wave.finish(slot, o);
-            } else if !cont.lane(j) || stuck.lane(j) {
+            } else {
                 let o = self.dead_out(&c, j);
                 wave.finish(slot, o);
-            } else {
-                wave.ws.key[slot as usize] = keys[if up.lane(j) { 0 } else { 1 }];
             }
         }
     }
@@ -583,12 +585,14 @@ impl<W: Wide> Wavefront<W> {
         let scattered = col & surv;
         c.scatter(wave.ws, idx, stage);
         let n = self.layout.n;
+        let (pass, scattered, up) = (W::bitmask(pass), W::bitmask(scattered), W::bitmask(up));
+        let keys = [(n + l) as u16, l as u16, (l + 1) as u16]; // stay, up, down
         for j in Chunk::<W>::lanes(active) {
-            let slot = idx[j];
-            if pass.lane(j) {
-                wave.ws.key[slot as usize] = self.layout.boundary(l, up.lane(j)) as u16;
-            } else if scattered.lane(j) {
-                wave.ws.key[slot as usize] = (n + l) as u16;
+            let (slot, bit) = (idx[j], 1 << j);
+            if scattered & bit != 0 {
+                wave.ws.key[slot as usize] = keys[0];
+            } else if pass & bit != 0 {
+                wave.ws.key[slot as usize] = keys[if up & bit != 0 { 1 } else { 2 }];
             } else {
                 let o = self.dead_out(&c, j);
                 wave.finish(slot, o);

@@ -5,8 +5,8 @@
 //! first link of the adjoint chain) is one record of [`REC`] floats, laid out
 //! in blocks of eight fields so that a stage loads only the blocks it uses:
 //! loading a chunk is a few vector loads and in-register transposes
-//! ([`Wide::load_block`]), which makes each block a structure-of-arrays tile
-//! of the chunk's walks. Cold columns (queue key, output slot, query, the rest
+//! ([`Wide::load8`]), which makes each block a structure-of-arrays tile of
+//! the chunk's walks. Cold columns (queue key, output slot, query, the rest
 //! of the chain) are read by index.
 //!
 //! A slot's `key` says which queue it is in: interface `i` (`key = i`),
@@ -22,34 +22,31 @@ pub const FREE: u16 = u16::MAX;
 /// Floats per walk record (a multiple of 16, so both lane widths tile it).
 pub const REC: usize = 48;
 
-/// Field offsets in a record, by block of eight.
+/// Field offsets in a record. Blocks of eight fields:
+///
+/// | block | fields | loaded by |
+/// |---|---|---|
+/// | 0 | direction (3), throughput (3), events, specular | every stage |
+/// | 1 | random state (4), first, hero, collisions, depth | every stage |
+/// | 2 | channel ratios (3), contribution (3), chain length, – | layer events, eval |
+/// | 3 | first link: direction (3), factor (3), MIS density, layer | eval |
+/// | 4 | first link: transmittance (3), start; `wo` (3), exit | eval |
 mod f {
-    // Block 0: every stage.
     pub const D: usize = 0;
     pub const BETA: usize = 3;
     pub const EVENTS: usize = 6;
     pub const SPECULAR: usize = 7;
-    // Block 1: every stage.
     pub const RNG: usize = 8;
     pub const FIRST: usize = 12;
     pub const HERO: usize = 13;
     pub const ORDER: usize = 14;
     pub const Z: usize = 15;
-    // Block 2: layer events, and eval.
     pub const RATIOS: usize = 16;
     pub const ACC: usize = 19;
     pub const LINKS: usize = 22;
-    // Blocks 3 and 4: eval (the chain's first link).
     pub const L0_U: usize = 24;
-    pub const L0_V: usize = 27;
-    pub const L0_MIS: usize = 30;
-    pub const L0_LAYER: usize = 31;
-    pub const L0_T: usize = 32;
-    pub const L0_START: usize = 35;
-    // The query's outgoing direction and exit (eval), beside the link.
     pub const WO: usize = 36;
     pub const E_OUT: usize = 39;
-    pub const END: usize = 40;
 }
 
 /// One segment of a walk's adjoint chain, with the transmittance of a full
@@ -215,54 +212,16 @@ pub enum Stage {
 }
 
 impl Stage {
-    /// Fields loaded: always blocks 0–1; layer events and eval add block 2;
-    /// eval adds the chain's first link.
-    fn loads(self) -> usize {
+    /// Blocks loaded and stored: 0 and 1 always; 2 (ratios, contribution,
+    /// chain length) for layer events and eval; 3 and 4 (the chain's first
+    /// link, `wo`) for eval, stored only by a launch.
+    #[inline(always)]
+    fn blocks(self) -> (bool, bool, bool) {
         match self {
-            Stage::Interface { eval: false } => f::RATIOS,
-            Stage::Layer { eval: false } => f::L0_U,
-            Stage::Interface { eval: true } | Stage::Layer { eval: true } | Stage::Launch => f::END,
+            Stage::Interface { eval } => (eval, eval, false),
+            Stage::Layer { eval } => (true, eval, false),
+            Stage::Launch => (true, true, true),
         }
-    }
-    /// Fields stored (only a launch writes the chain's first link).
-    fn stores(self) -> usize {
-        match self {
-            Stage::Launch => f::END,
-            _ => self.loads().min(f::L0_U),
-        }
-    }
-}
-
-/// The fields `0..hi` of the chunk's records, in lanes (rounded up to whole
-/// blocks of `W::LANES` fields).
-struct Fields<W: Wide>([W; REC]);
-
-impl<W: Wide> Fields<W> {
-    #[inline(always)]
-    fn load(ws: &Walks, idx: &[u32], hi: usize) -> Self {
-        let mut v = [W::zero(); REC];
-        for first in (0..hi).step_by(W::LANES) {
-            W::load_block(&ws.rec, idx, first, &mut v[first..first + W::LANES]);
-        }
-        Fields(v)
-    }
-    #[inline(always)]
-    fn store(&self, ws: &mut Walks, idx: &[u32], hi: usize) {
-        for first in (0..hi).step_by(W::LANES) {
-            W::store_block(&self.0[first..first + W::LANES], &mut ws.rec, idx, first);
-        }
-    }
-    #[inline(always)]
-    fn v3(&self, at: usize) -> V3<W> {
-        V3::new(self.0[at], self.0[at + 1], self.0[at + 2])
-    }
-    #[inline(always)]
-    fn rgb(&self, at: usize) -> Rgb<W> {
-        Rgb::new(self.0[at], self.0[at + 1], self.0[at + 2])
-    }
-    #[inline(always)]
-    fn put3(&mut self, at: usize, x: [W; 3]) {
-        self.0[at..at + 3].copy_from_slice(&x);
     }
 }
 
@@ -271,66 +230,105 @@ impl<W: Wide> Chunk<W> {
     /// repeat the first slot and are overwritten by it on the way back).
     #[inline(always)]
     pub fn gather(ws: &Walks, idx: &[u32], active: W::Mask, stage: Stage) -> Self {
-        let x = Fields::<W>::load(ws, idx, stage.loads());
+        let (ratios, eval, _) = stage.blocks();
         let half = W::splat(0.5);
-        Chunk {
+        let b0 = W::load8(&ws.rec, idx, 0);
+        let b1 = W::load8(&ws.rec, idx, 8);
+        let mut c = Chunk {
             active,
-            z: x.0[f::Z],
-            d: x.v3(f::D),
-            beta: x.rgb(f::BETA),
-            ratios: x.rgb(f::RATIOS),
-            hero: x.0[f::HERO],
-            events: x.0[f::EVENTS],
-            order: x.0[f::ORDER],
-            first: x.0[f::FIRST].gt(half),
-            specular: x.0[f::SPECULAR].gt(half),
-            acc: x.rgb(f::ACC),
-            rng: LaneRng::from_bits(std::array::from_fn(|k| x.0[f::RNG + k].to_bit_lanes())),
-            links: x.0[f::LINKS],
+            d: V3::new(b0[0], b0[1], b0[2]),
+            beta: Rgb::new(b0[3], b0[4], b0[5]),
+            events: b0[6],
+            specular: b0[7].gt(half),
+            rng: LaneRng::from_bits(std::array::from_fn(|k| b1[k].to_bit_lanes())),
+            first: b1[4].gt(half),
+            hero: b1[5],
+            order: b1[6],
+            z: b1[7],
+            ratios: Rgb::one(),
+            acc: Rgb::zero(),
+            links: W::zero(),
             link0: LinkLanes {
                 conn: Connection {
-                    u: x.v3(f::L0_U),
-                    v: x.rgb(f::L0_V),
-                    mis_pdf: x.0[f::L0_MIS],
+                    u: V3::z_axis(),
+                    v: Rgb::zero(),
+                    mis_pdf: W::zero(),
                 },
-                t: x.rgb(f::L0_T),
-                layer: x.0[f::L0_LAYER],
-                start: x.0[f::L0_START],
+                t: Rgb::one(),
+                layer: W::zero(),
+                start: W::zero(),
             },
-            wo: x.v3(f::WO),
-            e_out: x.0[f::E_OUT],
+            wo: V3::z_axis(),
+            e_out: W::zero(),
+        };
+        if ratios || eval {
+            let b2 = W::load8(&ws.rec, idx, 16);
+            c.ratios = Rgb::new(b2[0], b2[1], b2[2]);
+            c.acc = Rgb::new(b2[3], b2[4], b2[5]);
+            c.links = b2[6];
         }
+        if eval {
+            let b3 = W::load8(&ws.rec, idx, 24);
+            let b4 = W::load8(&ws.rec, idx, 32);
+            c.link0 = LinkLanes {
+                conn: Connection {
+                    u: V3::new(b3[0], b3[1], b3[2]),
+                    v: Rgb::new(b3[3], b3[4], b3[5]),
+                    mis_pdf: b3[6],
+                },
+                layer: b3[7],
+                t: Rgb::new(b4[0], b4[1], b4[2]),
+                start: b4[3],
+            };
+            c.wo = V3::new(b4[4], b4[5], b4[6]);
+            c.e_out = b4[7];
+        }
+        c
     }
 
-    /// Stores the chunk back (every lane; see [`Wide::store_block`]).
+    /// Stores the chunk back (every lane; see [`Wide::store8`]).
     #[inline(always)]
     pub fn scatter(&self, ws: &mut Walks, idx: &[u32], stage: Stage) {
+        let (ratios, eval, link) = stage.blocks();
         let flag = |m: W::Mask| W::select(m, W::one(), W::zero());
-        let mut x = Fields::<W>([W::zero(); REC]);
-        x.put3(f::D, [self.d.x, self.d.y, self.d.z]);
-        x.put3(f::BETA, [self.beta.r, self.beta.g, self.beta.b]);
-        x.0[f::EVENTS] = self.events;
-        x.0[f::SPECULAR] = flag(self.specular);
-        for (k, b) in self.rng.to_bits().into_iter().enumerate() {
-            x.0[f::RNG + k] = W::from_bit_lanes(b);
+        let (d, b) = (self.d, self.beta);
+        let b0 = [
+            d.x,
+            d.y,
+            d.z,
+            b.r,
+            b.g,
+            b.b,
+            self.events,
+            flag(self.specular),
+        ];
+        W::store8(b0, &mut ws.rec, idx, 0);
+        let r = self.rng.to_bits().map(W::from_bit_lanes);
+        let b1 = [
+            r[0],
+            r[1],
+            r[2],
+            r[3],
+            flag(self.first),
+            self.hero,
+            self.order,
+            self.z,
+        ];
+        W::store8(b1, &mut ws.rec, idx, 8);
+        if ratios || eval {
+            let (r, a) = (self.ratios, self.acc);
+            let b2 = [r.r, r.g, r.b, a.r, a.g, a.b, self.links, W::zero()];
+            W::store8(b2, &mut ws.rec, idx, 16);
         }
-        x.0[f::FIRST] = flag(self.first);
-        x.0[f::HERO] = self.hero;
-        x.0[f::ORDER] = self.order;
-        x.0[f::Z] = self.z;
-        x.put3(f::RATIOS, [self.ratios.r, self.ratios.g, self.ratios.b]);
-        x.put3(f::ACC, [self.acc.r, self.acc.g, self.acc.b]);
-        x.0[f::LINKS] = self.links;
-        let k = &self.link0;
-        x.put3(f::L0_U, [k.conn.u.x, k.conn.u.y, k.conn.u.z]);
-        x.put3(f::L0_V, [k.conn.v.r, k.conn.v.g, k.conn.v.b]);
-        x.0[f::L0_MIS] = k.conn.mis_pdf;
-        x.0[f::L0_LAYER] = k.layer;
-        x.put3(f::L0_T, [k.t.r, k.t.g, k.t.b]);
-        x.0[f::L0_START] = k.start;
-        x.put3(f::WO, [self.wo.x, self.wo.y, self.wo.z]);
-        x.0[f::E_OUT] = self.e_out;
-        x.store(ws, idx, stage.stores());
+        if link {
+            let k = &self.link0;
+            let (u, v, t) = (k.conn.u, k.conn.v, k.t);
+            let b3 = [u.x, u.y, u.z, v.r, v.g, v.b, k.conn.mis_pdf, k.layer];
+            W::store8(b3, &mut ws.rec, idx, 24);
+            let w = self.wo;
+            let b4 = [t.r, t.g, t.b, k.start, w.x, w.y, w.z, self.e_out];
+            W::store8(b4, &mut ws.rec, idx, 32);
+        }
     }
 
     /// The lanes set in `m`.
