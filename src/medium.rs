@@ -51,7 +51,7 @@ pub fn transmittance<L: Lane>(sigma_t: Rgb<L>, dz: L, mu: L) -> Rgb<L> {
 /// channels weights channel `c` by `1 / mean(r)`; the kernel keeps `mean(r) = 1`
 /// by renormalizing, so `β` is always the MIS-weighted throughput. (method.md
 /// §7 draws a channel per event instead: unbiased too, but its weights multiply
-/// along a path and their variance explodes; see docs/numerics.md.)
+/// along a path and their variance grows; see docs/architecture.md.)
 #[derive(Clone, Copy, Debug)]
 pub struct FreeFlight<L: Lane> {
     /// Lanes where the walk collides inside the layer.
