@@ -265,7 +265,12 @@ impl<W: Wide> Wavefront<W> {
             let j = W::select(alive, last.start, W::zero());
             // Only delta interfaces continue the chain (checked before the
             // per-lane gather of the interfaces, which is costly).
-            let smooth = W::Mask::from_fn(|k| self.stack.interface(j.lane(k) as usize).smooth);
+            let mut smooth = W::Mask::splat(false);
+            for (i, it) in self.stack.interfaces().iter().enumerate() {
+                if it.smooth {
+                    smooth = smooth | j.eq(W::splat(i as f64));
+                }
+            }
             let cont = alive & smooth;
             if !cont.any() {
                 break;
