@@ -200,6 +200,11 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     /// The rough exits `(exit, layer next to it, interface across)`: where
     /// path continuations connect.
     exits: Vec<(usize, usize, usize)>,
+    /// Interfaces where some eval walk may connect to the viewer (a chain
+    /// link starts there): the others skip loading the chain.
+    connects_at: Vec<bool>,
+    /// Layers where some eval walk may connect to the viewer.
+    connects_in: Vec<bool>,
     slots: usize,
 }
 
@@ -233,6 +238,17 @@ impl<W: Wide> Wavefront<W> {
         if stack.transmissive() && n > 1 {
             exits.push(n - 1);
         }
+        // Chain links start where the exit regions are; a smooth exit's chain
+        // may continue anywhere.
+        let chains = exits.iter().any(|&e| stack.interface(e).smooth);
+        let mut connects_at = vec![chains; n];
+        let mut connects_in = vec![chains; n.saturating_sub(1)];
+        for &e in &exits {
+            if let Some((l0, k0)) = layout.exit_region(e) {
+                connects_at[k0] = true;
+                connects_in[l0] = true;
+            }
+        }
         let exits = exits
             .into_iter()
             .filter(|&e| !stack.interface(e).smooth)
@@ -240,6 +256,8 @@ impl<W: Wide> Wavefront<W> {
             .collect();
         Wavefront {
             exits,
+            connects_at,
+            connects_in,
             stack: stack.clone(),
             layout: Layout::new(stack),
             settings,

@@ -395,13 +395,14 @@ impl<W: Wide> Wavefront<W> {
         let n = self.layout.n;
         let eval = q.mode == Mode::Eval;
         let mis = self.settings.mis;
-        let stage = Stage::Interface { eval };
+        let links = eval && self.connects_at[i];
+        let stage = Stage::Interface { acc: eval, links };
         let mut c = Chunk::<W>::gather(wave.ws, idx, active, stage);
         let iface = &self.ifaces[i];
         let a = -c.d;
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from this surface vertex.
-        if eval {
+        if links {
             let at_i = W::splat(i as f64);
             let first = c.first;
             Self::connect_links(
@@ -428,7 +429,7 @@ impl<W: Wide> Wavefront<W> {
         let d = s.b;
         let up = d.z.gt(W::zero());
         // Path continuation towards a rough exit.
-        if eval {
+        if links {
             for &(e, l0, k0) in &self.exits {
                 if k0 != i {
                     continue;
@@ -503,7 +504,8 @@ impl<W: Wide> Wavefront<W> {
     fn layer_stage(&self, q: &Queries, wave: &mut Wave, idx: &[u32], active: W::Mask, l: usize) {
         let eval = q.mode == Mode::Eval;
         let mis = self.settings.mis;
-        let stage = Stage::Layer { eval };
+        let links = eval && self.connects_in[l];
+        let stage = Stage::Layer { acc: eval, links };
         let mut c = Chunk::<W>::gather(wave.ws, idx, active, stage);
         let med = &self.media[l];
         let h = med.thickness;
@@ -536,7 +538,7 @@ impl<W: Wide> Wavefront<W> {
         c.z = W::select(col, move_depth(c.z, d.z, ff.distance, h), c.z);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
-        if eval {
+        if links {
             let at_l = W::splat(l as f64);
             let z = c.z;
             Self::connect_links(
@@ -558,7 +560,7 @@ impl<W: Wide> Wavefront<W> {
         let dn = medium::hg_sample(med.g, d, u1, u2);
         c.specular = c.specular & !col;
         // Path continuation from the collision towards a rough exit.
-        if eval && mis {
+        if links && mis {
             for &(e, l0, _) in &self.exits {
                 if l0 != l {
                     continue;

@@ -197,15 +197,19 @@ pub struct Chunk<W: Wide> {
 /// of the record it uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
-    /// An interface event (`eval`: with the adjoint chain and contribution).
+    /// An interface event.
     Interface {
-        /// The walks connect to the viewer.
-        eval: bool,
+        /// The walks accumulate a contribution (eval).
+        acc: bool,
+        /// Some walk may connect to the viewer here (the chain's links).
+        links: bool,
     },
     /// A layer event.
     Layer {
-        /// The walks connect to the viewer.
-        eval: bool,
+        /// The walks accumulate a contribution (eval).
+        acc: bool,
+        /// Some walk may connect to the viewer here (the chain's links).
+        links: bool,
     },
     /// Starting walks (hero channel, adjoint chain): everything.
     Launch,
@@ -214,12 +218,12 @@ pub enum Stage {
 impl Stage {
     /// Blocks loaded and stored: 0 and 1 always; 2 (ratios, contribution,
     /// chain length) for layer events and eval; 3 and 4 (the chain's first
-    /// link, `wo`) for eval, stored only by a launch.
+    /// link, `wo`) where walks may connect, stored only by a launch.
     #[inline(always)]
     fn blocks(self) -> (bool, bool, bool) {
         match self {
-            Stage::Interface { eval } => (eval, eval, false),
-            Stage::Layer { eval } => (true, eval, false),
+            Stage::Interface { acc, links } => (acc, links, false),
+            Stage::Layer { links, .. } => (true, links, false),
             Stage::Launch => (true, true, true),
         }
     }
