@@ -175,11 +175,11 @@ fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
     r
 }
 
-/// The estimate of `samples` walks that all gave zero.
-fn zero_estimate(samples: u64) -> Estimate {
+/// The reduction of `samples` walks that all gave zero.
+fn zero_sum(samples: u64) -> MeanVar {
     let mut r = BlockReducer::new();
     (0..samples).for_each(|_| r.push([0.0; 3]));
-    r.finish().estimate()
+    r.finish()
 }
 
 /// The layered BSDF on SIMD lanes, prepared for one stack.
@@ -330,89 +330,118 @@ impl<W: Wide> Wavefront<W> {
         q
     }
 
-    /// Runs `units` cut into tasks over rayon; returns every walk's output in
-    /// unit order, and the counters.
-    fn run(&self, queries: &Queries, units: &[Unit]) -> (Vec<WalkOut>, Stats) {
-        // Tasks: consecutive units up to TASK_WALKS walks (independent of threads).
-        let mut tasks: Vec<&[Unit]> = Vec::new();
-        let mut start = 0;
-        let mut walks = 0u64;
-        for (k, u) in units.iter().enumerate() {
-            if walks > 0 && walks + u.count as u64 > TASK_WALKS {
-                tasks.push(&units[start..k]);
-                start = k;
-                walks = 0;
-            }
-            walks += u.count as u64;
+    /// Runs the walks of `units` (an indexable sequence of `count` units)
+    /// cut into tasks of whole units over rayon. Each unit's walk outputs (in
+    /// sample order) are condensed by `per_unit` (a block's mean and variance,
+    /// or a sample); `sink` receives the results in unit order. Tasks run a
+    /// window at a time, so memory is bounded by the window, not the batch.
+    fn run<R: Send>(
+        &self,
+        queries: &Queries,
+        count: usize,
+        unit: impl Fn(usize) -> Unit + Sync,
+        per_unit: impl Fn(&[WalkOut]) -> R + Sync,
+        mut sink: impl FnMut(Unit, R),
+    ) -> Stats {
+        if count == 0 {
+            return Stats::default();
         }
-        if start < units.len() {
-            tasks.push(&units[start..]);
-        }
-        // A wave no larger than the largest task (a single query needs few slots).
-        let largest = tasks
-            .iter()
-            .map(|t| t.iter().map(|u| u.count as usize).sum::<usize>())
-            .max()
-            .unwrap_or(0);
+        // Tasks: runs of units of about TASK_WALKS walks; their boundaries
+        // depend on the batch only, never on the thread count.
+        let walks_per_unit = unit(0).count.max(1) as u64;
+        let per_task = (TASK_WALKS / walks_per_unit).max(1) as usize;
+        let tasks = count.div_ceil(per_task);
+        let largest = (per_task.min(count) as u64 * walks_per_unit) as usize;
         let slots = self
             .slots
             .min(largest.div_ceil(W::LANES) * W::LANES)
             .max(W::LANES);
-        let results: Vec<(Vec<WalkOut>, Stats)> = tasks
-            .par_iter()
-            .map(|task| {
-                with_wave(slots, |ws| {
-                    let mut out = Vec::new();
-                    let stats = self.run_task(queries, task, ws, &mut out);
-                    (out, stats)
+        let window = 4 * rayon::current_num_threads().max(1);
+        let mut stats = Stats::default();
+        for w0 in (0..tasks).step_by(window) {
+            let results: Vec<(Vec<(Unit, R)>, Stats)> = (w0..tasks.min(w0 + window))
+                .into_par_iter()
+                .map(|t| {
+                    let units: Vec<Unit> = (t * per_task..count.min((t + 1) * per_task))
+                        .map(&unit)
+                        .collect();
+                    with_wave(slots, |ws| {
+                        let mut out = Vec::new();
+                        let st = self.run_task(queries, &units, ws, &mut out);
+                        let mut at = 0;
+                        let res = units
+                            .iter()
+                            .map(|u| {
+                                let o = &out[at..at + u.count as usize];
+                                at += u.count as usize;
+                                (*u, per_unit(o))
+                            })
+                            .collect();
+                        (res, st)
+                    })
                 })
+                .collect();
+            for (res, st) in results {
+                stats.add(&st);
+                for (u, r) in res {
+                    sink(u, r);
+                }
+            }
+        }
+        stats
+    }
+
+    /// The valid queries' units of whole blocks, `samples` walks per query.
+    fn block_unit(valid: &[u32], samples: u64) -> (usize, impl Fn(usize) -> Unit + Sync + '_) {
+        let per_query = samples.div_ceil(BLOCK).max(1) as usize;
+        let count = if samples == 0 {
+            0
+        } else {
+            valid.len() * per_query
+        };
+        (count, move |u: usize| {
+            let first = (u % per_query) as u64 * BLOCK;
+            Unit {
+                query: valid[u / per_query],
+                first,
+                count: BLOCK.min(samples - first) as u32,
+            }
+        })
+    }
+
+    /// The estimate of each query from its walks' values, reduced in block order.
+    fn estimates(
+        &self,
+        queries: &Queries,
+        samples: u64,
+        value: impl Fn(&WalkOut) -> [f64; 3] + Sync,
+    ) -> (Vec<MeanVar>, Stats) {
+        let valid: Vec<u32> = (0..queries.valid.len() as u32)
+            .filter(|&q| queries.valid[q as usize])
+            .collect();
+        let mut red = vec![BlockReducer::new(); queries.valid.len()];
+        let (count, unit) = Self::block_unit(&valid, samples);
+        // A block's walks in sample order, as the scalar engine pushes them.
+        let block = |o: &[WalkOut]| {
+            let mut b = MeanVar::new();
+            o.iter().for_each(|o| b.push(value(o)));
+            b
+        };
+        let stats = self.run(queries, count, unit, block, |u, b| {
+            red[u.query as usize].push_block(&b)
+        });
+        let sums = red
+            .into_iter()
+            .enumerate()
+            .map(|(q, r)| {
+                if queries.valid[q] {
+                    r.finish()
+                } else {
+                    zero_sum(samples)
+                }
             })
             .collect();
-        let mut stats = Stats::default();
-        let mut all = Vec::with_capacity(units.iter().map(|u| u.count as usize).sum());
-        for (o, s) in results {
-            all.extend(o);
-            stats.add(&s);
-        }
-        (all, stats)
-    }
-
-    /// Units of whole blocks for `samples` walks of every query.
-    fn block_units(queries: usize, samples: u64) -> Vec<Unit> {
-        let mut units = Vec::new();
-        for q in 0..queries {
-            let mut k = 0;
-            while k < samples {
-                let c = BLOCK.min(samples - k);
-                units.push(Unit {
-                    query: q as u32,
-                    first: k,
-                    count: c as u32,
-                });
-                k += c;
-            }
-        }
-        units
-    }
-
-    /// Reduces walk values per query in block order.
-    fn reduce(
-        units: &[Unit],
-        outs: &[WalkOut],
-        queries: usize,
-        value: impl Fn(&WalkOut) -> [f64; 3],
-    ) -> Vec<MeanVar> {
-        let mut red = vec![BlockReducer::new(); queries];
-        let mut at = 0;
-        for u in units {
-            let mut block = MeanVar::new();
-            for o in &outs[at..at + u.count as usize] {
-                block.push(value(o));
-            }
-            at += u.count as usize;
-            red[u.query as usize].push_block(&block);
-        }
-        red.into_iter().map(|r| r.finish()).collect()
+        (sums, stats)
     }
 
     /// Unidirectional eval of every `(wi, wo)` pair with `samples` walks each;
@@ -424,12 +453,14 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> (Vec<Estimate>, Stats) {
-        let (queries, units, outs, stats) = self.eval_walks(pairs, samples, seed, keys);
-        let sums = Self::reduce(&units, &outs, pairs.len(), |o| o.value.map(|x| x as f64));
-        let est = (0..pairs.len())
-            .map(|q| {
+        let queries = self.eval_queries(pairs, seed, keys);
+        let (sums, stats) = self.estimates(&queries, samples, |o| o.value.map(|x| x as f64));
+        let est = sums
+            .iter()
+            .enumerate()
+            .map(|(q, sum)| {
                 if !queries.valid[q] {
-                    return zero_estimate(samples);
+                    return sum.estimate();
                 }
                 let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
                 let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
@@ -440,7 +471,7 @@ impl<W: Wide> Wavefront<W> {
                 } else {
                     [0.0; 3]
                 };
-                sums[q].estimate_plus(direct)
+                sum.estimate_plus(direct)
             })
             .collect();
         (est, stats)
@@ -448,7 +479,7 @@ impl<W: Wide> Wavefront<W> {
 
     /// Each walk's value of the unidirectional estimator (without the
     /// first-order term), query by query in sample order: for parity tests
-    /// and diagnostics.
+    /// and diagnostics (its memory grows with the batch).
     pub fn eval_walk_values(
         &self,
         pairs: &[([f64; 3], [f64; 3])],
@@ -456,7 +487,10 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> Vec<Vec<[f64; 3]>> {
-        let (queries, units, outs, _) = self.eval_walks(pairs, samples, seed, keys);
+        let queries = self.eval_queries(pairs, seed, keys);
+        let valid: Vec<u32> = (0..pairs.len() as u32)
+            .filter(|&q| queries.valid[q as usize])
+            .collect();
         let mut v: Vec<Vec<[f64; 3]>> = queries
             .valid
             .iter()
@@ -468,36 +502,24 @@ impl<W: Wide> Wavefront<W> {
                 }
             })
             .collect();
-        let mut at = 0;
-        for u in &units {
-            for o in &outs[at..at + u.count as usize] {
-                v[u.query as usize].push(o.value.map(|x| x as f64));
-            }
-            at += u.count as usize;
-        }
+        let (count, unit) = Self::block_unit(&valid, samples);
+        let values = |o: &[WalkOut]| -> Vec<[f64; 3]> {
+            o.iter().map(|o| o.value.map(|x| x as f64)).collect()
+        };
+        self.run(&queries, count, unit, values, |u, x| {
+            v[u.query as usize].extend(x)
+        });
         v
     }
 
-    fn eval_walks(
-        &self,
-        pairs: &[([f64; 3], [f64; 3])],
-        samples: u64,
-        seed: u64,
-        keys: &[u64],
-    ) -> (Queries, Vec<Unit>, Vec<WalkOut>, Stats) {
+    fn eval_queries(&self, pairs: &[([f64; 3], [f64; 3])], seed: u64, keys: &[u64]) -> Queries {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
             .zip(keys)
             .map(|(&(wi, wo), &k)| (wi, Some(wo), k))
             .collect();
-        let queries = self.prepare(Mode::Eval, seed, &spec);
-        let units: Vec<Unit> = Self::block_units(pairs.len(), samples)
-            .into_iter()
-            .filter(|u| queries.valid[u.query as usize])
-            .collect();
-        let (outs, stats) = self.run(&queries, &units);
-        (queries, units, outs, stats)
+        self.prepare(Mode::Eval, seed, &spec)
     }
 
     /// Directional albedo of every incident direction, `samples` walks each.
@@ -511,35 +533,39 @@ impl<W: Wide> Wavefront<W> {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
         let queries = self.prepare(Mode::Sample, seed, &spec);
-        let units: Vec<Unit> = Self::block_units(wis.len(), samples)
-            .into_iter()
-            .filter(|u| queries.valid[u.query as usize])
+        // Reflected and transmitted fractions share the walks: reduce both at once.
+        let valid: Vec<u32> = (0..wis.len() as u32)
+            .filter(|&q| queries.valid[q as usize])
             .collect();
-        let (outs, stats) = self.run(&queries, &units);
-        let pick = |refl: bool| {
-            move |o: &WalkOut| {
-                if o.exited && o.reflection == refl {
-                    o.value.map(|x| x as f64)
-                } else {
-                    [0.0; 3]
-                }
+        let mut red = vec![(BlockReducer::new(), BlockReducer::new()); wis.len()];
+        let (count, unit) = Self::block_unit(&valid, samples);
+        let block = |o: &[WalkOut]| {
+            let (mut r, mut t) = (MeanVar::new(), MeanVar::new());
+            for o in o {
+                let w = o.value.map(|x| x as f64);
+                let (refl, trans) = (o.exited && o.reflection, o.exited && !o.reflection);
+                r.push(if refl { w } else { [0.0; 3] });
+                t.push(if trans { w } else { [0.0; 3] });
             }
+            (r, t)
         };
-        let r = Self::reduce(&units, &outs, wis.len(), pick(true));
-        let t = Self::reduce(&units, &outs, wis.len(), pick(false));
-        let zero = || zero_estimate(samples);
-        let res = (0..wis.len())
-            .map(|q| {
-                if queries.valid[q] {
-                    Albedo {
-                        reflected: r[q].estimate(),
-                        transmitted: t[q].estimate(),
-                    }
+        let stats = self.run(&queries, count, unit, block, |u, (r, t)| {
+            let q = &mut red[u.query as usize];
+            q.0.push_block(&r);
+            q.1.push_block(&t);
+        });
+        let res = red
+            .into_iter()
+            .enumerate()
+            .map(|(q, (r, t))| {
+                let (r, t) = if queries.valid[q] {
+                    (r.finish(), t.finish())
                 } else {
-                    Albedo {
-                        reflected: zero(),
-                        transmitted: zero(),
-                    }
+                    (zero_sum(samples), zero_sum(samples))
+                };
+                Albedo {
+                    reflected: r.estimate(),
+                    transmitted: t.estimate(),
                 }
             })
             .collect();
@@ -559,32 +585,37 @@ impl<W: Wide> Wavefront<W> {
         assert_eq!(wis.len(), sample_index.len(), "one sample index per query");
         let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
         let queries = self.prepare(Mode::Sample, seed, &spec);
-        let units: Vec<Unit> = (0..wis.len())
-            .filter(|&q| queries.valid[q])
-            .map(|q| Unit {
-                query: q as u32,
-                first: sample_index[q],
-                count: 1,
-            })
+        let valid: Vec<u32> = (0..wis.len() as u32)
+            .filter(|&q| queries.valid[q as usize])
             .collect();
-        let (outs, stats) = self.run(&queries, &units);
+        let unit = |u: usize| Unit {
+            query: valid[u],
+            first: sample_index[valid[u] as usize],
+            count: 1,
+        };
         let mut res = vec![None; wis.len()];
-        for (u, o) in units.iter().zip(&outs) {
-            let q = u.query as usize;
-            if !o.exited {
-                continue;
-            }
-            let mut d = o.dir;
-            if queries.flipped[q] {
-                d[2] = -d[2];
-            }
-            res[q] = Some(Sample {
-                wo: glam::Vec3::from(d),
-                weight: o.value,
-                reflection: o.reflection,
-                specular: o.specular,
-            });
-        }
+        let stats = self.run(
+            &queries,
+            valid.len(),
+            unit,
+            |o| o[0],
+            |u, o| {
+                let q = u.query as usize;
+                if !o.exited {
+                    return;
+                }
+                let mut d = o.dir;
+                if queries.flipped[q] {
+                    d[2] = -d[2];
+                }
+                res[q] = Some(Sample {
+                    wo: glam::Vec3::from(d),
+                    weight: o.value,
+                    reflection: o.reflection,
+                    specular: o.specular,
+                });
+            },
+        );
         (res, stats)
     }
 
