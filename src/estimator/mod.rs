@@ -7,6 +7,7 @@
 //! authors' code are listed in `docs/architecture.md`.
 
 mod accumulate;
+pub mod brute_force;
 mod orient;
 pub mod pdf;
 pub mod scalar;

@@ -1,6 +1,7 @@
 //! `strata`: the command-line tool. One file per subcommand.
 
 mod cmd_albedo;
+mod cmd_converge;
 mod cmd_eval;
 mod output;
 
@@ -21,6 +22,8 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Directional albedo: reflected and transmitted fractions.
     Albedo(cmd_albedo::Args),
+    /// Error against run time of every estimator, against a reference: CSV, markdown, PNG plot.
+    Converge(cmd_converge::Args),
 }
 
 fn main() -> ExitCode {
@@ -28,6 +31,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Albedo(a) => cmd_albedo::run(a),
+        Command::Converge(a) => cmd_converge::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
