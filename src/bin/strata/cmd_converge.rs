@@ -22,9 +22,10 @@ pub struct Args {
     /// albedo. Default: a built-in set in and off the plane of incidence.
     #[arg(long)]
     queries: Option<PathBuf>,
-    /// Seconds of doubling budgets per estimator (one thread).
-    #[arg(long, default_value_t = 2.0)]
-    budget_seconds: f64,
+    /// Seconds of doubling budgets per estimator (one thread) [default: 2,
+    /// or 0.5 per stack with --suite docs].
+    #[arg(long)]
+    budget_seconds: Option<f64>,
     /// Output directory (default: out/converge, or docs/results with --suite docs).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -155,10 +156,12 @@ impl Progress for Bars {
 }
 
 pub fn run(args: Args) -> Result<(), String> {
-    if !(args.budget_seconds > 0.0 && args.budget_seconds.is_finite()) {
+    let budget = args
+        .budget_seconds
+        .unwrap_or(if args.suite.is_some() { 0.5 } else { 2.0 });
+    if !(budget > 0.0 && budget.is_finite()) {
         return Err(format!(
-            "--budget-seconds {} must be a positive number",
-            args.budget_seconds
+            "--budget-seconds {budget} must be a positive number"
         ));
     }
     if args.reference_seconds.is_nan() || args.reference_seconds <= 0.0 {
@@ -174,7 +177,7 @@ pub fn run(args: Args) -> Result<(), String> {
             .map(|s| EstimatorKind::parse(s))
             .collect::<Result<_, _>>()?;
     }
-    cfg.ladder.budget_seconds = args.budget_seconds;
+    cfg.ladder.budget_seconds = budget;
     cfg.reference_spec.max_seconds = args.reference_seconds;
     cfg.seed = args.seed;
 
