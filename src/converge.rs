@@ -7,12 +7,16 @@
 //! 2. computes a [`Reference`]: the closed form where one exists (a smooth
 //!    dielectric over a Lambertian base with no attenuating medium,
 //!    method.md §8), otherwise a long run of an unbiased estimator (the scalar
-//!    reference by default), extended in parallel chunks until its standard
-//!    error is at least 10× below the smallest error measured;
+//!    reference by default), extended in parallel chunks until its RMS
+//!    relative standard error is at least 10× below the smallest error plotted
+//!    (the expected error: the larger of a run's measured error and the one
+//!    its own standard errors predict, so that a lucky point does not set it);
 //! 3. reports, per run, the RMS relative error over all queries and channels,
 //!    the RMS of the estimator's own relative standard errors (what the error
 //!    should be if the estimator is unbiased), and the efficiency
-//!    `1 / (error² × time)`; as CSV, markdown and a text summary.
+//!    `1 / (error² × time)` (per run, and for a curve `1 / mean(error² ×
+//!    time)` over the upper half of its ladder); as CSV, markdown and a text
+//!    summary.
 //!
 //! Binned estimators (the brute-force baseline) estimate the `|cos|`-weighted
 //! average of `f` over a cone, not `f(wo)`: the reference also holds those bin
@@ -964,8 +968,9 @@ fn chunk_estimates(
 
 /// Extends a long-run reference in parallel chunks (rayon) until each stream
 /// meets its target or `spec.max_seconds` pass. Returns whether every target
-/// was met. Deterministic: chunk `c` of a stream always has the same seed, and
-/// chunks merge in order.
+/// was met. Deterministic whatever the thread count: chunk `c` of a stream
+/// always has the same seed, the number of chunks depends only on the
+/// targets and the estimates, and chunks merge in order.
 pub fn extend_reference(
     r: &mut Reference,
     est: &dyn Estimator,
@@ -978,7 +983,8 @@ pub fn extend_reference(
         return true;
     }
     let start = Instant::now();
-    let threads = rayon::current_num_threads() as u64;
+    // The first round's chunks per stream, and the least a later round adds.
+    const PILOT: u64 = 4;
     let nstreams = 2 + r.bins.len();
     // Bin averages only serve the binning floor: they need a precision small
     // against the floor itself, or against twice the f target if finer.
@@ -1017,10 +1023,10 @@ pub fn extend_reference(
                 continue;
             }
             let need = if s.chunks == 0 {
-                2 * threads
+                PILOT
             } else {
                 let total = (s.chunks as f64 * (e / t).powi(2) * 1.1).ceil() as u64;
-                (total.saturating_sub(s.chunks)).clamp(threads, 4 * s.chunks.max(threads))
+                (total.saturating_sub(s.chunks)).clamp(PILOT, 4 * s.chunks.max(PILOT))
             };
             plan.push((w, s.chunks, need));
         }
@@ -1047,7 +1053,7 @@ pub fn extend_reference(
             })
             .collect();
         progress.end();
-        r.seconds += t0.elapsed().as_secs_f64() * threads as f64;
+        r.seconds += t0.elapsed().as_secs_f64() * rayon::current_num_threads() as f64;
         for ((w, _), es) in results {
             let s = match w {
                 0 => &mut r.f,

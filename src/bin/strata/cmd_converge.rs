@@ -259,20 +259,65 @@ pub fn run(args: Args) -> Result<(), String> {
         let s = report.summary();
         print!("{s}");
         println!("  ({:.1} s)", t0.elapsed().as_secs_f64());
-        summaries.push((name.clone(), s));
+        summaries.push(summary_rows(&report));
     }
     if args.suite.is_some() {
         let mut md = String::from(
-            "Efficiency 1 / (RMS relative error² × time) of each estimator at its largest budget, \
-             and its ratio to the first estimator's. Written by `strata converge --suite docs`.\n\n",
+            "Written by `strata converge --suite docs`. Per stack and estimator: the largest budget \
+             run (walks per BSDF query for position-free estimators, per incident direction for \
+             the brute force), its wall time for the BSDF queries (one thread) and RMS relative \
+             error; the efficiency 1 / mean(RMS relative error² × time) over the upper half of \
+             the ladder, for f and for the albedo, with its ratio to the first estimator's; and \
+             the binning floor of binned estimators.\n\n\
+             | stack | reference | estimator | samples | time f (s) | RMS rel. error f | efficiency f | ratio | efficiency albedo | ratio | binning floor |\n\
+             |---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n",
         );
-        for (name, s) in &summaries {
-            md.push_str(&format!("#### {name}\n\n```text\n{s}```\n\n"));
+        for rows in &summaries {
+            md.push_str(rows);
         }
         write_atomic(&out.join("summary.md"), md.as_bytes())?;
     }
     eprintln!("wrote {}", out.display());
     Ok(())
+}
+
+/// The rows of the suite's summary table for one stack.
+fn summary_rows(report: &Report) -> String {
+    let reference = match report.reference.kind {
+        converge::ReferenceKind::Analytic => "closed form".to_string(),
+        converge::ReferenceKind::LongRun { ref estimator } => format!(
+            "{estimator}, ±{:.1e} (f), ±{:.1e} (albedo)",
+            report.reference.f.rms_rel_stderr(),
+            report.reference.albedo.rms_rel_stderr()
+        ),
+    };
+    let effs: Vec<(f64, f64)> = report.series.iter().map(|s| s.efficiency()).collect();
+    let base = effs.first().copied().unwrap_or((0.0, 0.0));
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+    let mut out = String::new();
+    for (s, &(ef, ea)) in report.series.iter().zip(&effs) {
+        let (Some(r), Some(e)) = (s.runs.last(), s.errors.last()) else {
+            continue;
+        };
+        let floor = report
+            .floor(s)
+            .map_or("–".to_string(), |f| format!("{:.2e}", f.0));
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {:.3} | {:.2e} | {:.3e} | {:.3} | {:.3e} | {:.3} | {} |\n",
+            report.name,
+            reference,
+            s.name,
+            r.samples,
+            r.time_f,
+            e.rms_f,
+            ef,
+            ratio(ef, base.0),
+            ea,
+            ratio(ea, base.1),
+            floor
+        ));
+    }
+    out
 }
 
 static FONT: &[u8] = include_bytes!("../../../assets/DejaVuSans.ttf");
