@@ -1589,16 +1589,20 @@ impl Report {
         let _ = writeln!(out, "Reference: {}.", self.reference.describe());
         let (mf, ma) = self.reference_margin(true);
         let (nf, na) = self.reference_margin(false);
-        let _ = writeln!(
-            out,
-            "Its RMS relative standard error is {} below the smallest expected error plotted for f and {} for the albedo \
-             (measured errors: {} and {}){}.",
-            fmt_margin(mf),
-            fmt_margin(ma),
-            fmt_margin(nf),
-            fmt_margin(na),
-            if self.reference_converged { "" } else { "; the reference hit its time limit before its target" }
-        );
+        if self.reference.kind == ReferenceKind::Analytic {
+            let _ = writeln!(out, "The reference is exact: it has no error bar.");
+        } else {
+            let _ = writeln!(
+                out,
+                "Its RMS relative standard error is {} below the smallest expected error plotted for f and {} for the albedo \
+                 (measured errors: {} and {}){}.",
+                fmt_margin(mf),
+                fmt_margin(ma),
+                fmt_margin(nf),
+                fmt_margin(na),
+                if self.reference_converged { "" } else { "; the reference hit its time limit before its target" }
+            );
+        }
         for s in &self.series {
             if let Some((fl, noise)) = self.floor(s) {
                 let _ = writeln!(
@@ -1733,7 +1737,7 @@ impl Series {
 
 fn fmt_margin(m: f64) -> String {
     if m.is_infinite() {
-        "infinitely (exact)".into()
+        "infinitely".into()
     } else {
         format!("{m:.1}×")
     }
