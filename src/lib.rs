@@ -48,6 +48,7 @@
 #![warn(missing_docs)]
 
 pub mod api;
+pub mod converge;
 pub mod estimator;
 pub mod fresnel;
 pub mod interface;

@@ -19,6 +19,8 @@ pub enum Stream {
     Adjoint = 1,
     /// The approximate pdf.
     Pdf = 2,
+    /// The brute-force position-based baseline (`estimator::brute_force`).
+    BruteForce = 3,
 }
 
 /// SplitMix64's output function: a bijective 64-bit mixer.

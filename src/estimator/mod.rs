@@ -10,6 +10,7 @@
 //! authors' code are listed in `docs/architecture.md`.
 
 mod accumulate;
+pub mod brute_force;
 pub mod events;
 pub mod layout;
 mod orient;

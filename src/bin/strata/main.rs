@@ -45,6 +45,8 @@ commands! {
     Demo => cmd_demo,
     /// Throughput of the scalar reference and the wavefront engine on the representative stacks.
     Bench => cmd_bench,
+    /// Error against run time of every estimator, against a reference: CSV, markdown, PNG plot.
+    Converge => cmd_converge,
 }
 
 /// Layered BSDFs by position-free Monte Carlo.
