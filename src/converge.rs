@@ -32,6 +32,7 @@
 
 use crate::estimator::brute_force::{Bin, BruteForce, BruteSettings};
 use crate::estimator::scalar::ScalarEngine;
+use crate::estimator::wavefront::{Plan, Wavefront};
 use crate::estimator::{Albedo, Estimate, Settings};
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::{InterfaceKind, LayerStack};
@@ -230,6 +231,15 @@ pub trait Estimator: Sync {
 pub enum EstimatorKind {
     /// The position-free unidirectional scalar reference ([`ScalarEngine<f32>`]).
     Scalar,
+    /// The position-free unidirectional estimator on the SIMD wavefront
+    /// engine: on one thread (`threads: Some(1)`, for a like-for-like
+    /// comparison with the scalar row) or on the current thread pool (`None`).
+    /// Its walks are the scalar reference's (same seeds), so its errors are
+    /// the scalar row's and only the time differs.
+    Wavefront {
+        /// Threads of its own pool; `None` runs on the current rayon pool.
+        threads: Option<usize>,
+    },
     /// The position-based baseline with cone bins of this half-angle.
     BruteForce {
         /// Half-angle of the bins, degrees.
@@ -241,14 +251,15 @@ pub enum EstimatorKind {
 /// Add the wavefront engine here once it has an [`EstimatorKind`] variant.
 pub const ESTIMATORS: &[EstimatorKind] = &[
     EstimatorKind::Scalar,
+    EstimatorKind::Wavefront { threads: Some(1) },
     EstimatorKind::BruteForce {
         half_angle_deg: 5.0,
     },
 ];
 
 /// The estimator long-run references use (it must be unbiased; the fastest
-/// one is the best choice).
-pub const REFERENCE_ESTIMATOR: EstimatorKind = EstimatorKind::Scalar;
+/// one is the best choice): the wavefront engine on the current pool.
+pub const REFERENCE_ESTIMATOR: EstimatorKind = EstimatorKind::Wavefront { threads: None };
 
 impl EstimatorKind {
     /// The estimator for `stack`.
@@ -256,6 +267,15 @@ impl EstimatorKind {
         match *self {
             EstimatorKind::Scalar => Box::new(ScalarEstimator {
                 eng: ScalarEngine::new(stack, settings),
+            }),
+            EstimatorKind::Wavefront { threads } => Box::new(WavefrontEstimator {
+                wf: Wavefront::new(stack, settings, Plan::Specialized),
+                pool: threads.map(|n| {
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(n)
+                        .build()
+                        .expect("a thread pool")
+                }),
             }),
             EstimatorKind::BruteForce { half_angle_deg } => Box::new(BruteEstimator {
                 bf: BruteForce::new(
@@ -276,6 +296,12 @@ impl EstimatorKind {
         if s == "scalar" {
             return Ok(EstimatorKind::Scalar);
         }
+        if s == "wavefront" {
+            return Ok(EstimatorKind::Wavefront { threads: Some(1) });
+        }
+        if s == "wavefront-mt" {
+            return Ok(EstimatorKind::Wavefront { threads: None });
+        }
         if s == "brute" {
             return Ok(EstimatorKind::BruteForce {
                 half_angle_deg: 5.0,
@@ -293,7 +319,7 @@ impl EstimatorKind {
             return Ok(EstimatorKind::BruteForce { half_angle_deg: v });
         }
         Err(format!(
-            "unknown estimator {s:?} (known: scalar, brute, brute:DEG)"
+            "unknown estimator {s:?} (known: scalar, wavefront, wavefront-mt, brute, brute:DEG)"
         ))
     }
 }
@@ -339,6 +365,58 @@ impl Estimator for ScalarEstimator {
             time_albedo: t2.elapsed().as_secs_f64(),
             time: t.elapsed().as_secs_f64(),
             lost_weight: 0.0,
+        }
+    }
+}
+
+struct WavefrontEstimator {
+    wf: Wavefront,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl Estimator for WavefrontEstimator {
+    fn name(&self) -> String {
+        match &self.pool {
+            Some(p) if p.current_num_threads() == 1 => "wavefront".into(),
+            Some(p) => format!("wavefront-{}t", p.current_num_threads()),
+            None => "wavefront-mt".into(),
+        }
+    }
+    fn description(&self) -> String {
+        let threads = match &self.pool {
+            Some(p) => format!("{} thread(s)", p.current_num_threads()),
+            None => "all threads".into(),
+        };
+        format!("position-free, unidirectional, SIMD wavefront, {threads}")
+    }
+    fn start_samples(&self) -> u64 {
+        64
+    }
+    fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
+        let go = || {
+            let t = Instant::now();
+            let pairs: Vec<_> = qs.f.iter().map(|q| (q.wi, q.wo)).collect();
+            let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+            let f = self.wf.eval_batch(&pairs, samples, seed, &keys).0;
+            let time_f = t.elapsed().as_secs_f64();
+            let t2 = Instant::now();
+            let keys: Vec<u64> = (0..qs.albedo.len() as u64)
+                .map(|j| ALBEDO_KEY + j)
+                .collect();
+            let albedo = self.wf.albedo_batch(&qs.albedo, samples, seed, &keys).0;
+            Run {
+                samples,
+                f,
+                albedo,
+                time_f,
+                time_albedo: t2.elapsed().as_secs_f64(),
+                time: t.elapsed().as_secs_f64(),
+                lost_weight: 0.0,
+            }
+        };
+        match &self.pool {
+            Some(p) => p.install(go),
+            None => go(),
         }
     }
 }
