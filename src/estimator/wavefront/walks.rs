@@ -191,6 +191,9 @@ pub struct Chunk<W: Wide> {
     pub wo: V3<W>,
     /// The query's exit interface (eval).
     pub e_out: W,
+    /// Blocks of the record loaded so far: 2 (ratios, contribution, chain
+    /// length) and 3–4 (the chain's first link, `wo`).
+    loaded: (bool, bool),
 }
 
 /// Which stage a chunk is loaded for: each loads and stores only the blocks
@@ -234,7 +237,6 @@ impl<W: Wide> Chunk<W> {
     /// repeat the first slot and are overwritten by it on the way back).
     #[inline(always)]
     pub fn gather(ws: &Walks, idx: &[u32], active: W::Mask, stage: Stage) -> Self {
-        let (ratios, eval, _) = stage.blocks();
         let half = W::splat(0.5);
         let b0 = W::load8(&ws.rec, idx, 0);
         let b1 = W::load8(&ws.rec, idx, 8);
@@ -264,17 +266,28 @@ impl<W: Wide> Chunk<W> {
             },
             wo: V3::z_axis(),
             e_out: W::zero(),
+            loaded: (false, false),
         };
-        if ratios || eval {
+        c.ensure(ws, idx, stage);
+        c
+    }
+
+    /// Loads the blocks `stage` uses that are not loaded yet (a chunk that
+    /// stays in lanes for several events may need more as it goes).
+    #[inline(always)]
+    pub fn ensure(&mut self, ws: &Walks, idx: &[u32], stage: Stage) {
+        let (block2, links, _) = stage.blocks();
+        if block2 && !self.loaded.0 {
             let b2 = W::load8(&ws.rec, idx, 16);
-            c.ratios = Rgb::new(b2[0], b2[1], b2[2]);
-            c.acc = Rgb::new(b2[3], b2[4], b2[5]);
-            c.links = b2[6];
+            self.ratios = Rgb::new(b2[0], b2[1], b2[2]);
+            self.acc = Rgb::new(b2[3], b2[4], b2[5]);
+            self.links = b2[6];
+            self.loaded.0 = true;
         }
-        if eval {
+        if links && !self.loaded.1 {
             let b3 = W::load8(&ws.rec, idx, 24);
             let b4 = W::load8(&ws.rec, idx, 32);
-            c.link0 = LinkLanes {
+            self.link0 = LinkLanes {
                 conn: Connection {
                     u: V3::new(b3[0], b3[1], b3[2]),
                     v: Rgb::new(b3[3], b3[4], b3[5]),
@@ -284,16 +297,17 @@ impl<W: Wide> Chunk<W> {
                 t: Rgb::new(b4[0], b4[1], b4[2]),
                 start: b4[3],
             };
-            c.wo = V3::new(b4[4], b4[5], b4[6]);
-            c.e_out = b4[7];
+            self.wo = V3::new(b4[4], b4[5], b4[6]);
+            self.e_out = b4[7];
+            self.loaded.1 = true;
         }
-        c
     }
 
-    /// Stores the chunk back (every lane; see [`Wide::store8`]).
+    /// Stores the chunk back (every lane; see [`Wide::store8`]): the blocks
+    /// it loaded, and the chain's first link only after a launch.
     #[inline(always)]
     pub fn scatter(&self, ws: &mut Walks, idx: &[u32], stage: Stage) {
-        let (ratios, eval, link) = stage.blocks();
+        let (_, _, link) = stage.blocks();
         let flag = |m: W::Mask| W::select(m, W::one(), W::zero());
         let (d, b) = (self.d, self.beta);
         let b0 = [
@@ -319,7 +333,7 @@ impl<W: Wide> Chunk<W> {
             self.z,
         ];
         W::store8(b1, &mut ws.rec, idx, 8);
-        if ratios || eval {
+        if self.loaded.0 {
             let (r, a) = (self.ratios, self.acc);
             let b2 = [r.r, r.g, r.b, a.r, a.g, a.b, self.links, W::zero()];
             W::store8(b2, &mut ws.rec, idx, 16);
