@@ -59,7 +59,10 @@ fn smooth_coat_over_lambertian_matches_closed_form() {
                     1e-5 * exact,
                 );
             }
-            eprintln!("eta {eta} rho {rho} {ti} {to}: {} ± {} vs {exact}", e.value[0], e.stderr[0]);
+            eprintln!(
+                "eta {eta} rho {rho} {ti} {to}: {} ± {} vs {exact}",
+                e.value[0], e.stderr[0]
+            );
         }
     }
 }

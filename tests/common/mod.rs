@@ -30,9 +30,15 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
         "{what}: non-finite estimate {value} ± {stderr}"
     );
     let err = (value - expected).abs();
-    let z = if stderr > 0.0 { err / stderr } else { f64::INFINITY };
+    let z = if stderr > 0.0 {
+        err / stderr
+    } else {
+        f64::INFINITY
+    };
     assert!(
         err <= k * stderr + abs_tol,
         "{what}: {value} ± {stderr} vs expected {expected} (|z| = {z:.2}, allowed {k} sigma + {abs_tol})"
     );
 }
+
+pub mod chi2;
