@@ -50,10 +50,19 @@ pub fn conductor<L: Lane>(cos_i: L, eta: Rgb<L>, k: Rgb<L>) -> Rgb<L> {
     let c2 = ci * ci;
     let s2 = L::one() - c2;
     let per_channel = |eta: L, k: L| {
-        let t0 = eta * eta - k * k - s2;
-        // a² + b² = |(eta + ik)² - sin²|
-        let a2b2 = (t0 * t0 + L::splat(4.0) * eta * eta * k * k).sqrt();
-        let a = (L::splat(0.5) * (a2b2 + t0)).safe_sqrt();
+        // z = (eta + ik)² - sin²θ = t0 + i im; a + ib = sqrt(z). t0 is
+        // written (eta² - 1) - k² + cos²θ: 1 - cos²θ would round away cos²θ
+        // at grazing incidence.
+        let t0 = (eta - L::one()) * (eta + L::one()) - k * k + c2;
+        let im = L::splat(2.0) * eta * k;
+        // a² + b² = |z|
+        let a2b2 = (t0 * t0 + im * im).sqrt();
+        // a² = (|z| + t0) / 2, which cancels when t0 < 0 (k > eta: every
+        // metal); there it is written im² / (2 (|z| - t0)) instead.
+        let neg = t0.lt(L::zero());
+        let den = a2b2 - t0;
+        let a2_neg = L::div_or_zero(L::splat(0.5) * im * im, den, neg & den.gt(L::zero()));
+        let a = L::select(neg, a2_neg, L::splat(0.5) * (a2b2 + t0)).safe_sqrt();
         let t1 = a2b2 + c2;
         let t2 = L::splat(2.0) * a * ci;
         let tiny = L::splat(1e-30);
