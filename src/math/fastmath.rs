@@ -99,7 +99,8 @@ pub fn ln<L: LaneBits>(x: L) -> L {
 }
 
 /// `(sin 2πt, cos 2πt)`. The reduction to `[-π/4, π/4]` is exact for `t` in
-/// `[0, 1]` (the azimuths strata samples), so the result is accurate to ~1 ulp.
+/// `[0, 1]` (the azimuths strata samples); what remains is the rounding of 2π
+/// and of the product, so the result is within 2 ulp (measured).
 #[inline]
 pub fn sin_cos_turns<L: LaneBits>(t: L) -> (L, L) {
     let c = |v: f64| L::splat(v);
