@@ -1,7 +1,7 @@
 //! Chi-square goodness of fit for direction samplers, after Mitsuba's `chi2`
 //! harness: a histogram of sampled directions over equal-area cells of the
 //! sphere in (cos θ, φ), the sampler's claimed density integrated over each cell
-//! numerically (adaptive Simpson in f64), cells with fewer than 5 expected
+//! numerically (nested adaptive Gauss–Kronrod in f64), cells with fewer than 5 expected
 //! samples pooled, and a p-value from the regularized incomplete gamma
 //! function. Written for these tests from the textbook formulas; no code is
 //! shared with the crate under test.
@@ -125,148 +125,137 @@ pub fn sidak(alpha: f64, m: usize) -> f64 {
 pub struct Quad {
     /// The integral.
     pub value: f64,
-    /// Estimated absolute error (Richardson: |fine - coarse| / 15, summed).
+    /// Estimated absolute error (|Kronrod - Gauss| of the accepted intervals).
     pub err: f64,
 }
 
-/// Adaptive Simpson on `[a, b]` to absolute tolerance `tol`.
-pub fn simpson_1d(f: &dyn Fn(f64) -> f64, a: f64, b: f64, tol: f64, max_depth: u32) -> Quad {
-    /// `v` holds f at a, the midpoint and b; `whole` is Simpson's rule on them.
+/// Nodes (descending, the last is 0) and weights of the 15-point Kronrod rule
+/// and the weights of the embedded 7-point Gauss rule (on the odd nodes).
+const XGK: [f64; 8] = [
+    0.991_455_371_120_812_6,
+    0.949_107_912_342_758_5,
+    0.864_864_423_359_769_1,
+    0.741_531_185_599_394_4,
+    0.586_087_235_467_691_1,
+    0.405_845_151_377_397_2,
+    0.207_784_955_007_898_5,
+    0.0,
+];
+const WGK: [f64; 8] = [
+    0.022_935_322_010_529_22,
+    0.063_092_092_629_978_55,
+    0.104_790_010_322_250_2,
+    0.140_653_259_715_525_9,
+    0.169_004_726_639_267_9,
+    0.190_350_578_064_785_4,
+    0.204_432_940_075_298_9,
+    0.209_482_141_084_727_8,
+];
+const WG: [f64; 4] = [
+    0.129_484_966_168_869_7,
+    0.279_705_391_489_276_7,
+    0.381_830_050_505_118_9,
+    0.417_959_183_673_469_4,
+];
+
+/// One Gauss–Kronrod (7, 15) step on `[a, b]`: the Kronrod value, |K - G|,
+/// and the rounding floor of the sum (below which refining cannot help).
+fn gk15(f: &mut dyn FnMut(f64) -> f64, a: f64, b: f64) -> (Quad, f64) {
+    let c = 0.5 * (a + b);
+    let h = 0.5 * (b - a);
+    let fc = f(c);
+    let mut k = WGK[7] * fc;
+    let mut g = WG[3] * fc;
+    let mut abs = WGK[7] * fc.abs();
+    for i in 0..7 {
+        let (f1, f2) = (f(c - h * XGK[i]), f(c + h * XGK[i]));
+        k += WGK[i] * (f1 + f2);
+        abs += WGK[i] * (f1.abs() + f2.abs());
+        if i % 2 == 1 {
+            g += WG[i / 2] * (f1 + f2);
+        }
+    }
+    let q = Quad {
+        value: k * h,
+        err: ((k - g) * h).abs(),
+    };
+    (q, 50.0 * f64::EPSILON * abs * h.abs())
+}
+
+/// Adaptive Gauss–Kronrod on `[a, b]` to absolute tolerance `tol`, refining
+/// by bisection (half the tolerance to each half) down to `max_depth` levels
+/// or to the rounding floor of the sums. With `careful`, an interval is
+/// accepted only when its two halves agree with it (|K(a,b) - K(a,m) - K(m,b)|)
+/// as well as with their embedded Gauss rules (|K - G|), which is much harder
+/// to fool with a kink or a narrow peak but costs at least three rules;
+/// otherwise |K - G| of the interval decides. The rule is open, so `f` is
+/// never evaluated at `a` or `b`: a jump there is seen from inside.
+pub fn gauss_kronrod(
+    f: &mut dyn FnMut(f64) -> f64,
+    [a, b]: [f64; 2],
+    tol: f64,
+    max_depth: u32,
+    careful: bool,
+) -> Quad {
     fn rec(
-        f: &dyn Fn(f64) -> f64,
+        f: &mut dyn FnMut(f64) -> f64,
         [a, b]: [f64; 2],
-        v: [f64; 3],
-        whole: f64,
+        (whole, floor): (Quad, f64),
         tol: f64,
         depth: u32,
+        careful: bool,
     ) -> Quad {
-        let m = 0.5 * (a + b);
-        let (flm, frm) = (f(0.5 * (a + m)), f(0.5 * (m + b)));
-        let left = (m - a) / 6.0 * (v[0] + 4.0 * flm + v[1]);
-        let right = (b - m) / 6.0 * (v[1] + 4.0 * frm + v[2]);
-        let delta = left + right - whole;
-        if depth == 0 || delta.abs() <= 15.0 * tol {
-            return Quad {
-                value: left + right + delta / 15.0,
-                err: delta.abs() / 15.0,
-            };
+        if !careful && (depth == 0 || whole.err <= tol.max(floor)) {
+            return whole;
         }
-        let l = rec(f, [a, m], [v[0], flm, v[1]], left, 0.5 * tol, depth - 1);
-        let r = rec(f, [m, b], [v[1], frm, v[2]], right, 0.5 * tol, depth - 1);
+        let m = 0.5 * (a + b);
+        let (l, r) = (gk15(f, a, m), gk15(f, m, b));
+        if careful {
+            let err = (whole.value - l.0.value - r.0.value)
+                .abs()
+                .max(l.0.err + r.0.err);
+            if depth == 0 || err <= tol.max(floor) {
+                return Quad {
+                    value: l.0.value + r.0.value,
+                    err,
+                };
+            }
+        }
+        let depth = depth.saturating_sub(1);
+        let l = rec(f, [a, m], l, 0.5 * tol, depth, careful);
+        let r = rec(f, [m, b], r, 0.5 * tol, depth, careful);
         Quad {
             value: l.value + r.value,
             err: l.err + r.err,
         }
     }
-    let v = [f(a), f(0.5 * (a + b)), f(b)];
-    let whole = (b - a) / 6.0 * (v[0] + 4.0 * v[1] + v[2]);
-    rec(f, [a, b], v, whole, tol, max_depth)
+    let whole = gk15(f, a, b);
+    rec(f, [a, b], whole, tol, max_depth, careful)
 }
 
-/// Adaptive Simpson over the rectangle `[x0, x1] × [y0, y1]` (given as
-/// `[x0, x1, y0, y1]`): each rectangle's 3×3 Simpson rule is compared with the
-/// sum over its four quarters; quarters are refined until the difference is
-/// within `15 tol` (the tolerance is split among the quarters) or `max_depth`
-/// is reached; every rectangle is split at least `min_depth` times first, since
-/// a 3×3 rule on a coarse rectangle can agree with its quarters by accident
-/// (the classic failure of adaptive Simpson on a peak it does not resolve). The
-/// tolerance is `tol(first estimate)`, so it may depend on the size of the
-/// integral.
-pub fn simpson_2d(
+/// ∫∫ f(x, y) over `[x0, x1] × [y0, y1]` as nested adaptive Gauss–Kronrod
+/// (inner in x, outer in y) to absolute tolerance `tol` (see [`gauss_kronrod`]
+/// for `careful`). Nesting adapts each direction separately, so a peak or a
+/// kink that is narrow in one direction only costs refinement in that one.
+pub fn integrate_2d(
     f: &dyn Fn(f64, f64) -> f64,
-    rect: [f64; 4],
-    tol: &dyn Fn(f64) -> f64,
-    min_depth: u32,
-    max_depth: u32,
+    [x0, x1, y0, y1]: [f64; 4],
+    tol: f64,
+    careful: bool,
 ) -> Quad {
-    /// Simpson's rule from the 3×3 values `v[i][j] = f(x0 + i dx/2, y0 + j dy/2)`.
-    fn rule(v: &[[f64; 3]; 3], area: f64) -> f64 {
-        const W: [f64; 3] = [1.0, 4.0, 1.0];
-        let mut s = 0.0;
-        for i in 0..3 {
-            for j in 0..3 {
-                s += W[i] * W[j] * v[i][j];
-            }
-        }
-        s * area / 36.0
+    // The inner integrals get a tenth of the budget per unit of y.
+    let inner_tol = 0.1 * tol / (y1 - y0);
+    let mut inner_err = 0.0f64;
+    let mut outer = |y: f64| {
+        let q = gauss_kronrod(&mut |x| f(x, y), [x0, x1], inner_tol, 30, careful);
+        inner_err = inner_err.max(q.err);
+        q.value
+    };
+    let q = gauss_kronrod(&mut outer, [y0, y1], 0.9 * tol, 30, careful);
+    Quad {
+        value: q.value,
+        err: q.err + inner_err * (y1 - y0),
     }
-    /// `depth = (levels left, levels still forced)`.
-    fn rec(
-        f: &dyn Fn(f64, f64) -> f64,
-        [x0, x1, y0, y1]: [f64; 4],
-        v: [[f64; 3]; 3],
-        whole: f64,
-        tol: f64,
-        (depth, min_depth): (u32, u32),
-    ) -> Quad {
-        // The 5×5 grid: even indices are the parent's 3×3 values.
-        let mut g = [[0.0; 5]; 5];
-        for (i, row) in g.iter_mut().enumerate() {
-            for (j, x) in row.iter_mut().enumerate() {
-                *x = if i % 2 == 0 && j % 2 == 0 {
-                    v[i / 2][j / 2]
-                } else {
-                    f(
-                        x0 + (x1 - x0) * i as f64 / 4.0,
-                        y0 + (y1 - y0) * j as f64 / 4.0,
-                    )
-                };
-            }
-        }
-        let area = 0.25 * (x1 - x0) * (y1 - y0);
-        let mut kids = [[[0.0; 3]; 3]; 4];
-        let mut s = [0.0; 4];
-        for (k, kid) in kids.iter_mut().enumerate() {
-            let (bi, bj) = (2 * (k / 2), 2 * (k % 2));
-            for i in 0..3 {
-                for j in 0..3 {
-                    kid[i][j] = g[bi + i][bj + j];
-                }
-            }
-            s[k] = rule(kid, area);
-        }
-        let fine: f64 = s.iter().sum();
-        let delta = fine - whole;
-        if depth == 0 || (min_depth == 0 && delta.abs() <= 15.0 * tol) {
-            return Quad {
-                value: fine + delta / 15.0,
-                err: delta.abs() / 15.0,
-            };
-        }
-        let (xm, ym) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-        let mut out = Quad::default();
-        for (k, kid) in kids.iter().enumerate() {
-            let (a0, a1) = if k / 2 == 0 { (x0, xm) } else { (xm, x1) };
-            let (b0, b1) = if k % 2 == 0 { (y0, ym) } else { (ym, y1) };
-            let depths = (depth - 1, min_depth.saturating_sub(1));
-            let q = rec(f, [a0, a1, b0, b1], *kid, s[k], 0.25 * tol, depths);
-            out.value += q.value;
-            out.err += q.err;
-        }
-        out
-    }
-    let [x0, x1, y0, y1] = rect;
-    let mut v = [[0.0; 3]; 3];
-    for (i, row) in v.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = f(
-                x0 + (x1 - x0) * i as f64 / 2.0,
-                y0 + (y1 - y0) * j as f64 / 2.0,
-            );
-        }
-    }
-    let whole = rule(&v, (x1 - x0) * (y1 - y0));
-    let tol = tol(whole.abs());
-    rec(f, rect, v, whole, tol, (max_depth, min_depth))
-}
-
-/// Subdivisions every histogram cell gets before the adaptive criterion applies.
-const MIN_DEPTH: u32 = 2;
-
-/// The unit direction with `z = c` and azimuth `phi`.
-pub fn sph(c: f64, phi: f64) -> [f64; 3] {
-    let s = (1.0 - c * c).max(0.0).sqrt();
-    [s * phi.cos(), s * phi.sin(), c]
 }
 
 // ---------------------------------------------------------------------------
@@ -303,19 +292,25 @@ impl SphereGrid {
     /// Integrates a density over each cell. `cos_breaks` are values of cos θ
     /// where the density may jump (cells are split there, so the jump lies on
     /// an integration boundary); `tol_for(p)` is the absolute tolerance for a
-    /// cell whose integral is about `p`. Returns the cells' integrals and the
-    /// sum of their error estimates.
+    /// cell whose integral is about `p`; `careful` selects the robust error
+    /// check of [`gauss_kronrod`]. Returns the cells' integrals and the sum of
+    /// their error estimates.
     pub fn integrate(
         &self,
         pdf: &dyn Fn([f64; 3]) -> f64,
         cos_breaks: &[f64],
         tol_for: &dyn Fn(f64) -> f64,
+        careful: bool,
     ) -> (Vec<f64>, f64) {
         // Near the poles the integrand is not smooth in cos θ (x and y go as
-        // sqrt(1 - cos θ)), which fools Simpson's error estimate; with
-        // cos θ = ±(1 - t²) it is smooth in t, and dcos θ = 2t dt.
-        let north = |t: f64, phi: f64| 2.0 * t * pdf(sph(1.0 - t * t, phi));
-        let south = |t: f64, phi: f64| 2.0 * t * pdf(sph(t * t - 1.0, phi));
+        // sqrt(1 - cos θ)); with cos θ = ±(1 - t²) it is smooth in t, and
+        // dcos θ = 2t dt. sin θ = t sqrt(2 - t²) exactly.
+        let at = |t: f64, phi: f64, z: f64| {
+            let s = t * (2.0 - t * t).max(0.0).sqrt();
+            [s * phi.cos(), s * phi.sin(), z]
+        };
+        let north = |t: f64, phi: f64| 2.0 * t * pdf(at(t, phi, 1.0 - t * t));
+        let south = |t: f64, phi: f64| 2.0 * t * pdf(at(t, phi, t * t - 1.0));
         let mut cells = vec![0.0; self.len()];
         let mut err = 0.0;
         for i in 0..self.n_cos {
@@ -331,18 +326,16 @@ impl SphereGrid {
                 let p1 = -PI + TAU * (j + 1) as f64 / self.n_phi as f64;
                 let mut q = Quad::default();
                 for w in edges.windows(2) {
-                    // The density may jump on a band edge: Simpson's rule must see
-                    // the limit from inside the band, not the value on the edge
-                    // (which belongs to the next band), so the band is shrunk by a
-                    // relative 1e-12 (a negligible strip).
                     let (t0, t1) = if up {
                         ((1.0 - w[1]).max(0.0).sqrt(), (1.0 - w[0]).sqrt())
                     } else {
                         ((1.0 + w[0]).max(0.0).sqrt(), (1.0 + w[1]).sqrt())
                     };
-                    let e = 1e-12 * (t1 - t0);
                     let g: &dyn Fn(f64, f64) -> f64 = if up { &north } else { &south };
-                    let r = simpson_2d(g, [t0 + e, t1 - e, p0, p1], tol_for, MIN_DEPTH, 10);
+                    // A first pass sizes the tolerance.
+                    let rect = [t0, t1, p0, p1];
+                    let rough = integrate_2d(g, rect, f64::INFINITY, false);
+                    let r = integrate_2d(g, rect, tol_for(rough.value.abs()), careful);
                     q.value += r.value;
                     q.err += r.err;
                 }
@@ -469,9 +462,11 @@ impl Fit<'_> {
         }
         // Per-cell tolerance: 1% of the standard deviation of the cell's count
         // (in probability units), so quadrature error cannot move the statistic.
+        // The fast |K - G| error check suffices here: on every fit of
+        // tests/kernels_chi2.rs the careful check changed ∫ pdf by < 4e-7.
         let nf = n as f64;
         let tol = move |p: f64| 1e-2 * ((p + 1.0 / nf) / nf).sqrt();
-        let (cells, quad_err) = self.grid.integrate(self.pdf, &self.cos_breaks, &tol);
+        let (cells, quad_err) = self.grid.integrate(self.pdf, &self.cos_breaks, &tol, false);
         let mass: f64 = cells.iter().sum();
         let mut expected: Vec<f64> = cells.iter().map(|p| p * nf).collect();
         expected.push((1.0 - mass).max(0.0) * nf);
