@@ -9,21 +9,37 @@ use crate::lane::{Lane, Rgb};
 /// `cos_i` means incidence from below (then the relative IOR is `1 / eta`).
 /// Returns 1 under total internal reflection. Exact at `eta = 1` (returns 0),
 /// with no cancellation near it.
+///
+/// With `e` the relative IOR seen from the incident side, `d = e² - 1` and
+/// `g = e cos θt = sqrt(cos²θi + d)`, the amplitudes are
+/// `rs = (ci - g) / (ci + g) = -d / (ci + g)²` and
+/// `rp = (e² ci - g) / (e² ci + g) = d (ci² (e² + 1) - 1) / (e² ci + g)²`:
+/// both carry the factor `d`, computed as `(η - 1)(η + 1)` from `eta` itself
+/// (never from a rounded `1 / eta`), so they vanish exactly at `eta = 1` and
+/// keep full relative precision near it.
 #[inline]
 pub fn dielectric<L: Lane>(cos_i: L, eta: L) -> L {
+    let one = L::one();
     let below = cos_i.lt(L::zero());
-    let eta = L::select(below, L::one() / eta, eta);
-    let ci = cos_i.abs().min(L::one());
-    let sin2_t = (L::one() - ci * ci) / (eta * eta);
-    let tir = sin2_t.ge(L::one());
-    let ct = (L::one() - sin2_t).safe_sqrt();
-    // r_parallel and r_perpendicular; both denominators vanish only at ci = ct = 0.
-    let dp = eta * ci + ct;
-    let ds = ci + eta * ct;
-    let ok = dp.gt(L::zero()) & ds.gt(L::zero()) & !tir;
-    let rp = L::div_or_zero(eta * ci - ct, dp, ok);
-    let rs = L::div_or_zero(ci - eta * ct, ds, ok);
-    L::select(ok, L::splat(0.5) * (rp * rp + rs * rs), L::one())
+    let eta2 = eta * eta;
+    let d_above = (eta - one) * (eta + one);
+    // Seen from below: e = 1 / eta, e² - 1 = -(eta² - 1) / eta².
+    let e2 = L::select(below, one / eta2, eta2);
+    let d = L::select(below, -d_above / eta2, d_above);
+    let ci = cos_i.abs().min(one);
+    let g2 = ci * ci + d;
+    let tir = g2.lt(L::zero());
+    let g = g2.safe_sqrt();
+    // (ci + g)² and (e² ci + g)², expanded with g² = ci² + d so that at grazing
+    // incidence they equal d exactly (and F is exactly 1). Where d < 0 (the
+    // dense side, short of TIR) |d| < ci², so nothing cancels. Both vanish only
+    // at ci = g = 0, i.e. grazing incidence on an index-matched boundary
+    // (d = 0), where the numerators vanish too.
+    let ds = L::splat(2.0) * ci * (ci + g) + d;
+    let dp = ci * (e2 * e2 * ci + L::splat(2.0) * e2 * g + ci) + d;
+    let rs = L::div_or_zero(-d, ds, ds.gt(L::zero()));
+    let rp = L::div_or_zero(d * (ci * ci * (e2 + one) - one), dp, dp.gt(L::zero()));
+    L::select(tir, one, L::splat(0.5) * (rs * rs + rp * rp))
 }
 
 /// Unpolarized reflectance of a conductor with complex relative IOR `eta + i k`
@@ -34,10 +50,19 @@ pub fn conductor<L: Lane>(cos_i: L, eta: Rgb<L>, k: Rgb<L>) -> Rgb<L> {
     let c2 = ci * ci;
     let s2 = L::one() - c2;
     let per_channel = |eta: L, k: L| {
-        let t0 = eta * eta - k * k - s2;
-        // a² + b² = |(eta + ik)² - sin²|
-        let a2b2 = (t0 * t0 + L::splat(4.0) * eta * eta * k * k).sqrt();
-        let a = (L::splat(0.5) * (a2b2 + t0)).safe_sqrt();
+        // z = (eta + ik)² - sin²θ = t0 + i im; a + ib = sqrt(z). t0 is
+        // written (eta² - 1) - k² + cos²θ: 1 - cos²θ would round away cos²θ
+        // at grazing incidence.
+        let t0 = (eta - L::one()) * (eta + L::one()) - k * k + c2;
+        let im = L::splat(2.0) * eta * k;
+        // a² + b² = |z|
+        let a2b2 = (t0 * t0 + im * im).sqrt();
+        // a² = (|z| + t0) / 2, which cancels when t0 < 0 (k > eta: every
+        // metal); there it is written im² / (2 (|z| - t0)) instead.
+        let neg = t0.lt(L::zero());
+        let den = a2b2 - t0;
+        let a2_neg = L::div_or_zero(L::splat(0.5) * im * im, den, neg & den.gt(L::zero()));
+        let a = L::select(neg, a2_neg, L::splat(0.5) * (a2b2 + t0)).safe_sqrt();
         let t1 = a2b2 + c2;
         let t2 = L::splat(2.0) * a * ci;
         let tiny = L::splat(1e-30);

@@ -82,8 +82,11 @@ impl<L: Lane> Microfacet<L> {
             let ok = t.gt(L::zero());
             let a = L::div_or_zero(L::one(), t.sqrt(), ok);
             let a = L::select(ok, a, L::splat(1e30));
-            let fit = (L::one() - L::splat(1.259) * a + L::splat(0.396) * a * a)
-                / (L::splat(3.535) * a + L::splat(2.181) * a * a);
+            // The fit is used below a = 1.6 only; clamping its argument there
+            // keeps a² finite (1e30² overflows f32 and the fit became inf/inf).
+            let af = a.min(L::splat(1.6));
+            let fit = (L::one() - L::splat(1.259) * af + L::splat(0.396) * af * af)
+                / (L::splat(3.535) * af + L::splat(2.181) * af * af);
             let beck = L::select(a.lt(L::splat(1.6)), fit, L::zero());
             L::select(self.beckmann, beck, ggx)
         } else {

@@ -40,3 +40,5 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
         "{what}: {value} ± {stderr} vs expected {expected} (|z| = {z:.2}, allowed {k} sigma + {abs_tol})"
     );
 }
+
+pub mod chi2;
