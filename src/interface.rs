@@ -365,3 +365,42 @@ impl<L: Lane> InterfaceLanes<L> {
         p
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{Stream, WalkRng};
+
+    /// Running every code path (the general walk) changes nothing but speed.
+    #[test]
+    fn run_all_gives_identical_results() {
+        let stacks = [
+            "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.3 }",
+            "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }",
+            "[[layers]]\ninterface = { kind = \"conductor\", preset = \"Au\", roughness = [0.1, 0.4] }",
+            "[[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.7 }",
+        ];
+        let mut rng = WalkRng::new(1, 2, 3, Stream::Walk);
+        for toml in stacks {
+            let st = crate::LayerStack::from_toml_str(toml).unwrap();
+            let a = st.interface_lanes::<f32>(0);
+            let b = InterfaceLanes { run_all: true, ..a };
+            for _ in 0..2000 {
+                let mut u = || rng.uniform();
+                let d =
+                    |x: f32, y: f32, z: f32| V3::new(x - 0.5, y - 0.5, z - 0.5).normalize_or_z();
+                let (w, v) = (d(u(), u(), u()), d(u(), u(), u()));
+                let (u0, u1, u2) = (u(), u(), u());
+                for t in [false, true] {
+                    let (sa, sb) = (a.sample(w, u0, u1, u2, t), b.sample(w, u0, u1, u2, t));
+                    assert_eq!(
+                        (sa.b, sa.weight, sa.pdf, sa.valid),
+                        (sb.b, sb.weight, sb.pdf, sb.valid)
+                    );
+                    assert_eq!(a.pdf(w, v, t), b.pdf(w, v, t));
+                }
+                assert_eq!(a.eval(w, v), b.eval(w, v));
+            }
+        }
+    }
+}

@@ -598,6 +598,7 @@ fn interface<L: Lane>(x: &[IfIn]) -> InterfaceLanes<L> {
         eta: rgb(x, |t| t.eta),
         k: rgb(x, |t| t.k),
         albedo: rgb(x, |t| t.albedo),
+        run_all: false,
     }
 }
 

@@ -90,6 +90,7 @@ fn base<L: Lane>(mf: Microfacet<L>) -> InterfaceLanes<L> {
         eta: Rgb::splat(L::one()),
         k: Rgb::zero(),
         albedo: Rgb::zero(),
+        run_all: false,
     }
 }
 

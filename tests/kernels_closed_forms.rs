@@ -178,6 +178,7 @@ impl Iface {
             eta: Rgb::one(),
             k: Rgb::zero(),
             albedo: Rgb::zero(),
+            run_all: false,
         };
         match self.kind {
             Kind::Dielectric { n_above, n_below } => {
