@@ -2,6 +2,7 @@
 
 mod cmd_albedo;
 mod cmd_eval;
+mod cmd_stress;
 mod output;
 
 use clap::{Parser, Subcommand};
@@ -21,6 +22,8 @@ enum Command {
     Eval(cmd_eval::Args),
     /// Directional albedo: reflected and transmitted fractions.
     Albedo(cmd_albedo::Args),
+    /// The stiff and extreme suite: every engine against the f64 oracle, one table row per case.
+    Stress(cmd_stress::Args),
 }
 
 fn main() -> ExitCode {
@@ -28,6 +31,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Eval(a) => cmd_eval::run(a),
         Command::Albedo(a) => cmd_albedo::run(a),
+        Command::Stress(a) => cmd_stress::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
