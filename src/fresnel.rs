@@ -7,23 +7,60 @@ use crate::lane::{Lane, Rgb};
 /// `cos_i` is the cosine of the incident direction with the normal that points
 /// into the region *above* the boundary; `eta = n_below / n_above`. A negative
 /// `cos_i` means incidence from below (then the relative IOR is `1 / eta`).
-/// Returns 1 under total internal reflection. Exact at `eta = 1` (returns 0),
-/// with no cancellation near it.
+/// Returns 1 under total internal reflection. Exact at `eta = 1` (returns 0).
+/// See [`dielectric_rt`] for the formulation.
 #[inline]
 pub fn dielectric<L: Lane>(cos_i: L, eta: L) -> L {
+    dielectric_rt(cos_i, eta).0
+}
+
+/// Reflectance `R` and transmittance `T = 1 - R` of a dielectric boundary
+/// (arguments as [`dielectric`]), each computed without cancellation.
+///
+/// With `ci`, `ct` the cosines on the two sides and `η` the relative IOR,
+/// `ds = ci + η ct` and `dp = η ci + ct`, the amplitude ratios are written
+///
+/// * `rs = (ci - η ct) / ds = (1 - η²) / ds²`,
+/// * `rp = (η ci - ct) / dp = (η² - 1)(ci² (η² + 1) - 1) / (η² dp²)`,
+///
+/// so that near `η = 1` they carry the factor `1 - η²` (computed as
+/// `(η - 1)(η + 1)`, exact given `η`) instead of a difference of two nearly
+/// equal cosines; `ct² = (η² - 1 + ci²) / η²` likewise. `T` is
+///
+/// * `T = 2 η ci ct (1 / ds² + 1 / dp²)`,
+///
+/// which at grazing incidence, where `R → 1`, keeps its full relative
+/// precision (`1 - R` in single precision loses it: at cos 1e-7 and η = 1.5
+/// the smooth coat's `1 - F` was 10 % off; see docs/numerics.md).
+#[inline]
+pub fn dielectric_rt<L: Lane>(cos_i: L, eta: L) -> (L, L) {
+    let one = L::one();
+    // η² - 1 from above, and from below (η → 1/η) without rounding 1/η first.
+    let d = (eta - one) * (eta + one);
     let below = cos_i.lt(L::zero());
-    let eta = L::select(below, L::one() / eta, eta);
-    let ci = cos_i.abs().min(L::one());
-    let sin2_t = (L::one() - ci * ci) / (eta * eta);
-    let tir = sin2_t.ge(L::one());
-    let ct = (L::one() - sin2_t).safe_sqrt();
-    // r_parallel and r_perpendicular; both denominators vanish only at ci = ct = 0.
-    let dp = eta * ci + ct;
+    let eta = L::select(below, one / eta, eta);
+    let e2m1 = L::select(below, -d * eta * eta, d);
+    let ci = cos_i.abs().min(one);
+    let eta2 = eta * eta;
+    // ct² = 1 - (1 - ci²) / η², written as a sum where η > 1.
+    let ct2 = (e2m1 + ci * ci) / eta2;
+    let tir = ct2.le(L::zero());
+    let ct = ct2.safe_sqrt();
+    // Both denominators vanish only at ci = ct = 0.
     let ds = ci + eta * ct;
+    let dp = eta * ci + ct;
     let ok = dp.gt(L::zero()) & ds.gt(L::zero()) & !tir;
-    let rp = L::div_or_zero(eta * ci - ct, dp, ok);
-    let rs = L::div_or_zero(ci - eta * ct, ds, ok);
-    L::select(ok, L::splat(0.5) * (rp * rp + rs * rs), L::one())
+    let ds2 = ds * ds;
+    let dp2 = dp * dp;
+    let rs = L::div_or_zero(-e2m1, ds2, ok);
+    let rp = L::div_or_zero(e2m1 * (ci * ci * (eta2 + one) - one), eta2 * dp2, ok);
+    let r = L::splat(0.5) * (rs * rs + rp * rp);
+    let t = L::splat(2.0)
+        * eta
+        * ci
+        * ct
+        * (L::div_or_zero(one, ds2, ok) + L::div_or_zero(one, dp2, ok));
+    (L::select(ok, r, one), L::select(ok, t, L::zero()))
 }
 
 /// Unpolarized reflectance of a conductor with complex relative IOR `eta + i k`

@@ -498,6 +498,8 @@ fn coat(ior: f64, alpha: f64, medium: &str, base: &str) -> String {
 
 const WHITE: &str = "kind = \"diffuse\", albedo = 1.0";
 const GREY: &str = "kind = \"diffuse\", albedo = 0.8";
+const MEDIUM: &str =
+    "thickness = 1.0, sigma_t = 1.0, albedo = 0.9, phase = { kind = \"hg\", g = 0.3 }";
 
 /// The suite.
 pub fn cases() -> Vec<Case> {
@@ -537,15 +539,19 @@ pub fn cases() -> Vec<Case> {
             1.0,
         ),
         c(
-            "grazing-rough-medium",
-            "incidence and exit at cos 1e-7, rough coat, scattering medium",
-            coat(
-                1.5,
-                0.3,
-                "thickness = 1.0, sigma_t = 1.0, albedo = 0.9, phase = { kind = \"hg\", g = 0.3 }",
-                GREY,
-            ),
+            "grazing-in-rough",
+            "incidence at cos 1e-7 on a rough coat over a scattering medium",
+            coat(1.5, 0.3, MEDIUM, GREY),
             dir_cos(grazing, 0.0),
+            dir(60.0, 90.0),
+            false,
+            2.0,
+        ),
+        c(
+            "grazing-out-rough",
+            "exit at cos 1e-7 through a rough coat over a scattering medium",
+            coat(1.5, 0.3, MEDIUM, GREY),
+            dir(60.0, 0.0),
             dir_cos(grazing, 90.0),
             false,
             2.0,
