@@ -262,7 +262,7 @@ impl<S: Scalar> ScalarEngine<S> {
                             {
                                 let dz_e = depth_to_boundary(z, m.thickness, dn.z > S::zero());
                                 let t = m.transmittance(dz_e, dn.z.abs());
-                                let pv = medium::hg_eval(m.g, d.dot(dn));
+                                let pv = medium::hg_eval_dirs(m.g, d, dn);
                                 let ex = &self.ifaces[c.exit];
                                 c.acc += beta
                                     * events::continue_to_exit(ex, c.wo, dn, pv, false, t, mis);

@@ -546,7 +546,7 @@ impl<W: Wide> Wavefront<W> {
                 if m.any() {
                     let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
                     let t = med.transmittance(dz_e, dn.z.abs());
-                    let pv = medium::hg_eval(med.g, d.dot(dn));
+                    let pv = medium::hg_eval_dirs(med.g, d, dn);
                     let add = c.beta
                         * events::continue_to_exit(
                             &self.ifaces[e],
