@@ -239,10 +239,9 @@ impl<L: Lane> InterfaceLanes<L> {
     /// sampling.
     #[inline]
     fn rough_weight(&self, a: V3<L>, b: V3<L>, m_up: V3<L>) -> L {
-        let g = self.mf.g(a, b);
-        let g1 = self.mf.g1(a);
-        let visible = g / g1;
+        let visible = self.mf.g_over_g1(a, b);
         if self.mf.beckmann.any() {
+            let g = self.mf.g(a, b);
             let am = a.dot(m_up).abs();
             let den = a.z.abs() * m_up.z;
             let ok = den.gt(L::zero());
