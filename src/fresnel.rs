@@ -74,7 +74,12 @@ pub fn conductor<L: Lane>(cos_i: L, eta: Rgb<L>, k: Rgb<L>) -> Rgb<L> {
         let t0 = eta * eta - k * k - s2;
         // a² + b² = |(eta + ik)² - sin²|
         let a2b2 = (t0 * t0 + L::splat(4.0) * eta * eta * k * k).sqrt();
-        let a = (L::splat(0.5) * (a2b2 + t0)).safe_sqrt();
+        // a = Re sqrt((eta + ik)² - sin²): (a2b2 + t0) / 2 cancels when
+        // k > eta (every metal; at k = 1e3 it had lost every digit), so take
+        // the larger of a², b² as (a2b2 + |t0|) / 2 and the other from ab = eta k.
+        let big = (L::splat(0.5) * (a2b2 + t0.abs())).sqrt();
+        let small = L::div_or_zero(eta * k, big, big.gt(L::zero()));
+        let a = L::select(t0.ge(L::zero()), big, small);
         let t1 = a2b2 + c2;
         let t2 = L::splat(2.0) * a * ci;
         let tiny = L::splat(1e-30);
