@@ -24,9 +24,10 @@ pub enum LayerKind {
 pub struct MediumLanes<L: Lane> {
     /// What the layer asks of a walk.
     pub kind: LayerKind,
-    /// Geometric thickness (0 for a clear layer).
+    /// Thickness in the walk's depth units: 1 for a medium (0 for a clear
+    /// layer without one).
     pub thickness: L,
-    /// Extinction per unit thickness, per channel.
+    /// Extinction per unit of that depth: the optical depth, per channel.
     pub sigma_t: Rgb<L>,
     /// Single-scattering albedo per channel.
     pub albedo: Rgb<L>,
@@ -60,10 +61,15 @@ impl<L: Lane> MediumLanes<L> {
         } else {
             LayerKind::Clear
         };
+        // Walks measure depth in units of the layer's thickness, so the medium
+        // enters only through its optical depth (as it does in the physics:
+        // σt |Δz| / |d.z|). A thickness or sigma_t that single precision
+        // cannot hold (1e-50, 1e300) then cannot overflow or vanish when their
+        // product is ordinary (docs/numerics.md).
         MediumLanes {
             kind,
-            thickness: L::splat(m.thickness),
-            sigma_t: Rgb::from_array(m.sigma_t),
+            thickness: L::one(),
+            sigma_t: Rgb::from_array(m.optical_depth()),
             albedo: Rgb::from_array(m.albedo),
             g: L::splat(m.g),
             grey: m.sigma_t[0] == m.sigma_t[1] && m.sigma_t[1] == m.sigma_t[2],
