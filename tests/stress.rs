@@ -309,3 +309,24 @@ fn conductor_fresnel_holds_for_huge_k_and_k_zero() {
         }
     }
 }
+
+// -------------------------------------------------------------- free flight
+
+/// Free-flight distances are `-ln(1 - u) / σ` with `u` on the 2^-24 grid of
+/// the walk streams, where `1 - u` is exact: no log1p form is needed, even for
+/// the smallest `u` (the tiny optical depths of the suite, 1e-6, collide only
+/// through them). Checked against f64 `ln_1p` on the first and last grid
+/// points and a sweep between, to 4 ulp.
+#[test]
+fn free_flight_logarithm_needs_no_log1p_form() {
+    let grid = |k: u32| k as f32 * (1.0 / 16_777_216.0);
+    let ks = (1..2000u32)
+        .chain((0..2000).map(|j| 16_777_215 - j))
+        .chain((0..4000).map(|j| j * 4194 + 7));
+    for k in ks {
+        let u = grid(k);
+        let got = -strata::lane::Lane::ln(1.0f32 - u) as f64;
+        let want = -(-(u as f64)).ln_1p();
+        assert!(rel(got, want) < 5e-7, "-ln(1 - {u}) = {got} vs {want}");
+    }
+}
