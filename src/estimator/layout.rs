@@ -175,6 +175,18 @@ pub fn depth_to_boundary<L: Lane>(z: L, h: L, up: L::Mask) -> L {
     L::select(up, z, (h - z).max(L::zero()))
 }
 
+/// The distance along a direction with `|d.z| = mu` to a boundary `dz` away
+/// in depth. A direction exactly parallel to the layer (`mu = 0`: single
+/// precision rounds a scattered direction's `z` to exactly 0 about once in
+/// 3e7 scatterings) never reaches a boundary; its limit is the largest `f32`,
+/// so that a free flight in a scattering medium collides, as it must, instead
+/// of the walk being lost.
+#[inline]
+pub fn flight_limit<L: Lane>(dz: L, mu: L) -> L {
+    let ok = mu.gt(L::zero());
+    L::select(ok, L::div_or_zero(dz, mu, ok), L::splat(f32::MAX as f64))
+}
+
 /// Depth after travelling a distance `t` along `d` from depth `z` (depth grows
 /// downwards), kept inside the layer.
 #[inline]
