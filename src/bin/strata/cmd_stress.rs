@@ -25,6 +25,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let selected: Vec<_> = cases()
         .into_iter()
         .filter(|c| args.case.as_deref().is_none_or(|s| c.name.contains(s)))
+        .filter(|c| budget.includes(c))
         .collect();
     if selected.is_empty() {
         return Err(format!(
