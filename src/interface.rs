@@ -172,14 +172,14 @@ impl<L: Lane> InterfaceLanes<L> {
             let eta = self.eta();
             let m = V3::select(a_up, m_up, -m_up); // on a's side
             let am = a.dot(m);
-            let f = fresnel::dielectric(a.dot(m_up), eta);
+            let (f, ft) = fresnel::dielectric_rt(a.dot(m_up), eta);
             let (t_dir, t_ok) = fresnel::refract(a, m, n_b / n_a);
             let reflect = !transmit_only & u_select.lt(f);
             let b = V3::select(reflect, a.reflect(m), t_dir);
             let side_ok = L::select(reflect, a.z * b.z, -(a.z * b.z)).gt(zero);
             let ok = self.dielectric & am.gt(zero) & side_ok & (reflect | t_ok);
             // Weight: (G / G1-like ratio) × (Fresnel / selection probability).
-            let fresnel_w = L::select(transmit_only, L::one() - f, L::one());
+            let fresnel_w = L::select(transmit_only, ft, L::one());
             let (w_rough, pdf) = if any_rough {
                 (
                     self.rough_weight(a, b, m_up),
@@ -239,10 +239,9 @@ impl<L: Lane> InterfaceLanes<L> {
     /// sampling.
     #[inline]
     fn rough_weight(&self, a: V3<L>, b: V3<L>, m_up: V3<L>) -> L {
-        let g = self.mf.g(a, b);
-        let g1 = self.mf.g1(a);
-        let visible = g / g1;
+        let visible = self.mf.g_over_g1(a, b);
         if self.mf.beckmann.any() {
+            let g = self.mf.g(a, b);
             let am = a.dot(m_up).abs();
             let den = a.z.abs() * m_up.z;
             let ok = den.gt(L::zero());
@@ -287,7 +286,7 @@ impl<L: Lane> InterfaceLanes<L> {
             let ok = ok & self.dielectric & rough & cos_ok;
             let d = self.mf.d(h);
             let g = self.mf.g(a, b);
-            let fr = fresnel::dielectric(a.dot(h), self.eta());
+            let (fr, ft) = fresnel::dielectric_rt(a.dot(h), self.eta());
             let (n_a, n_b) = self.sides(a);
             let ah = a.dot(h);
             let bh = b.dot(h);
@@ -296,7 +295,7 @@ impl<L: Lane> InterfaceLanes<L> {
             let fr_val = L::div_or_zero(d * g * fr, L::splat(4.0) * cos_a * cos_b, ok);
             let ft_ok = ok & den2.gt(zero);
             let ft_val = L::div_or_zero(
-                d * g * (L::one() - fr) * (ah * bh).abs() * n_b * n_b,
+                d * g * ft * (ah * bh).abs() * n_b * n_b,
                 cos_a * cos_b * den2,
                 ft_ok,
             );
@@ -335,13 +334,13 @@ impl<L: Lane> InterfaceLanes<L> {
             let (h, ok) = self.half_vector(a, b, reflection);
             let ok = ok & self.dielectric & rough & !(reflection & transmit_only);
             let pm = self.mf.pdf(a, h);
-            let fr = fresnel::dielectric(a.dot(h), self.eta());
+            let (fr, ft) = fresnel::dielectric_rt(a.dot(h), self.eta());
             let (n_a, n_b) = self.sides(a);
             let ah = a.dot(h);
             let bh = b.dot(h);
             let den = n_a * ah + n_b * bh;
             let pr = L::div_or_zero(pm * fr, L::splat(4.0) * ah.abs(), ok);
-            let sel_t = L::select(transmit_only, L::one(), L::one() - fr);
+            let sel_t = L::select(transmit_only, L::one(), ft);
             let pt = L::div_or_zero(
                 pm * sel_t * n_b * n_b * bh.abs(),
                 den * den,

@@ -60,6 +60,7 @@ pub mod microfacet;
 pub mod query;
 pub mod rng;
 pub mod stack;
+pub mod stress;
 
 pub use api::{BatchError, Direction, Engine, LayeredBsdf, QueryError};
 pub use estimator::{Albedo, Estimate, Sample, Settings};

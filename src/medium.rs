@@ -11,25 +11,77 @@ use crate::math::Frame;
 const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
 
 /// Henyey–Greenstein phase function value for `μ = d·d'`.
+///
+/// Given `1 - μ` and `1 + μ` separately, so that the denominator
+/// `1 + g² - 2gμ` is written as a sum of non-negative terms,
+/// `(1 - g)² + 2g(1 - μ)` for `g >= 0` and `(1 + g)² - 2g(1 + μ)` for `g < 0`:
+/// near the peak of a strongly forward or backward phase function
+/// (`|g| = 0.999`, peak width 1e-3 rad) the plain form cancels to 23 % error
+/// in single precision. See [`hg_eval_dirs`], which takes the directions.
+#[inline]
+pub fn hg_eval_1mp<L: Lane>(g: L, one_minus_mu: L, one_plus_mu: L) -> L {
+    let one = L::one();
+    let two = L::splat(2.0);
+    let fwd = g.ge(L::zero());
+    let denom = L::select(
+        fwd,
+        (one - g).sqr() + two * g * one_minus_mu.max(L::zero()),
+        (one + g).sqr() - two * g * one_plus_mu.max(L::zero()),
+    );
+    // Zero only for |g| = 1 exactly (a delta lobe, never evaluated).
+    let ok = denom.gt(L::zero());
+    L::div_or_zero(
+        L::splat(INV_4PI) * (one - g) * (one + g),
+        denom * denom.sqrt(),
+        ok,
+    )
+}
+
+/// Henyey–Greenstein phase function value for `μ = d·d'` (see
+/// [`hg_eval_1mp`]; here `1 ∓ μ` come from `μ` itself, so they are only as
+/// precise as `μ`).
 #[inline]
 pub fn hg_eval<L: Lane>(g: L, mu: L) -> L {
-    let one = L::one();
-    let denom = (one + g * g - L::splat(2.0) * g * mu).max(L::splat(1e-12));
-    L::splat(INV_4PI) * (one - g * g) / (denom * denom.sqrt())
+    hg_eval_1mp(g, L::one() - mu, L::one() + mu)
+}
+
+/// Henyey–Greenstein phase function value for scattering from travel
+/// direction `d` into `u` (unit vectors). `1 - μ = |d - u|² / 2` and
+/// `1 + μ = |d + u|² / 2` keep their relative precision near the peak, where
+/// `1 - d·u` would lose it (and would also pick up the rounding of the two
+/// vectors' lengths, ~1e-7, as large as `1 - μ` itself at `g = 0.999`).
+#[inline]
+pub fn hg_eval_dirs<L: Lane>(g: L, d: V3<L>, u: V3<L>) -> L {
+    let h = L::splat(0.5);
+    let m = d - u;
+    let p = d + u;
+    hg_eval_1mp(g, h * m.dot(m), h * p.dot(p))
 }
 
 /// Samples `d'` from Henyey–Greenstein around the travel direction `d`.
 /// Exact inversion, so the weight is 1 and the density is [`hg_eval`].
+///
+/// The inversion gives `1 - μ` directly, without cancellation:
+/// with `s = (1 - g²) / (1 - g + 2gv)`,
+/// `1 - μ = (1 - g)(1 - v)(s + 1 - g) / (1 - g + 2gv)` for `g > 0`; a
+/// negative `g` mirrors it (`μ(-g, u) = -μ(g, 1 - u)`). The plain
+/// `μ = (1 + g² - s²) / 2g` rounds near `μ = 1`: at `g = 0.999` in single
+/// precision it put 6 % of the samples at exactly `μ = 1` instead of 1 %.
 #[inline]
 pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
     let one = L::one();
     let two = L::splat(2.0);
     let iso = g.abs().lt(L::splat(1e-3));
-    let g_safe = L::select(iso, L::splat(0.5), g);
-    let s = (one - g_safe * g_safe) / (one - g_safe + two * g_safe * u1);
-    let mu_hg = (one + g_safe * g_safe - s * s) / (two * g_safe);
-    let mu = L::select(iso, two * u1 - one, mu_hg).clamp(-one, one);
-    let sin = (one - mu * mu).safe_sqrt();
+    let neg = g.lt(L::zero()) & !iso;
+    let ga = L::select(iso, L::splat(0.5), g.abs());
+    let v = L::select(neg, one - u1, u1);
+    let den = one - ga + two * ga * v;
+    let s = (one - ga) * (one + ga) / den;
+    let e_hg = (one - ga) * (one - v) * (s + one - ga) / den;
+    // e = 1 - μ for the mirrored (g >= 0) lobe; isotropic: μ = 2u - 1.
+    let e = L::select(iso, two * (one - v), e_hg).clamp(L::zero(), two);
+    let mu = L::select(neg, e - one, one - e);
+    let sin = (e * (two - e)).safe_sqrt();
     let (sp, cp) = u2.sin_cos_turns();
     Frame::around(d).to_world(V3::new(sin * cp, sin * sp, mu))
 }

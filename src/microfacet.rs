@@ -38,12 +38,44 @@ impl<L: Lane> Microfacet<L> {
         }
     }
 
-    /// `(αx² wx² + αy² wy²) / wz²`, i.e. α² tan²θ in the direction's azimuth.
-    /// Grazing directions are kept finite by a floor on wz².
+    /// `α sinθ` in the direction's azimuth, `sqrt(αx² wx² + αy² wy²)`, and
+    /// `sqrt(wz² + (α sinθ)²)`. Shadowing is written with these two lengths
+    /// so that nothing divides by `wz`: `α² tan²θ = (α sinθ / wz)²` overflows
+    /// single precision near the horizon, and a floor on `wz²` (the former
+    /// formulation) made `G` stop falling with `cos θ` below 1e-15, so that
+    /// `f = D G F / (4 cos θi cos θo)` grew without bound there.
     #[inline]
-    fn alpha2_tan2(&self, w: V3<L>) -> L {
-        let num = self.alpha_x.sqr() * w.x.sqr() + self.alpha_y.sqr() * w.y.sqr();
-        num / w.z.sqr().max(L::splat(1e-30))
+    fn lengths(&self, w: V3<L>) -> (L, L) {
+        let s2 = self.alpha_x.sqr() * w.x.sqr() + self.alpha_y.sqr() * w.y.sqr();
+        (s2.sqrt(), (w.z.sqr() + s2).sqrt())
+    }
+
+    /// Walter et al.'s rational fit of Beckmann's Λ in `a = 1 / (α tanθ)`, as
+    /// a fraction `(num, den)` with `Λ = num / den`: `den` is 0 at the horizon
+    /// (where Λ is infinite), and beyond `a = 1.6` the fit is `(0, 1)`. Kept as
+    /// a fraction so that `G1 = den / (den + num)` and `G` never go through an
+    /// infinity.
+    #[inline]
+    fn lambda_beckmann(&self, w: V3<L>) -> (L, L) {
+        let (s, _) = self.lengths(w);
+        let c = w.z.abs();
+        // a = c / s, finite (c <= 1): a direction with s = 0 has no shadowing.
+        let a = c / s.max(L::splat(1e-30));
+        let small = a.lt(L::splat(1.6));
+        let af = a.min(L::splat(1.6));
+        let num = L::one() - L::splat(1.259) * af + L::splat(0.396) * af * af;
+        let den = L::splat(3.535) * af + L::splat(2.181) * af * af;
+        (
+            L::select(small, num, L::zero()),
+            L::select(small, den, L::one()),
+        )
+    }
+
+    /// Beckmann `G1 = 1 / (1 + Λ) = den / (den + num)`.
+    #[inline]
+    fn g1_beckmann(&self, w: V3<L>) -> L {
+        let (n, d) = self.lambda_beckmann(w);
+        L::div_or_zero(d, d + n, (d + n).gt(L::zero()))
     }
 
     /// The normal distribution D(m) (zero below the macro surface).
@@ -71,46 +103,105 @@ impl<L: Lane> Microfacet<L> {
         L::select(up, d, L::zero())
     }
 
-    /// Smith's Λ(w).
+    /// Smith's Λ(w); at the horizon (`w.z = 0`), where it is infinite, the
+    /// largest finite number (no lane ever holds an infinity).
+    /// GGX: `(sqrt(1 + α² tan²θ) - 1) / 2`, written `(αs)² / (2c (S + c))`
+    /// with `c = |w.z|`, `S = sqrt(c² + (αs)²)`: no cancellation for small
+    /// `α tanθ`. [`Microfacet::g1`] and [`Microfacet::g`] do not go through Λ.
     #[inline]
     pub fn lambda(&self, w: V3<L>) -> L {
-        let t = self.alpha2_tan2(w);
-        // (sqrt(1 + t) - 1) / 2 written without cancellation for small t.
-        let ggx = t / (L::splat(2.0) * ((L::one() + t).sqrt() + L::one()));
+        let (s, root) = self.lengths(w);
+        let c = w.z.abs();
+        let ok = c.gt(L::zero());
+        let horizon = L::select(s.gt(L::zero()), L::splat(f32::MAX as f64), L::zero());
+        let ggx = L::select(
+            ok,
+            L::div_or_zero(s * s, L::splat(2.0) * c * (root + c), ok),
+            horizon,
+        );
         if self.beckmann.any() {
-            // Walter et al.'s rational fit in a = 1 / (α tanθ).
-            let ok = t.gt(L::zero());
-            let a = L::div_or_zero(L::one(), t.sqrt(), ok);
-            let a = L::select(ok, a, L::splat(1e30));
-            // The fit is used below a = 1.6 only; clamping its argument there
-            // keeps a² finite (1e30² overflows f32 and the fit became inf/inf).
-            let af = a.min(L::splat(1.6));
-            let fit = (L::one() - L::splat(1.259) * af + L::splat(0.396) * af * af)
-                / (L::splat(3.535) * af + L::splat(2.181) * af * af);
-            let beck = L::select(a.lt(L::splat(1.6)), fit, L::zero());
+            let (n, d) = self.lambda_beckmann(w);
+            let beck = L::select(
+                d.gt(L::zero()),
+                L::div_or_zero(n, d, d.gt(L::zero())),
+                L::splat(f32::MAX as f64),
+            );
             L::select(self.beckmann, beck, ggx)
         } else {
             ggx
         }
     }
 
-    /// Masking G1(w) = 1 / (1 + Λ(w)).
+    /// Masking `G1(w) = 1 / (1 + Λ(w))`; for GGX `2c / (c + S)` (see
+    /// [`Microfacet::lambda`]), which goes to 0 with `c` instead of dividing by it.
     #[inline]
     pub fn g1(&self, w: V3<L>) -> L {
-        L::one() / (L::one() + self.lambda(w))
+        let (_, root) = self.lengths(w);
+        let c = w.z.abs();
+        let den = c + root;
+        let ggx = L::div_or_zero(L::splat(2.0) * c, den, den.gt(L::zero()));
+        if self.beckmann.any() {
+            L::select(self.beckmann, self.g1_beckmann(w), ggx)
+        } else {
+            ggx
+        }
     }
 
-    /// Shadowing-masking for the pair (a, b).
+    /// Shadowing-masking for the pair (a, b). GGX height-correlated:
+    /// `1 / (1 + Λ(a) + Λ(b)) = 2 ca cb / (cb Sa + ca Sb)`; separable:
+    /// `G1(a) G1(b)`.
     #[inline]
     pub fn g(&self, a: V3<L>, b: V3<L>) -> L {
-        let la = self.lambda(a);
-        let lb = self.lambda(b);
-        let corr = L::one() / (L::one() + la + lb);
-        if self.separable.any() {
-            let sep = L::one() / ((L::one() + la) * (L::one() + lb));
+        let two = L::splat(2.0);
+        let (_, ra) = self.lengths(a);
+        let (_, rb) = self.lengths(b);
+        let (ca, cb) = (a.z.abs(), b.z.abs());
+        let den = cb * ra + ca * rb;
+        let corr = L::div_or_zero(two * ca * cb, den, den.gt(L::zero()));
+        let ggx = if self.separable.any() {
+            let sep = L::div_or_zero(two * ca, ca + ra, (ca + ra).gt(L::zero()))
+                * L::div_or_zero(two * cb, cb + rb, (cb + rb).gt(L::zero()));
             L::select(self.separable, sep, corr)
         } else {
             corr
+        };
+        if self.beckmann.any() {
+            // 1 / (1 + na/da + nb/db) = da db / (da db + na db + nb da).
+            let (na, da) = self.lambda_beckmann(a);
+            let (nb, db) = self.lambda_beckmann(b);
+            let dd = da * db;
+            let den = dd + na * db + nb * da;
+            let bc = L::div_or_zero(dd, den, den.gt(L::zero()));
+            let bs = self.g1_beckmann(a) * self.g1_beckmann(b);
+            L::select(self.beckmann, L::select(self.separable, bs, bc), ggx)
+        } else {
+            ggx
+        }
+    }
+
+    /// `G(a, b) / G1(a)`, the weight of visible-normal sampling from `a`,
+    /// without dividing two small numbers: for GGX height-correlated
+    /// `cb (ca + Sa) / (cb Sa + ca Sb)`, separable `G1(b)`.
+    #[inline]
+    pub fn g_over_g1(&self, a: V3<L>, b: V3<L>) -> L {
+        let two = L::splat(2.0);
+        let (_, ra) = self.lengths(a);
+        let (_, rb) = self.lengths(b);
+        let (ca, cb) = (a.z.abs(), b.z.abs());
+        let den = cb * ra + ca * rb;
+        let corr = L::div_or_zero(cb * (ca + ra), den, den.gt(L::zero()));
+        let ggx = if self.separable.any() {
+            let g1b = L::div_or_zero(two * cb, cb + rb, (cb + rb).gt(L::zero()));
+            L::select(self.separable, g1b, corr)
+        } else {
+            corr
+        };
+        if self.beckmann.any() {
+            let g1a = self.g1(a);
+            let beck = L::div_or_zero(self.g(a, b), g1a, g1a.gt(L::zero()));
+            L::select(self.beckmann, beck, ggx)
+        } else {
+            ggx
         }
     }
 
@@ -133,8 +224,10 @@ impl<L: Lane> Microfacet<L> {
         let d = self.d(m);
         let wz = w.z.abs();
         let wm = w.dot(m) * w.z.sign();
+        // G1(w) / |w.z| = 2 / (c + S): no division by w.z.
+        let (_, root) = self.lengths(w);
         let ok = wz.gt(L::zero()) & wm.gt(L::zero());
-        let visible = L::div_or_zero(self.g1(w) * wm * d, wz, ok);
+        let visible = L::div_or_zero(L::splat(2.0) * wm * d, wz + root, ok);
         if self.beckmann.any() {
             L::select(self.beckmann, d * m.z.max(L::zero()), visible)
         } else {

@@ -120,7 +120,7 @@ pub fn connect_collision<L: Lane>(
     t: Rgb<L>,
     mis: bool,
 ) -> Rgb<L> {
-    let ph = medium::hg_eval(g, d.dot(c.u));
+    let ph = medium::hg_eval_dirs(g, d, c.u);
     let w = if mis {
         L::select(
             c.mis_pdf.gt(L::zero()),

@@ -24,9 +24,10 @@ pub enum LayerKind {
 pub struct MediumLanes<L: Lane> {
     /// What the layer asks of a walk.
     pub kind: LayerKind,
-    /// Geometric thickness (0 for a clear layer).
+    /// Thickness in the walk's depth units: 1 for a medium (0 for a clear
+    /// layer without one).
     pub thickness: L,
-    /// Extinction per unit thickness, per channel.
+    /// Extinction per unit of that depth: the optical depth, per channel.
     pub sigma_t: Rgb<L>,
     /// Single-scattering albedo per channel.
     pub albedo: Rgb<L>,
@@ -60,10 +61,15 @@ impl<L: Lane> MediumLanes<L> {
         } else {
             LayerKind::Clear
         };
+        // Walks measure depth in units of the layer's thickness, so the medium
+        // enters only through its optical depth (as it does in the physics:
+        // σt |Δz| / |d.z|). A thickness or sigma_t that single precision
+        // cannot hold (1e-50, 1e300) then cannot overflow or vanish when their
+        // product is ordinary (docs/numerics.md).
         MediumLanes {
             kind,
-            thickness: L::splat(m.thickness),
-            sigma_t: Rgb::from_array(m.sigma_t),
+            thickness: L::one(),
+            sigma_t: Rgb::from_array(m.optical_depth()),
             albedo: Rgb::from_array(m.albedo),
             g: L::splat(m.g),
             grey: m.sigma_t[0] == m.sigma_t[1] && m.sigma_t[1] == m.sigma_t[2],
@@ -167,6 +173,18 @@ impl Layout {
 #[inline]
 pub fn depth_to_boundary<L: Lane>(z: L, h: L, up: L::Mask) -> L {
     L::select(up, z, (h - z).max(L::zero()))
+}
+
+/// The distance along a direction with `|d.z| = mu` to a boundary `dz` away
+/// in depth. A direction exactly parallel to the layer (`mu = 0`: single
+/// precision rounds a scattered direction's `z` to exactly 0 about once in
+/// 3e7 scatterings) never reaches a boundary; its limit is the largest `f32`,
+/// so that a free flight in a scattering medium collides, as it must, instead
+/// of the walk being lost.
+#[inline]
+pub fn flight_limit<L: Lane>(dz: L, mu: L) -> L {
+    let ok = mu.gt(L::zero());
+    L::select(ok, L::div_or_zero(dz, mu, ok), L::splat(f32::MAX as f64))
 }
 
 /// Depth after travelling a distance `t` along `d` from depth `z` (depth grows

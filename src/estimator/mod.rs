@@ -20,6 +20,7 @@ pub mod wavefront;
 
 pub use accumulate::{BlockReducer, MeanVar, BLOCK};
 pub(crate) use orient::orient;
+pub use orient::MIN_COS;
 
 /// Walk controls shared by the estimators.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -20,12 +20,20 @@ impl Oriented {
     }
 }
 
+/// Directions closer to the horizon than this (`|cos θ| < MIN_COS`) are
+/// treated as grazing exactly, where no light enters or leaves. Single
+/// precision cannot hold them: the kernels multiply two cosines (and
+/// squares of cosines), which must stay normal numbers (>= 1.2e-38). The
+/// stiff suite runs down to cos 1e-7.
+pub const MIN_COS: f64 = 1e-18;
+
 /// Orients the incident direction for `stack`, or `None` when no light enters:
-/// `wi` grazing exactly (cos = 0), or arriving at the back of an opaque
+/// `wi` grazing (|cos| < [`MIN_COS`]), or arriving at the back of an opaque
 /// one-sided stack. `wo` (when given) must then leave on a side light can leave
-/// through: above, or below for a transmissive stack.
+/// through (not grazing; above, or below for a transmissive stack).
 pub(crate) fn orient(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> Option<Oriented> {
-    if wi[2] == 0.0 || !wi[2].is_finite() {
+    // NaN is grazing too: `is_nan() ||` keeps the comparison NaN-aware.
+    if wi[2].is_nan() || wi[2].abs() < MIN_COS {
         return None;
     }
     let mut o = Oriented { wi, flipped: false };
@@ -38,7 +46,7 @@ pub(crate) fn orient(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> 
     }
     if let Some(wo) = wo {
         let wo = o.apply(wo);
-        if wo[2] == 0.0 || (!stack.transmissive() && wo[2] < 0.0) {
+        if wo[2].is_nan() || wo[2].abs() < MIN_COS || (!stack.transmissive() && wo[2] < 0.0) {
             return None;
         }
     }

@@ -23,7 +23,9 @@
 
 use super::accumulate::BlockReducer;
 use super::events::{self, Connection};
-use super::layout::{depth_to_boundary, move_depth, LayerKind, Layout, MediumLanes, Next};
+use super::layout::{
+    depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
+};
 use super::{Albedo, Estimate, Sample, Settings};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
@@ -211,22 +213,24 @@ impl<S: Scalar> ScalarEngine<S> {
             let mut d = d;
             loop {
                 let mu = d.z.abs();
-                if mu <= S::zero() {
-                    return None; // travelling exactly sideways: never arrives
-                }
+                // Travelling exactly sideways: never arrives at a boundary.
+                let flat = mu <= S::zero();
                 let dz = depth_to_boundary(z, m.thickness, d.z > S::zero());
                 match m.kind {
+                    LayerKind::Clear if flat => return None,
                     LayerKind::Clear => break,
+                    LayerKind::Absorbing if flat => return None,
                     LayerKind::Absorbing => {
                         beta *= m.transmittance(dz, mu);
                         break;
                     }
                     LayerKind::Scattering => {
+                        // A flat direction collides (see `flight_limit`).
                         let ff = medium::sample_free_flight(
                             m.sigma_t,
                             m.albedo,
                             m.grey,
-                            dz / mu,
+                            flight_limit(dz, mu),
                             hero,
                             Self::u(rng),
                             ratios,
@@ -234,6 +238,9 @@ impl<S: Scalar> ScalarEngine<S> {
                         beta *= ff.weight;
                         ratios = ff.ratios;
                         if !ff.collide {
+                            if flat {
+                                return None;
+                            }
                             break;
                         }
                         order += 1;
@@ -262,7 +269,7 @@ impl<S: Scalar> ScalarEngine<S> {
                             {
                                 let dz_e = depth_to_boundary(z, m.thickness, dn.z > S::zero());
                                 let t = m.transmittance(dz_e, dn.z.abs());
-                                let pv = medium::hg_eval(m.g, d.dot(dn));
+                                let pv = medium::hg_eval_dirs(m.g, d, dn);
                                 let ex = &self.ifaces[c.exit];
                                 c.acc += beta
                                     * events::continue_to_exit(ex, c.wo, dn, pv, false, t, mis);

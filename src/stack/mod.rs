@@ -20,6 +20,40 @@ use crate::lane::{Lane, LaneMask, Rgb};
 use crate::microfacet::Microfacet;
 use std::path::Path;
 
+/// The range of an IOR (dielectric `ior`, `exterior_ior`). Outside it the
+/// single-precision kernels cannot hold the relative IOR and its square
+/// (docs/numerics.md); no physical material comes near either end.
+pub const IOR_RANGE: [f64; 2] = [1e-3, 1e3];
+
+fn ior_in_range(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> {
+    let v = finite(layer, field, v)?;
+    if v <= 0.0 {
+        return Err(StackError::new(layer, field, v, "must be > 0"));
+    }
+    if !(IOR_RANGE[0]..=IOR_RANGE[1]).contains(&v) {
+        return Err(StackError::new(
+            layer,
+            field,
+            v,
+            &format!("must be in [{}, {}]", IOR_RANGE[0], IOR_RANGE[1]),
+        ));
+    }
+    Ok(v)
+}
+
+/// The largest optical depth (`thickness × sigma_t`) of a medium: beyond it
+/// single precision cannot hold it. (Light does not cross 1e30 mean free
+/// paths: at 100 the layer is already opaque to 1e-43.)
+pub const MAX_OPTICAL_DEPTH: f64 = 1e30;
+
+/// Largest conductor `eta` and `k`: the conductor Fresnel term squares
+/// them (and squares `eta² - k²`) in single precision. Metals have k < 100.
+pub const MAX_CONDUCTOR: f64 = 1e6;
+
+/// Largest alpha: GGX and Beckmann lobes are already flat at alpha 3, and
+/// beyond this single precision loses `α² tan²θ` near the horizon.
+pub const MAX_ALPHA: f64 = 1e3;
+
 /// Smallest alpha of a rough interface: smaller positive values are raised to
 /// it (below it GGX's peak overflows single precision). Zero means smooth.
 pub const MIN_ALPHA: f64 = 1e-4;
@@ -155,6 +189,14 @@ fn roughness(layer: usize, r: Roughness) -> Result<([f64; 2], bool), StackError>
                 "must be finite and >= 0",
             ));
         }
+        if x > MAX_ALPHA {
+            return Err(StackError::new(
+                Some(layer),
+                "interface.roughness",
+                x,
+                &format!("must be at most {MAX_ALPHA}"),
+            ));
+        }
     }
     if a == [0.0, 0.0] {
         Ok(([0.0, 0.0], true))
@@ -178,10 +220,7 @@ impl LayerStack {
     /// assert_eq!(stack.interfaces().len(), 2);
     /// ```
     pub fn new(desc: &MaterialDesc) -> Result<Self, StackError> {
-        let n0 = finite(None, "exterior_ior", desc.exterior_ior)?;
-        if n0 <= 0.0 {
-            return Err(StackError::new(None, "exterior_ior", n0, "must be > 0"));
-        }
+        let n0 = ior_in_range(None, "exterior_ior", desc.exterior_ior)?;
         if desc.layers.is_empty() {
             return Err(StackError::msg(
                 None,
@@ -203,10 +242,7 @@ impl LayerStack {
                     distribution,
                     shadowing,
                 } => {
-                    let ior = finite(li, "interface.ior", *ior)?;
-                    if ior <= 0.0 {
-                        return Err(StackError::new(li, "interface.ior", ior, "must be > 0"));
-                    }
+                    let ior = ior_in_range(li, "interface.ior", *ior)?;
                     let (alpha, smooth) = roughness(i, *r)?;
                     let matched = ior == n_above;
                     Interface {
@@ -275,6 +311,13 @@ impl LayerStack {
                     }
                     if kk.iter().any(|&x| x < 0.0) {
                         return Err(StackError::new_rgb(li, "interface.k", kk, "must be >= 0"));
+                    }
+                    let too_big = format!("must be at most {MAX_CONDUCTOR}");
+                    if e.iter().any(|&x| x > MAX_CONDUCTOR) {
+                        return Err(StackError::new_rgb(li, "interface.eta", e, &too_big));
+                    }
+                    if kk.iter().any(|&x| x > MAX_CONDUCTOR) {
+                        return Err(StackError::new_rgb(li, "interface.k", kk, &too_big));
                     }
                     let (alpha, smooth) = roughness(i, *r)?;
                     Interface {
@@ -357,6 +400,16 @@ impl LayerStack {
                 "medium.sigma_t",
                 st,
                 "must be >= 0",
+            ));
+        }
+        if st.iter().any(|&x| x * h > MAX_OPTICAL_DEPTH) {
+            return Err(StackError::new_rgb(
+                li,
+                "medium.sigma_t",
+                st,
+                &format!(
+                    "gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}"
+                ),
             ));
         }
         let al = finite_rgb(li, "medium.albedo", m.albedo.rgb())?;

@@ -47,6 +47,8 @@ commands! {
     Bench => cmd_bench,
     /// Error against run time of every estimator, against a reference: CSV, markdown, PNG plot.
     Converge => cmd_converge,
+    /// The stiff and extreme suite: every engine against the f64 oracle, one table row per case.
+    Stress => cmd_stress,
 }
 
 /// Layered BSDFs by position-free Monte Carlo.

@@ -8,7 +8,7 @@
 use super::walks::{Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
-use crate::estimator::layout::{depth_to_boundary, move_depth, LayerKind, Next};
+use crate::estimator::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Next};
 use crate::estimator::pdf::{mix_uniform, pdf_walk};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
@@ -591,24 +591,25 @@ impl<W: Wide> Wavefront<W> {
         let h = med.thickness;
         let d = c.d;
         let mu = d.z.abs();
+        // A flat direction collides (see `flight_limit`); if it does not, it
+        // never arrives and the walk ends.
         let flat = active & mu.le(W::zero());
-        let moving = active & !flat;
         let up = d.z.gt(W::zero());
         let dz = depth_to_boundary(c.z, h, up);
-        let ud = c.rng.uniform(moving);
+        let ud = c.rng.uniform(active);
         let ff = medium::sample_free_flight(
             med.sigma_t,
             med.albedo,
             med.grey,
-            W::div_or_zero(dz, mu, moving),
+            flight_limit(dz, mu),
             c.hero,
             ud,
             c.ratios,
         );
-        c.beta = Rgb::select(moving, c.beta * ff.weight, c.beta);
-        c.ratios = Rgb::select(moving, ff.ratios, c.ratios);
-        let pass = moving & !ff.collide;
-        let mut col = moving & ff.collide;
+        c.beta = Rgb::select(active, c.beta * ff.weight, c.beta);
+        c.ratios = Rgb::select(active, ff.ratios, c.ratios);
+        let pass = active & !ff.collide & !flat;
+        let mut col = active & ff.collide;
         c.order = W::select(col, c.order + W::one(), c.order);
         let over = match self.settings.max_scatter_order {
             Some(k) => col & c.order.gt(W::splat(k as f64)),
@@ -649,7 +650,7 @@ impl<W: Wide> Wavefront<W> {
                 if m.any() {
                     let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
                     let t = med.transmittance(dz_e, dn.z.abs());
-                    let pv = medium::hg_eval(med.g, d.dot(dn));
+                    let pv = medium::hg_eval_dirs(med.g, d, dn);
                     let add = c.beta
                         * events::continue_to_exit(
                             &self.ifaces[e],
