@@ -129,7 +129,12 @@ impl<W: Wide> Wavefront<W> {
         let mut launched: Vec<(u32, u64)> = Vec::with_capacity(slots);
         let mut counts = vec![0usize; nkeys + 1];
         let mut order = vec![0u32; slots];
+        // The occupied slots, so that a round costs what its live walks cost
+        // (a lone long walk in the tail of a task must not pay for every slot).
+        let mut live: Vec<u32> = Vec::with_capacity(slots);
         loop {
+            // Walks that ended last round leave the live list; new ones join it.
+            live.retain(|&s| wave.ws.key[s as usize] != FREE);
             // Refill free slots with the next walks.
             launched.clear();
             while unit < task.len() {
@@ -150,22 +155,21 @@ impl<W: Wide> Wavefront<W> {
             if wave.live == 0 {
                 break;
             }
-            // Sort live slots into queues by key (counting sort, stable).
+            let draining = unit >= task.len();
+            live.extend(launched.iter().map(|&(s, _)| s));
+            // Sort live slots into queues by key (counting sort).
             counts.fill(0);
-            for &k in &wave.ws.key {
-                if k != FREE {
-                    counts[k as usize + 1] += 1;
-                }
+            for &s in &live {
+                counts[wave.ws.key[s as usize] as usize + 1] += 1;
             }
             for k in 0..nkeys {
                 counts[k + 1] += counts[k];
             }
             let starts = counts.clone();
-            for (s, &k) in wave.ws.key.iter().enumerate() {
-                if k != FREE {
-                    order[counts[k as usize]] = s as u32;
-                    counts[k as usize] += 1;
-                }
+            for &s in &live {
+                let k = wave.ws.key[s as usize] as usize;
+                order[counts[k]] = s;
+                counts[k] += 1;
             }
             // Advance every queue by one event, a chunk of lanes at a time.
             for key in 0..nkeys {
@@ -175,7 +179,7 @@ impl<W: Wide> Wavefront<W> {
                     idx[..chunk.len()].copy_from_slice(chunk);
                     let idx = &idx[..W::LANES];
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
-                    self.advance(q, &mut wave, idx, active, key, &mut stats);
+                    self.advance(q, &mut wave, idx, active, key, draining, &mut stats);
                 }
             }
         }
@@ -406,8 +410,10 @@ impl<W: Wide> Wavefront<W> {
     /// Advances a chunk of walks from queue `key` by one event, and keeps it
     /// in lanes for further events while all its lanes go on to the same
     /// queue (a chunk whose walks agree skips a store, a sort and a load per
-    /// event); then stores it back. (Continuing with some lanes idle was
-    /// measured slower than regrouping them.)
+    /// event); then stores it back. Continuing with some lanes idle was
+    /// measured slower than regrouping them, except when the task is
+    /// `draining` (no walk left to start): then the chunk keeps going with
+    /// whatever lanes still agree.
     fn advance(
         &self,
         q: &Queries,
@@ -415,6 +421,7 @@ impl<W: Wide> Wavefront<W> {
         idx: &[u32],
         active: W::Mask,
         key: usize,
+        draining: bool,
         stats: &mut Stats,
     ) {
         let n = self.layout.n;
@@ -448,7 +455,7 @@ impl<W: Wide> Wavefront<W> {
             c.active = W::mask_from_bitmask(o.going);
             let next = o.keys[o.going.trailing_zeros() as usize];
             let together = Chunk::<W>::lanes(c.active).all(|j| o.keys[j] == next);
-            if together && o.going.count_ones() as usize == W::LANES {
+            if together && (draining || o.going.count_ones() as usize == W::LANES) {
                 key = next as usize;
                 continue;
             }
