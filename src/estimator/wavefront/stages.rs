@@ -32,6 +32,9 @@ struct Wave<'a> {
     out: &'a mut [WalkOut],
     free: Vec<u32>,
     live: usize,
+    /// No walk of the task is left to start.
+    draining: bool,
+    stats: Stats,
 }
 
 impl Wave<'_> {
@@ -118,13 +121,14 @@ impl<W: Wide> Wavefront<W> {
             out,
             free: (0..slots as u32).rev().collect(),
             live: 0,
+            draining: false,
+            stats: Stats {
+                walks: total as u64,
+                ..Stats::default()
+            },
         };
         let n = self.layout.n;
         let nkeys = 2 * n - 1;
-        let mut stats = Stats {
-            walks: total as u64,
-            ..Stats::default()
-        };
         let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
         let mut launched: Vec<(u32, u64)> = Vec::with_capacity(slots);
         let mut counts = vec![0usize; nkeys + 1];
@@ -155,7 +159,7 @@ impl<W: Wide> Wavefront<W> {
             if wave.live == 0 {
                 break;
             }
-            let draining = unit >= task.len();
+            wave.draining = unit >= task.len();
             live.extend(launched.iter().map(|&(s, _)| s));
             // Sort live slots into queues by key (counting sort).
             counts.fill(0);
@@ -179,11 +183,11 @@ impl<W: Wide> Wavefront<W> {
                     idx[..chunk.len()].copy_from_slice(chunk);
                     let idx = &idx[..W::LANES];
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
-                    self.advance(q, &mut wave, idx, active, key, draining, &mut stats);
+                    self.advance(q, &mut wave, idx, active, key);
                 }
             }
         }
-        stats
+        wave.stats
     }
 
     /// Writes a new walk's scalar state into `slot`.
@@ -414,25 +418,16 @@ impl<W: Wide> Wavefront<W> {
     /// measured slower than regrouping them, except when the task is
     /// `draining` (no walk left to start): then the chunk keeps going with
     /// whatever lanes still agree.
-    fn advance(
-        &self,
-        q: &Queries,
-        wave: &mut Wave,
-        idx: &[u32],
-        active: W::Mask,
-        key: usize,
-        draining: bool,
-        stats: &mut Stats,
-    ) {
+    fn advance(&self, q: &Queries, wave: &mut Wave, idx: &[u32], active: W::Mask, key: usize) {
         let n = self.layout.n;
         let mut key = key;
         let mut c = Chunk::<W>::gather(wave.ws, idx, active, self.stage_for(q, key));
         loop {
             c.ensure(wave.ws, idx, self.stage_for(q, key));
             let busy = W::bitmask(c.active);
-            stats.chunks += 1;
-            stats.lanes += W::LANES as u64;
-            stats.segments += busy.count_ones() as u64;
+            wave.stats.chunks += 1;
+            wave.stats.lanes += W::LANES as u64;
+            wave.stats.segments += busy.count_ones() as u64;
             let o = if key < n {
                 self.interface_event(q, wave.ws, idx, &mut c, key)
             } else {
@@ -455,7 +450,7 @@ impl<W: Wide> Wavefront<W> {
             c.active = W::mask_from_bitmask(o.going);
             let next = o.keys[o.going.trailing_zeros() as usize];
             let together = Chunk::<W>::lanes(c.active).all(|j| o.keys[j] == next);
-            if together && (draining || o.going.count_ones() as usize == W::LANES) {
+            if together && (wave.draining || o.going.count_ones() as usize == W::LANES) {
                 key = next as usize;
                 continue;
             }
