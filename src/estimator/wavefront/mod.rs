@@ -125,6 +125,15 @@ pub(crate) struct Queries {
     pub e_out: Vec<f32>,
 }
 
+impl Queries {
+    /// The indices of the queries light can enter.
+    fn valid_ids(&self) -> Vec<u32> {
+        (0..self.valid.len() as u32)
+            .filter(|&q| self.valid[q as usize])
+            .collect()
+    }
+}
+
 /// One query as given: `(wi, wo for eval, seeding key)`.
 type QuerySpec = ([f64; 3], Option<[f64; 3]>, u64);
 
@@ -416,9 +425,7 @@ impl<W: Wide> Wavefront<W> {
         samples: u64,
         value: impl Fn(&WalkOut) -> [f64; 3] + Sync,
     ) -> (Vec<MeanVar>, Stats) {
-        let valid: Vec<u32> = (0..queries.valid.len() as u32)
-            .filter(|&q| queries.valid[q as usize])
-            .collect();
+        let valid = queries.valid_ids();
         let mut red = vec![BlockReducer::new(); queries.valid.len()];
         let (count, unit) = Self::block_unit(&valid, samples);
         // A block's walks in sample order, as the scalar engine pushes them.
@@ -488,9 +495,7 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
     ) -> Vec<Vec<[f64; 3]>> {
         let queries = self.eval_queries(pairs, seed, keys);
-        let valid: Vec<u32> = (0..pairs.len() as u32)
-            .filter(|&q| queries.valid[q as usize])
-            .collect();
+        let valid = queries.valid_ids();
         let mut v: Vec<Vec<[f64; 3]>> = queries
             .valid
             .iter()
@@ -512,6 +517,11 @@ impl<W: Wide> Wavefront<W> {
         v
     }
 
+    fn sample_queries(&self, wis: &[[f64; 3]], seed: u64, keys: &[u64]) -> Queries {
+        let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
+        self.prepare(Mode::Sample, seed, &spec)
+    }
+
     fn eval_queries(&self, pairs: &[([f64; 3], [f64; 3])], seed: u64, keys: &[u64]) -> Queries {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
@@ -531,12 +541,9 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
     ) -> (Vec<Albedo>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
-        let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
-        let queries = self.prepare(Mode::Sample, seed, &spec);
+        let queries = self.sample_queries(wis, seed, keys);
         // Reflected and transmitted fractions share the walks: reduce both at once.
-        let valid: Vec<u32> = (0..wis.len() as u32)
-            .filter(|&q| queries.valid[q as usize])
-            .collect();
+        let valid = queries.valid_ids();
         let mut red = vec![(BlockReducer::new(), BlockReducer::new()); wis.len()];
         let (count, unit) = Self::block_unit(&valid, samples);
         let block = |o: &[WalkOut]| {
@@ -583,11 +590,8 @@ impl<W: Wide> Wavefront<W> {
     ) -> (Vec<Option<Sample>>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         assert_eq!(wis.len(), sample_index.len(), "one sample index per query");
-        let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
-        let queries = self.prepare(Mode::Sample, seed, &spec);
-        let valid: Vec<u32> = (0..wis.len() as u32)
-            .filter(|&q| queries.valid[q as usize])
-            .collect();
+        let queries = self.sample_queries(wis, seed, keys);
+        let valid = queries.valid_ids();
         let unit = |u: usize| Unit {
             query: valid[u],
             first: sample_index[valid[u] as usize],
