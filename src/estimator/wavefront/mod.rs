@@ -50,10 +50,10 @@ use walks::Walks;
 pub type DefaultWide = F32x8;
 
 /// Walk slots per wave, per lane of width.
-const SLOTS_PER_LANE: usize = 128;
+const SLOTS_PER_LANE: usize = 64;
 
 /// Walks per task: the unit of work a thread takes. Tasks are whole blocks.
-const TASK_WALKS: u64 = 16 * BLOCK;
+const TASK_WALKS: u64 = 32 * BLOCK;
 
 /// How much the walk is specialized to the stack.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -355,10 +355,15 @@ impl<W: Wide> Wavefront<W> {
         if count == 0 {
             return Stats::default();
         }
-        // Tasks: runs of units of about TASK_WALKS walks; their boundaries
-        // depend on the batch only, never on the thread count.
+        // Tasks: runs of units of at most TASK_WALKS walks, small enough that
+        // each thread gets several (for balance). Results do not depend on the
+        // boundaries: a unit's walks and their reduction are its own, and
+        // units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
-        let per_task = (TASK_WALKS / walks_per_unit).max(1) as usize;
+        let threads = rayon::current_num_threads().max(1);
+        let per_task = ((TASK_WALKS / walks_per_unit).max(1) as usize)
+            .min(count.div_ceil(4 * threads))
+            .max(1);
         let tasks = count.div_ceil(per_task);
         let largest = (per_task.min(count) as u64 * walks_per_unit) as usize;
         let slots = self
