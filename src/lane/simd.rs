@@ -502,3 +502,117 @@ impl F32x16 {
         }
     }
 }
+
+/// Wrapping 32-bit unsigned integer: the random state of a one-lane "chunk".
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct U32(pub u32);
+
+impl Add for U32 {
+    type Output = U32;
+    #[inline]
+    fn add(self, o: U32) -> U32 {
+        U32(self.0.wrapping_add(o.0))
+    }
+}
+impl BitXor for U32 {
+    type Output = U32;
+    #[inline]
+    fn bitxor(self, o: U32) -> U32 {
+        U32(self.0 ^ o.0)
+    }
+}
+impl BitOr for U32 {
+    type Output = U32;
+    #[inline]
+    fn bitor(self, o: U32) -> U32 {
+        U32(self.0 | o.0)
+    }
+}
+impl Shl<u32> for U32 {
+    type Output = U32;
+    #[inline]
+    fn shl(self, k: u32) -> U32 {
+        U32(self.0.wrapping_shl(k))
+    }
+}
+impl Shr<u32> for U32 {
+    type Output = U32;
+    #[inline]
+    fn shr(self, k: u32) -> U32 {
+        U32(self.0.wrapping_shr(k))
+    }
+}
+impl BitLanes for U32 {}
+
+/// One lane: the wavefront engine finishes the last, longest walks of a task
+/// on it, where a lone walk would leave seven of eight SIMD lanes idle. The
+/// same kernels and stages run, so its walks are bit for bit those of the
+/// other widths and of the scalar reference.
+impl Wide for f32 {
+    type Bits = U32;
+    #[inline]
+    fn gather(col: &[f32], idx: &[u32]) -> Self {
+        col[idx[0] as usize]
+    }
+    #[inline]
+    fn scatter(self, col: &mut [f32], idx: &[u32], m: bool) {
+        if m {
+            col[idx[0] as usize] = self;
+        }
+    }
+    #[inline]
+    fn gather_bits(col: &[u32], idx: &[u32]) -> U32 {
+        U32(col[idx[0] as usize])
+    }
+    #[inline]
+    fn scatter_bits(b: U32, col: &mut [u32], idx: &[u32], m: bool) {
+        if m {
+            col[idx[0] as usize] = b.0;
+        }
+    }
+    #[inline]
+    fn bits_lane(b: U32, _j: usize) -> u32 {
+        b.0
+    }
+    #[inline]
+    fn select_bits(m: bool, t: U32, f: U32) -> U32 {
+        if m {
+            t
+        } else {
+            f
+        }
+    }
+    #[inline]
+    fn bits_to_unit(b: U32) -> Self {
+        crate::rng::to_unit(b.0)
+    }
+    #[inline]
+    fn bitmask(m: bool) -> u32 {
+        m as u32
+    }
+    #[inline]
+    fn mask_from_bitmask(bits: u32) -> bool {
+        bits & 1 != 0
+    }
+    fn to_f32s(self) -> Vec<f32> {
+        vec![self]
+    }
+    #[inline]
+    fn to_bit_lanes(self) -> U32 {
+        U32(self.to_bits())
+    }
+    #[inline]
+    fn from_bit_lanes(b: U32) -> Self {
+        f32::from_bits(b.0)
+    }
+    #[inline]
+    fn load8<const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [Self; 8] {
+        recs[idx[0] as usize][first..first + 8]
+            .try_into()
+            .expect("eight fields")
+    }
+    #[inline]
+    fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize) {
+        recs[idx[0] as usize][first..first + 8].copy_from_slice(&vals);
+    }
+}

@@ -209,6 +209,9 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     /// The rough exits `(exit, layer next to it, interface across)`: where
     /// path continuations connect.
     exits: Vec<(usize, usize, usize)>,
+    /// The same engine on one lane, which finishes the last walks of a task
+    /// (none for the one-lane engine itself).
+    tail: Option<Box<Wavefront<f32>>>,
     /// Interfaces where some eval walk may connect to the viewer (a chain
     /// link starts there): the others skip loading the chain.
     connects_at: Vec<bool>,
@@ -264,6 +267,7 @@ impl<W: Wide> Wavefront<W> {
             .filter_map(|e| layout.exit_region(e).map(|(l0, k0)| (e, l0, k0)))
             .collect();
         Wavefront {
+            tail: (W::LANES > 1).then(|| Box::new(Wavefront::<f32>::new(stack, settings, plan))),
             exits,
             connects_at,
             connects_in,

@@ -27,7 +27,7 @@ struct Outcome {
 }
 
 /// A wave during one task: the walks, the task's outputs, the free slots.
-struct Wave<'a> {
+pub(super) struct Wave<'a> {
     ws: &'a mut Walks,
     out: &'a mut [WalkOut],
     free: Vec<u32>,
@@ -63,43 +63,6 @@ fn conn_lane<W: Wide>(c: &Connection<W>, j: usize) -> Connection<f32> {
 fn rgb_lane<W: Wide>(c: Rgb<W>, j: usize) -> Rgb<f32> {
     Rgb::new(c.r.lane(j) as f32, c.g.lane(j) as f32, c.b.lane(j) as f32)
 }
-
-/// Builds lanes from one f32 link per lane.
-fn links_to_lanes<W: Wide>(links: &[Link]) -> (Connection<W>, Rgb<W>) {
-    let v = |f: &dyn Fn(&Link) -> f32| W::from_fn(|j| f(&links[j]) as f64);
-    (
-        Connection {
-            u: V3::new(v(&|k| k.conn.u.x), v(&|k| k.conn.u.y), v(&|k| k.conn.u.z)),
-            v: Rgb::new(v(&|k| k.conn.v.r), v(&|k| k.conn.v.g), v(&|k| k.conn.v.b)),
-            mis_pdf: v(&|k| k.conn.mis_pdf),
-        },
-        Rgb::new(v(&|k| k.t_full.r), v(&|k| k.t_full.g), v(&|k| k.t_full.b)),
-    )
-}
-
-/// A link that connects nothing (for lanes without one).
-const NO_LINK: Link = Link {
-    conn: Connection {
-        u: V3 {
-            x: 0.0,
-            y: 0.0,
-            z: 1.0,
-        },
-        v: Rgb {
-            r: 0.0,
-            g: 0.0,
-            b: 0.0,
-        },
-        mis_pdf: 0.0,
-    },
-    t_full: Rgb {
-        r: 1.0,
-        g: 1.0,
-        b: 1.0,
-    },
-    layer: u16::MAX,
-    start: u16::MAX,
-};
 
 impl<W: Wide> Wavefront<W> {
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
@@ -179,6 +142,16 @@ impl<W: Wide> Wavefront<W> {
             for key in 0..nkeys {
                 let queue = &order[starts[key]..starts[key + 1]];
                 for chunk in queue.chunks(W::LANES) {
+                    // The last few walks of a task run on one lane each, to
+                    // their end: a lone walk would leave the other lanes idle.
+                    if let Some(tail) = self.tail.as_ref().filter(|_| wave.draining) {
+                        if chunk.len() * 8 <= W::LANES {
+                            for &s in chunk {
+                                tail.advance(q, &mut wave, &[s], true, key);
+                            }
+                            continue;
+                        }
+                    }
                     let mut idx = [chunk[0]; 64];
                     idx[..chunk.len()].copy_from_slice(chunk);
                     let idx = &idx[..W::LANES];
@@ -343,16 +316,52 @@ impl<W: Wide> Wavefront<W> {
 
     /// Lanes of the chunk's walks' overflow links `k` (link `k + 1` of the
     /// chain; [`NO_LINK`] where a lane has none), if any lane has one.
-    fn overflow_links(ws: &Walks, idx: &[u32], active: W::Mask, k: usize) -> Option<[Link; 64]> {
+    fn overflow_links(ws: &Walks, idx: &[u32], active: W::Mask, k: usize) -> Option<LinkLanes<W>> {
+        // Per field, per lane: u (3), v (3), mis, t (3), layer, start.
+        let mut f = [[0.0f32; 16]; 12];
+        for j in 0..W::LANES {
+            f[2][j] = 1.0; // a harmless direction
+            f[7][j] = 1.0;
+            f[8][j] = 1.0;
+            f[9][j] = 1.0;
+            f[10][j] = f32::MAX; // no layer, no interface
+            f[11][j] = f32::MAX;
+        }
         let mut any = false;
-        let mut links = [NO_LINK; 64];
         for j in Chunk::<W>::lanes(active) {
             if let Some(l) = ws.chain[idx[j] as usize].get(k) {
                 any = true;
-                links[j] = *l;
+                let c = &l.conn;
+                let vals = [
+                    c.u.x,
+                    c.u.y,
+                    c.u.z,
+                    c.v.r,
+                    c.v.g,
+                    c.v.b,
+                    c.mis_pdf,
+                    l.t_full.r,
+                    l.t_full.g,
+                    l.t_full.b,
+                    l.layer as f32,
+                    l.start as f32,
+                ];
+                for (field, v) in f.iter_mut().zip(vals) {
+                    field[j] = v;
+                }
             }
         }
-        any.then_some(links)
+        let lanes = |i: usize| W::from_fn(|j| f[i][j] as f64);
+        any.then(|| LinkLanes {
+            conn: Connection {
+                u: V3::new(lanes(0), lanes(1), lanes(2)),
+                v: Rgb::new(lanes(3), lanes(4), lanes(5)),
+                mis_pdf: lanes(6),
+            },
+            t: Rgb::new(lanes(7), lanes(8), lanes(9)),
+            layer: lanes(10),
+            start: lanes(11),
+        })
     }
 
     /// Adds next-event estimation through every link of the lanes in
@@ -376,15 +385,8 @@ impl<W: Wide> Wavefront<W> {
         let more = m & nl.gt(W::splat(1.5));
         let mut k = 0;
         while more.any() {
-            let Some(links) = Self::overflow_links(ws, idx, more, k) else {
+            let Some(lk) = Self::overflow_links(ws, idx, more, k) else {
                 break;
-            };
-            let (conn, t) = links_to_lanes::<W>(&links);
-            let lk = LinkLanes {
-                conn,
-                t,
-                layer: W::from_fn(|j| links[j].layer as f64),
-                start: W::from_fn(|j| links[j].start as f64),
             };
             let mm = more & wanted(&lk);
             if mm.any() {
@@ -418,7 +420,14 @@ impl<W: Wide> Wavefront<W> {
     /// measured slower than regrouping them, except when the task is
     /// `draining` (no walk left to start): then the chunk keeps going with
     /// whatever lanes still agree.
-    fn advance(&self, q: &Queries, wave: &mut Wave, idx: &[u32], active: W::Mask, key: usize) {
+    pub(super) fn advance(
+        &self,
+        q: &Queries,
+        wave: &mut Wave,
+        idx: &[u32],
+        active: W::Mask,
+        key: usize,
+    ) {
         let n = self.layout.n;
         let mut key = key;
         let mut c = Chunk::<W>::gather(wave.ws, idx, active, self.stage_for(q, key));
