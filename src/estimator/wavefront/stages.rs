@@ -318,15 +318,13 @@ impl<W: Wide> Wavefront<W> {
     /// chain; [`NO_LINK`] where a lane has none), if any lane has one.
     fn overflow_links(ws: &Walks, idx: &[u32], active: W::Mask, k: usize) -> Option<LinkLanes<W>> {
         // Per field, per lane: u (3), v (3), mis, t (3), layer, start.
+        // Lanes without a link: a harmless direction, no layer, no interface.
         let mut f = [[0.0f32; 16]; 12];
-        for j in 0..W::LANES {
-            f[2][j] = 1.0; // a harmless direction
-            f[7][j] = 1.0;
-            f[8][j] = 1.0;
-            f[9][j] = 1.0;
-            f[10][j] = f32::MAX; // no layer, no interface
-            f[11][j] = f32::MAX;
+        for i in [2, 7, 8, 9] {
+            f[i] = [1.0; 16];
         }
+        f[10] = [f32::MAX; 16];
+        f[11] = [f32::MAX; 16];
         let mut any = false;
         for j in Chunk::<W>::lanes(active) {
             if let Some(l) = ws.chain[idx[j] as usize].get(k) {
