@@ -52,8 +52,6 @@ pub trait Wide: Lane + LaneBits {
     fn bitmask(m: Self::Mask) -> u32;
     /// The mask with lane `j` set where bit `j` of `bits` is.
     fn mask_from_bitmask(bits: u32) -> Self::Mask;
-    /// Lanes as an array of f32 (length `LANES`).
-    fn to_f32s(self) -> Vec<f32>;
     /// The bits of each lane as an integer lane.
     fn to_bit_lanes(self) -> Self::Bits;
     /// Integer lanes reinterpreted as floats.
@@ -402,9 +400,6 @@ macro_rules! wide_lane {
             fn mask_from_bitmask(bits: u32) -> $mask {
                 $mask::from_bools(std::array::from_fn(|j| bits & (1 << j) != 0))
             }
-            fn to_f32s(self) -> Vec<f32> {
-                self.0.to_array().to_vec()
-            }
             #[inline]
             fn to_bit_lanes(self) -> wide::$u {
                 self.0.to_bits()
@@ -593,9 +588,6 @@ impl Wide for f32 {
     #[inline]
     fn mask_from_bitmask(bits: u32) -> bool {
         bits & 1 != 0
-    }
-    fn to_f32s(self) -> Vec<f32> {
-        vec![self]
     }
     #[inline]
     fn to_bit_lanes(self) -> U32 {

@@ -356,9 +356,3 @@ impl<W: Wide> Chunk<W> {
         (0..W::LANES).filter(move |j| bits & (1 << j) != 0)
     }
 }
-
-/// True if no lane of `m` is set.
-#[inline]
-pub fn none<W: Wide>(m: W::Mask) -> bool {
-    !m.any()
-}
