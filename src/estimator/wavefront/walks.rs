@@ -13,7 +13,7 @@
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
 use crate::estimator::events::Connection;
-use crate::lane::{LaneMask, Rgb, Wide, V3};
+use crate::lane::{Rgb, Wide, V3};
 use crate::rng::LaneRng;
 
 /// The key of an empty slot.
