@@ -4,6 +4,8 @@
 //! (arguments); outputs must be valid JSON or PNG; a failed run leaves no file.
 #![cfg(feature = "cli")]
 
+mod common;
+use common::reference::fresnel;
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -428,19 +430,6 @@ fn mean_se(x: &[f64]) -> (f64, f64) {
     let m = x.iter().sum::<f64>() / n;
     let v = x.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / (n - 1.0);
     (m, (v / n).sqrt())
-}
-
-/// Unpolarized Fresnel reflectance from a medium of IOR n1 into n2, written
-/// independently of the crate.
-fn fresnel(ci: f64, n1: f64, n2: f64) -> f64 {
-    let s2t = (n1 / n2).powi(2) * (1.0 - ci * ci);
-    if s2t >= 1.0 {
-        return 1.0;
-    }
-    let ct = (1.0 - s2t).sqrt();
-    let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
-    let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
-    0.5 * (rs * rs + rp * rp)
 }
 
 #[test]

@@ -56,16 +56,7 @@ fn channel0(z: &[f64]) -> impl Iterator<Item = f64> + '_ {
 /// Fresnel terms and hemispherical averages written out here, in the test.
 #[test]
 fn analytic_reference_is_the_closed_form() {
-    fn fresnel(ci: f64, n1: f64, n2: f64) -> f64 {
-        let s2t = (n1 / n2).powi(2) * (1.0 - ci * ci);
-        if s2t >= 1.0 {
-            return 1.0;
-        }
-        let ct = (1.0 - s2t).sqrt();
-        let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
-        let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
-        0.5 * (rs * rs + rp * rp)
-    }
+    use common::reference::fresnel;
     let avg = |n1: f64, n2: f64| {
         let n = 400_000;
         (0..n)

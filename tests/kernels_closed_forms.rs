@@ -14,6 +14,7 @@ mod common;
 
 use common::chi2::{gauss_kronrod, SphereGrid};
 use common::dir;
+use common::reference::fresnel as fresnel_ref;
 use std::f64::consts::PI;
 use strata::fresnel;
 use strata::interface::InterfaceLanes;
@@ -27,20 +28,7 @@ use strata::rng::{Stream, WalkRng};
 // Independent references
 // ---------------------------------------------------------------------------
 
-/// Unpolarized Fresnel reflectance for light in IOR `n1` hitting IOR `n2` at
-/// incidence cosine `ci >= 0` (textbook s and p amplitudes).
-fn fresnel_ref(ci: f64, n1: f64, n2: f64) -> f64 {
-    let s2t = (n1 / n2).powi(2) * (1.0 - ci * ci);
-    if s2t >= 1.0 {
-        return 1.0;
-    }
-    let ct = (1.0 - s2t).sqrt();
-    let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
-    let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
-    0.5 * (rs * rs + rp * rp)
-}
-
-/// The transmitted cosine of [`fresnel_ref`] (0 under total internal reflection).
+/// The transmitted cosine of [`fresnel_ref`] (`common::reference::fresnel`) (0 under total internal reflection).
 fn cos_t_ref(ci: f64, n1: f64, n2: f64) -> f64 {
     (1.0 - (n1 / n2).powi(2) * (1.0 - ci * ci)).max(0.0).sqrt()
 }

@@ -28,9 +28,8 @@
 //! it is believed.
 
 mod common;
-mod layered_common;
+use common::reference::{rough_conductor, rough_dielectric, sphere_integral, Acc};
 use common::*;
-use layered_common::{rough_conductor, rough_dielectric, sphere_integral, Acc};
 use strata::estimator::scalar::{Scalar, ScalarEngine};
 use strata::rng::{Stream, WalkRng};
 use strata::{LayerStack, Settings};

@@ -15,9 +15,8 @@
 //! transmission, light from above and from below), from near-normal to 89°.
 
 mod common;
-mod layered_common;
+use common::reference::{rough_conductor, rough_dielectric};
 use common::*;
-use layered_common::{rough_conductor, rough_dielectric};
 use strata::estimator::scalar::{Scalar, ScalarEngine};
 use strata::lane::V3;
 use strata::{LayerStack, LayeredBsdf, Settings};

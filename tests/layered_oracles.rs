@@ -17,9 +17,8 @@
 //! (relative 1e-5 allowance, far below the standard errors of about 0.5%).
 
 mod common;
-mod layered_common;
+use common::reference::fresnel;
 use common::*;
-use layered_common::fresnel;
 use strata::estimator::scalar::{Scalar, ScalarEngine};
 use strata::Settings;
 

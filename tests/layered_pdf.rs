@@ -29,9 +29,8 @@
 //!   plus the uniform part.
 
 mod common;
-mod layered_common;
+use common::reference::SplitMix;
 use common::*;
-use layered_common::SplitMix;
 use strata::estimator::pdf::UNIFORM_FRACTION;
 use strata::estimator::scalar::ScalarEngine;
 use strata::lane::V3;

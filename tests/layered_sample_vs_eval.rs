@@ -44,9 +44,8 @@
 //! stack) must stay exactly zero on both.
 
 mod common;
-mod layered_common;
+use common::reference::SplitMix;
 use common::*;
-use layered_common::SplitMix;
 use strata::estimator::scalar::ScalarEngine;
 use strata::rng::{Stream, WalkRng};
 use strata::Settings;

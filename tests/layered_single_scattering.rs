@@ -28,9 +28,8 @@
 //! for a random seed (the seeds are fixed, so the test is deterministic).
 
 mod common;
-mod layered_common;
+use common::reference::hg;
 use common::*;
-use layered_common::hg;
 use strata::estimator::scalar::{Scalar, ScalarEngine};
 use strata::Settings;
 

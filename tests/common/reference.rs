@@ -1,4 +1,4 @@
-//! Independent f64 references for the `layered_*` tests.
+//! Independent f64 references for the tests.
 //!
 //! Everything here is written from the formulas (Fresnel's equations, Walter
 //! et al. 2007 for rough dielectrics, Henyey–Greenstein), not from strata's
