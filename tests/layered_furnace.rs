@@ -11,7 +11,7 @@
 //! * A lone rough interface loses what the single-scattering microfacet model
 //!   loses, no more: R + T equals the interface's directional albedo
 //!   ∫ f(wi, wo) |cos θo| dωo computed here by quadrature of an independent
-//!   GGX formula (`layered_common`), within 3 standard errors of the
+//!   GGX formula (`common::reference`), within 3 standard errors of the
 //!   difference. The quadrature is jittered (one random point per cell, 8
 //!   replicas) so that the lobes' cut-offs (GGX has density at the horizon, so
 //!   f jumps where a half vector crosses it) give an unbiased error with its

@@ -6,7 +6,7 @@
 //! Two comparisons per direction pair:
 //! * against `InterfaceLanes::eval` of the same interface, computed in the
 //!   test: equal to f32 rounding (relative 1e-6), standard error exactly 0;
-//! * against independent f64 formulas (`layered_common`: Walter et al. 2007
+//! * against independent f64 formulas (`common::reference`: Walter et al. 2007
 //!   GGX reflection and transmission with the n_b² radiance factor, complex
 //!   conductor Fresnel with the IOR relative to the region above, Lambert),
 //!   relative 1e-4 (the engine runs in f32).

@@ -5,7 +5,7 @@
 //!
 //! with F the Fresnel reflectance seen from outside and F̄_in the
 //! cosine-weighted internal reflectance (total internal reflection included).
-//! Fresnel is written in the test (`layered_common`), independently of the
+//! Fresnel is written in the test (`common::reference`), independently of the
 //! crate. The base's albedo is given per channel as (0, 0.5, 1), so every eval
 //! checks the three albedos at once (channel 0 must be exactly 0).
 //!
