@@ -88,6 +88,11 @@ impl Direction {
 
 /// Which engine answers a query. Both give the same results for the same
 /// seeds (walk by walk, up to rare rounding differences; tested).
+///
+/// The wavefront engine pays a fixed setup cost per call (preparing the
+/// queries, a wave, a rayon task), which its lanes repay many times over on a
+/// batch, or on an `eval` of many walks, but not on a single `sample` or
+/// `pdf`: for one direction at a time, the scalar engine is the cheaper one.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The scalar reference: one walk at a time.

@@ -44,9 +44,10 @@ pub fn mix_uniform(p: f64) -> f64 {
 /// One short media-free walk per lane (see the module docs): its estimate of
 /// the interior's density of `wo` given `wi`. Lane `j` enters at interface
 /// `e_in[j]` and leaves through `e_out[j]` (indices as lane values) of a stack
-/// of `n >= 2` interfaces `table`; `u3` gives three uniforms per event.
-pub fn pdf_walk<L: Lane, T: Lane>(
-    table: &[InterfaceLanes<T>],
+/// of `n >= 2` interfaces, each one's parameters splatted over the lanes in
+/// `table`; `u3` gives three uniforms per event.
+pub fn pdf_walk<L: Lane>(
+    table: &[InterfaceLanes<L>],
     wi: V3<L>,
     wo: V3<L>,
     e_in: L,
@@ -55,7 +56,17 @@ pub fn pdf_walk<L: Lane, T: Lane>(
 ) -> L {
     let n = table.len();
     let zero = L::zero();
-    let at = |i: L| InterfaceLanes::<L>::gather(table, |j| i.lane(j) as usize);
+    // Lane j takes interface i[j]: a select per interface present (n is small).
+    let at = |i: L| {
+        let mut it = table[0];
+        for (k, t) in table.iter().enumerate().skip(1) {
+            let here = i.eq(L::splat(k as f64));
+            if here.any() {
+                it = InterfaceLanes::select(here, t, &it);
+            }
+        }
+        it
+    };
     let exit = at(e_out);
     let top_exit = e_out.eq(zero);
     // The interface across the exit layer.

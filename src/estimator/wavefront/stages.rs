@@ -755,7 +755,7 @@ impl<W: Wide> Wavefront<W> {
                     let lidx: Vec<u32> = (0..W::LANES as u32).collect();
                     let mut rng = LaneRng::<W>::gather(&states, &lidx);
                     let all = W::Mask::splat(true);
-                    let p = pdf_walk(&self.table, wi, wo, e_in, e_out, || {
+                    let p = pdf_walk(&self.ifaces, wi, wo, e_in, e_out, || {
                         (rng.uniform(all), rng.uniform(all), rng.uniform(all))
                     });
                     for j in 0..chunk.len() {
