@@ -32,6 +32,20 @@ pub enum QueryError {
         /// The value given.
         value: [f32; 3],
     },
+    /// A number of walks of 0: there would be no estimate.
+    NoSamples {
+        /// The argument (`"samples"`, `"n"`).
+        argument: &'static str,
+    },
+    /// A batch's per-query argument does not have one entry per query.
+    LengthMismatch {
+        /// The argument (`"keys"`, `"sample_index"`).
+        argument: &'static str,
+        /// Its length.
+        len: usize,
+        /// The number of queries.
+        queries: usize,
+    },
 }
 
 impl fmt::Display for QueryError {
@@ -46,6 +60,17 @@ impl fmt::Display for QueryError {
                 f,
                 "{argument} = [{}, {}, {}] is not a direction: it has zero length",
                 value[0], value[1], value[2]
+            ),
+            QueryError::NoSamples { argument } => {
+                write!(f, "{argument} = 0: at least one walk is needed")
+            }
+            QueryError::LengthMismatch {
+                argument,
+                len,
+                queries,
+            } => write!(
+                f,
+                "{argument} has {len} entries for {queries} queries: give one per query"
             ),
         }
     }
@@ -269,6 +294,7 @@ impl LayeredBsdf {
         query: u64,
     ) -> Result<Estimate, QueryError> {
         let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
+        at_least_one("samples", samples)?;
         Ok(match self.engine {
             Engine::Scalar => self
                 .scalar
@@ -318,6 +344,8 @@ impl LayeredBsdf {
         keys: &[u64],
     ) -> Result<Vec<Estimate>, BatchError> {
         let dirs = directions2(pairs)?;
+        one_each("keys", keys.len(), pairs.len())?;
+        at_least_one("samples", samples).map_err(|error| BatchError { index: 0, error })?;
         Ok(match self.engine {
             Engine::Scalar => dirs
                 .iter()
@@ -349,6 +377,8 @@ impl LayeredBsdf {
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
         let dirs = directions1(wis)?;
+        one_each("keys", keys.len(), wis.len())?;
+        one_each("sample_index", sample_index.len(), wis.len())?;
         Ok(match self.engine {
             Engine::Scalar => dirs
                 .iter()
@@ -399,6 +429,8 @@ impl LayeredBsdf {
         keys: &[u64],
     ) -> Result<Vec<Albedo>, BatchError> {
         let dirs = directions1(wis)?;
+        one_each("keys", keys.len(), wis.len())?;
+        at_least_one("n", n).map_err(|error| BatchError { index: 0, error })?;
         Ok(match self.engine {
             Engine::Scalar => dirs
                 .iter()
@@ -408,6 +440,32 @@ impl LayeredBsdf {
             Engine::Wavefront => {
                 self.install(|| self.wave.albedo_batch(&dirs, n, self.seed, keys).0)
             }
+        })
+    }
+}
+
+/// A walk count of at least 1.
+fn at_least_one(argument: &'static str, n: u64) -> Result<(), QueryError> {
+    if n == 0 {
+        Err(QueryError::NoSamples { argument })
+    } else {
+        Ok(())
+    }
+}
+
+/// One entry of a per-query argument for every query; the error names the
+/// first query left without one.
+fn one_each(argument: &'static str, len: usize, queries: usize) -> Result<(), BatchError> {
+    if len == queries {
+        Ok(())
+    } else {
+        Err(BatchError {
+            index: len.min(queries),
+            error: QueryError::LengthMismatch {
+                argument,
+                len,
+                queries,
+            },
         })
     }
 }

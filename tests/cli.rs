@@ -903,3 +903,45 @@ fn engines_and_thread_counts_print_the_same_answers() {
         &["--threads", "0"],
     );
 }
+
+/// The command-line examples in README.md print what the binary prints (so
+/// the README cannot go stale): each `$ ...` line of its example block is run
+/// (an `echo '...' |` prefix becomes stdin) and its output compared line by line.
+#[test]
+fn readme_examples_match_the_binary() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md"))
+        .expect("README.md");
+    let start = readme
+        .find("```sh\n$ echo")
+        .expect("the README's example block");
+    let block = &readme[start + 6..];
+    let block = &block[..block.find("```").expect("end of block")];
+    let mut runs: Vec<(String, Vec<String>)> = Vec::new();
+    for line in block.lines() {
+        if let Some(cmd) = line.strip_prefix("$ ") {
+            runs.push((cmd.to_string(), Vec::new()));
+        } else if let Some(last) = runs.last_mut() {
+            last.1.push(line.to_string());
+        }
+    }
+    assert!(runs.len() >= 3, "README examples found: {}", runs.len());
+    let root = env!("CARGO_MANIFEST_DIR");
+    for (cmd, expected) in runs {
+        let (stdin, cmd) = match cmd.split_once(" | ") {
+            Some((echo, rest)) => {
+                let text = echo.trim_start_matches("echo ").trim_matches('\'');
+                (format!("{text}\n"), rest.to_string())
+            }
+            None => (String::new(), cmd),
+        };
+        let args: Vec<String> = cmd
+            .split_whitespace()
+            .skip(1) // "strata"
+            .map(|a| a.replace("examples/", &format!("{root}/examples/")))
+            .collect();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = assert_ok(&run(&args, &stdin));
+        let got: Vec<&str> = out.lines().collect();
+        assert_eq!(got, expected, "README example `{cmd}`");
+    }
+}

@@ -237,3 +237,38 @@ fn pdf_of_a_lone_rough_interface_is_its_density() {
         "only {informative} directions inside the lobes"
     );
 }
+
+/// A rough coat over a smooth transmissive bottom: the walk's density through
+/// the stack is picked up at the entrance (the vertex across the exit layer
+/// is the entrance itself in a transmission query), so the pdf must carry
+/// the transmitted lobe, not just the uniform floor. The floor alone would
+/// integrate to 0.05 over the lower hemisphere; the stack transmits about
+/// 0.9, nearly all of it straight through the smooth bottom.
+#[test]
+fn pdf_sees_transmission_through_a_smooth_exit() {
+    let st = stack(
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.0 }
+        "#,
+    );
+    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    for (q, wi) in [dir(17.0, 0.0), dir(160.0, 40.0)].into_iter().enumerate() {
+        let below = |w: [f64; 3]| (w[2] < 0.0) == (wi[2] > 0.0);
+        let (t, se) = pdf_integral(
+            |wo, key| {
+                if below(wo) {
+                    eng.pdf(wi, wo, 32, 3, key)
+                } else {
+                    0.0
+                }
+            },
+            60,
+            100 + q as u64,
+        );
+        eprintln!("wi {wi:?}: ∫ pdf over the transmission side = {t:.4} ± {se:.4}");
+        assert!(t > 0.5 && t <= 1.0 + 4.0 * se, "wi {wi:?}: {t} ± {se}");
+    }
+}

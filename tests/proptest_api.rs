@@ -96,6 +96,7 @@ fn check_error(e: &QueryError, argument: &str, v: Vec3) {
             assert_eq!(a, argument);
             assert!(v.is_finite(), "ZeroLength for non-finite {v}");
         }
+        ref other => panic!("a bad direction gave {other:?}"),
     }
     assert!(
         e.to_string().contains(argument),
@@ -581,5 +582,52 @@ proptest! {
         let _ = LayerStack::from_toml_str(&s);
         let _ = LayerStack::from_json_str(&s);
         let _ = strata::query::parse_query_line(&s);
+    }
+}
+
+/// Per-query arguments of a keyed batch must have one entry per query, and a
+/// walk count must be at least 1: errors naming the argument on both engines
+/// (never a panic, never a silently shorter answer).
+#[test]
+fn keyed_batches_check_their_lengths_and_counts() {
+    let stack = strata::materials::builtin("coated_copper").expect("built-in");
+    let pairs = [
+        (Vec3::Z, Vec3::new(0.3, 0.0, 0.9)),
+        (Vec3::new(0.2, 0.1, 0.9), Vec3::Z),
+    ];
+    let wis = [Vec3::Z, Vec3::new(0.2, 0.1, 0.9)];
+    for engine in [Engine::Scalar, Engine::Wavefront] {
+        let b = LayeredBsdf::new(stack.clone()).engine(engine);
+        let e = b
+            .eval_batch_keyed(&pairs, 16, &[1])
+            .expect_err("one key for two");
+        assert_eq!(e.index, 1, "{engine:?}");
+        assert!(
+            e.to_string().contains("keys has 1 entries for 2 queries"),
+            "{e}"
+        );
+        let e = b
+            .sample_batch_keyed(&wis, &[1, 2], &[0])
+            .expect_err("short index");
+        assert!(e.to_string().contains("sample_index"), "{e}");
+        let e = b
+            .albedo_batch_keyed(&wis, 16, &[1, 2, 3])
+            .expect_err("long keys");
+        assert_eq!(e.index, 2, "{engine:?}");
+        assert!(matches!(
+            b.eval_with(Vec3::Z, Vec3::Z, 0, 0),
+            Err(QueryError::NoSamples { .. })
+        ));
+        assert!(matches!(
+            b.albedo(Vec3::Z, 0),
+            Err(QueryError::NoSamples { .. })
+        ));
+        assert!(b.eval_batch_keyed(&pairs, 0, &[1, 2]).is_err());
+        assert_eq!(
+            b.eval_batch_keyed(&pairs, 16, &[1, 2])
+                .expect("valid")
+                .len(),
+            2
+        );
     }
 }

@@ -44,6 +44,9 @@ pub fn power_heuristic<L: Lane>(a: L, b: L) -> L {
     L::select(ok, L::select(a.ge(b), big, r2 * big), zero)
 }
 
+/// The largest event cap honoured exactly (see [`Settings::max_depth`]).
+pub const MAX_CAP: u32 = 1 << 24;
+
 /// Russian roulette after `rr_start` events, and the optional hard cap.
 /// Returns the new throughput and the lanes that survive. Survivors past
 /// `rr_start` continue with probability `q = min(1, max channel of beta)` and
@@ -56,8 +59,10 @@ pub fn roulette<L: Lane>(
     rr_start: u32,
     cap: Option<u32>,
 ) -> (Rgb<L>, L::Mask) {
+    // Events are counted in single precision by the wavefront engine, exactly
+    // up to 2^24; a cap above that is treated as 2^24 by every engine.
     let capped = match cap {
-        Some(c) => events.ge(L::splat(c as f64)),
+        Some(c) => events.ge(L::splat(c.min(MAX_CAP) as f64)),
         None => L::Mask::splat(false),
     };
     let early = events.lt(L::splat(rr_start as f64));

@@ -30,7 +30,8 @@ pub struct Settings {
     pub rr_start: u32,
     /// Optional hard cap on events per walk. `None` (the default) means no cap.
     /// A cap loses the energy of longer paths: it is biased, and only for
-    /// renderers that need bounded cost.
+    /// renderers that need bounded cost. Caps above 2^24
+    /// ([`events::MAX_CAP`]) act as 2^24 on every engine.
     pub max_depth: Option<u32>,
     /// Keep only paths with at most this many medium scattering events
     /// (`Some(1)` gives single scattering, the analytic check of method.md §8).

@@ -14,7 +14,9 @@
 //!
 //! What it neglects: media (scattering and attenuation), paths longer than
 //! `2 n + 1` interface events, and (for a smooth exit) paths whose last non-delta
-//! event lies deeper than the interface across the exit layer. It is therefore
+//! event lies deeper than the interface across the exit layer: where that
+//! interface is smooth too (a smooth coat over another smooth interface), the
+//! interior gets no density at all and the pdf is the uniform floor alone. It is therefore
 //! not the density of `sample()`: it is mixed with a uniform density,
 //! `pdf = 0.9 p + 0.1 / 4π`, so it is positive wherever `f` can be.
 //!
@@ -90,14 +92,15 @@ pub fn pdf_walk<L: Lane>(
     let mut alive = L::Mask::splat(true);
     let mut i = e_in;
     let mut a = wi;
-    for event in 0..2 * n + 1 {
+    for _ in 0..2 * n + 1 {
         let it = at(i);
-        if event > 0 {
-            let done = alive & link_ok & i.eq(k0);
-            let v = (it.pdf(a, u0, L::Mask::splat(false)) * conv).max(zero);
-            p = L::select(done, v, p);
-            alive = alive & !done;
-        }
+        // A smooth exit: the vertex across the exit layer adds its density of
+        // the one direction that leaves towards wo. In a transmission query
+        // through two interfaces that vertex is the entrance (event 0).
+        let done = alive & link_ok & i.eq(k0);
+        let v = (it.pdf(a, u0, L::Mask::splat(false)) * conv).max(zero);
+        p = L::select(done, v, p);
+        alive = alive & !done;
         let (us, u1, u2) = u3();
         let s = it.sample(a, us, u1, u2, L::Mask::splat(false));
         alive = alive & s.valid;

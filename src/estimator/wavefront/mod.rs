@@ -76,7 +76,8 @@ pub struct Stats {
     pub segments: u64,
     /// Chunks processed.
     pub chunks: u64,
-    /// Lanes available in those chunks (`chunks × LANES`).
+    /// Lanes available in those chunks (`LANES` per chunk, 1 for the walks
+    /// a draining task finishes on one lane).
     pub lanes: u64,
 }
 
