@@ -244,7 +244,8 @@ impl LayeredBsdf {
     }
 
     /// Runs the wavefront engine's batches on a pool of `n` threads (by
-    /// default, rayon's global pool). Results do not depend on it.
+    /// default, rayon's global pool; `n = 0` also means one thread per
+    /// core). Results do not depend on it.
     pub fn threads(mut self, n: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
         self.pool = Some(Arc::new(pool));

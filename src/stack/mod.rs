@@ -54,6 +54,10 @@ pub const MAX_CONDUCTOR: f64 = 1e6;
 /// beyond this single precision loses `α² tan²θ` near the horizon.
 pub const MAX_ALPHA: f64 = 1e3;
 
+/// The most layers a stack may have (the wavefront engine numbers its queues,
+/// one per interface and per layer, in 16 bits; no material comes near).
+pub const MAX_LAYERS: usize = 1024;
+
 /// Smallest alpha of a rough interface: smaller positive values are raised to
 /// it (below it GGX's peak overflows single precision). Zero means smooth.
 pub const MIN_ALPHA: f64 = 1e-4;
@@ -229,6 +233,13 @@ impl LayerStack {
             ));
         }
         let n = desc.layers.len();
+        if n > MAX_LAYERS {
+            return Err(StackError::msg(
+                None,
+                "layers",
+                &format!("{n} layers: at most {MAX_LAYERS} are supported"),
+            ));
+        }
         let mut interfaces = Vec::with_capacity(n);
         let mut media = Vec::with_capacity(n.saturating_sub(1));
         let mut n_above = n0;

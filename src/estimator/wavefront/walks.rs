@@ -143,6 +143,9 @@ impl Walks {
         r[f::Z] = 0.0;
         r[f::HERO] = hero;
         r[f::LINKS] = 0.0;
+        // The random state travels as f32 bit patterns: only moved, never
+        // computed with, so every bit pattern survives (SSE/AVX loads and
+        // shuffles are exact; an x87 target would not be).
         for (k, v) in rng.into_iter().enumerate() {
             r[f::RNG + k] = f32::from_bits(v);
         }
