@@ -34,11 +34,15 @@ pub(super) struct Wave<'a> {
     live: usize,
     /// No walk of the task is left to start.
     draining: bool,
+    /// The queues of the next round, one per key: walks join the queue of
+    /// their next event as they leave a chunk, so a round needs no sort.
+    next: Vec<Vec<u32>>,
     stats: Stats,
 }
 
 impl Wave<'_> {
     /// Ends the walk in `slot` with `o` and frees the slot.
+    #[inline(always)]
     fn finish(&mut self, slot: u32, o: WalkOut) {
         let s = slot as usize;
         self.out[self.ws.walk[s] as usize] = o;
@@ -46,6 +50,12 @@ impl Wave<'_> {
         self.ws.chain[s].clear();
         self.free.push(slot);
         self.live -= 1;
+    }
+
+    /// Puts the walk in `slot` in queue `key` for the next round.
+    fn enqueue(&mut self, slot: u32, key: u16) {
+        self.ws.key[slot as usize] = key;
+        self.next[key as usize].push(slot);
     }
 }
 
@@ -79,29 +89,25 @@ impl<W: Wide> Wavefront<W> {
         out.resize(total, WalkOut::default());
         let slots = ws.slots();
         ws.key.fill(FREE);
+        let n = self.layout.n;
+        let nkeys = 2 * n - 1;
         let mut wave = Wave {
             ws,
             out,
             free: (0..slots as u32).rev().collect(),
             live: 0,
             draining: false,
+            next: vec![Vec::with_capacity(slots); nkeys],
             stats: Stats {
                 walks: total as u64,
                 ..Stats::default()
             },
         };
-        let n = self.layout.n;
-        let nkeys = 2 * n - 1;
         let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
         let mut launched: Vec<(u32, u64)> = Vec::with_capacity(slots);
-        let mut counts = vec![0usize; nkeys + 1];
-        let mut order = vec![0u32; slots];
-        // The occupied slots, so that a round costs what its live walks cost
-        // (a lone long walk in the tail of a task must not pay for every slot).
-        let mut live: Vec<u32> = Vec::with_capacity(slots);
+        // This round's queues (the previous round's `next`).
+        let mut queues: Vec<Vec<u32>> = vec![Vec::with_capacity(slots); nkeys];
         loop {
-            // Walks that ended last round leave the live list; new ones join it.
-            live.retain(|&s| wave.ws.key[s as usize] != FREE);
             // Refill free slots with the next walks.
             launched.clear();
             while unit < task.len() {
@@ -123,24 +129,13 @@ impl<W: Wide> Wavefront<W> {
                 break;
             }
             wave.draining = unit >= task.len();
-            live.extend(launched.iter().map(|&(s, _)| s));
-            // Sort live slots into queues by key (counting sort).
-            counts.fill(0);
-            for &s in &live {
-                counts[wave.ws.key[s as usize] as usize + 1] += 1;
+            for &(s, _) in &launched {
+                let key = wave.ws.key[s as usize];
+                wave.next[key as usize].push(s);
             }
-            for k in 0..nkeys {
-                counts[k + 1] += counts[k];
-            }
-            let starts = counts.clone();
-            for &s in &live {
-                let k = wave.ws.key[s as usize] as usize;
-                order[counts[k]] = s;
-                counts[k] += 1;
-            }
+            std::mem::swap(&mut queues, &mut wave.next);
             // Advance every queue by one event, a chunk of lanes at a time.
-            for key in 0..nkeys {
-                let queue = &order[starts[key]..starts[key + 1]];
+            for (key, queue) in queues.iter_mut().enumerate() {
                 for chunk in queue.chunks(W::LANES) {
                     // The last few walks of a task run on one lane each, to
                     // their end: a lone walk would leave the other lanes idle.
@@ -158,6 +153,7 @@ impl<W: Wide> Wavefront<W> {
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
                     self.advance(q, &mut wave, idx, active, key);
                 }
+                queue.clear();
             }
         }
         wave.stats
@@ -440,16 +436,9 @@ impl<W: Wide> Wavefront<W> {
             } else {
                 self.layer_event(q, wave.ws, idx, &mut c, key - n)
             };
-            for j in Chunk::<W>::lanes(c.active) {
-                let bit = 1 << j;
-                if o.going & bit == 0 {
-                    let out = if o.exited & bit != 0 {
-                        self.exit_out(q, wave.ws, idx[j], &c, j)
-                    } else {
-                        self.dead_out(&c, j)
-                    };
-                    wave.finish(idx[j], out);
-                }
+            let ended = busy & !o.going;
+            if ended != 0 {
+                self.finish_lanes(q, wave, idx, &c, ended, o.exited);
             }
             if o.going == 0 {
                 return; // every walk ended: nothing to store
@@ -470,7 +459,7 @@ impl<W: Wide> Wavefront<W> {
                 },
             );
             for j in Chunk::<W>::lanes(c.active) {
-                wave.ws.key[idx[j] as usize] = o.keys[j];
+                wave.enqueue(idx[j], o.keys[j]);
             }
             return;
         }
@@ -701,29 +690,53 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
-    /// The output of a walk that left the stack.
-    fn exit_out(&self, q: &Queries, ws: &Walks, slot: u32, c: &Chunk<W>, j: usize) -> WalkOut {
-        let qi = ws.query[slot as usize] as usize;
-        let d = [
-            c.d.x.lane(j) as f32,
-            c.d.y.lane(j) as f32,
-            c.d.z.lane(j) as f32,
-        ];
-        let v = if q.mode == Mode::Eval { c.acc } else { c.beta };
-        WalkOut {
-            value: rgb_lane(v, j).to_array(),
-            dir: d,
-            exited: true,
-            reflection: (d[2] > 0.0) == (q.wi[2][qi] > 0.0),
-            specular: c.specular.lane(j),
-        }
-    }
-
-    /// The output of a walk that ended inside the stack.
-    fn dead_out(&self, c: &Chunk<W>, j: usize) -> WalkOut {
-        WalkOut {
-            value: rgb_lane(c.acc, j).to_array(),
-            ..WalkOut::default()
+    /// Ends the walks of lanes `ended` (those in `exited` left the stack):
+    /// their outputs are transposed out of the lanes once for the chunk.
+    fn finish_lanes(
+        &self,
+        q: &Queries,
+        wave: &mut Wave,
+        idx: &[u32],
+        c: &Chunk<W>,
+        ended: u32,
+        exited: u32,
+    ) {
+        const LANE_IDS: [u32; 64] = {
+            let mut a = [0u32; 64];
+            let mut j = 0;
+            while j < 64 {
+                a[j] = j as u32;
+                j += 1;
+            }
+            a
+        };
+        let eval = q.mode == Mode::Eval;
+        // Eval: the contribution whatever the ending. Sample: the weight of
+        // a walk that left (one absorbed inside leaves 0).
+        let v = if eval { c.acc } else { c.beta };
+        let spec = W::select(c.specular, W::one(), W::zero());
+        let (d, z) = (c.d, W::zero());
+        let mut rows = [[0.0f32; 8]; 64];
+        let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
+        W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
+        for j in Chunk::<W>::lanes(W::mask_from_bitmask(ended)) {
+            let r = rows[j];
+            let out = if exited & (1 << j) != 0 {
+                let qi = wave.ws.query[idx[j] as usize] as usize;
+                WalkOut {
+                    value: [r[3], r[4], r[5]],
+                    dir: [r[0], r[1], r[2]],
+                    exited: true,
+                    reflection: (r[2] > 0.0) == (q.wi[2][qi] > 0.0),
+                    specular: r[6] > 0.5,
+                }
+            } else {
+                WalkOut {
+                    value: if eval { [r[3], r[4], r[5]] } else { [0.0; 3] },
+                    ..WalkOut::default()
+                }
+            };
+            wave.finish(idx[j], out);
         }
     }
 
@@ -734,26 +747,17 @@ impl<W: Wide> Wavefront<W> {
         if self.layout.n >= 2 && samples > 0 {
             for chunk_start in (0..qs.len()).step_by(W::LANES) {
                 let chunk = &qs[chunk_start..(chunk_start + W::LANES).min(qs.len())];
-                let lq: Vec<u32> = (0..W::LANES)
-                    .map(|j| chunk[j.min(chunk.len() - 1)] as u32)
-                    .collect();
-                let g = |col: &[f32]| W::gather(col, &lq);
+                let lq: [u32; 64] = std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)] as u32);
+                let lq = &lq[..W::LANES];
+                let g = |col: &[f32]| W::gather(col, lq);
                 let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
                 let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
                 let e_in = W::from_fn(|j| q.e_in[lq[j] as usize] as f64);
                 let e_out = g(&q.e_out);
                 for k in 0..samples {
-                    let states: [Vec<u32>; 4] = {
-                        let st: Vec<[u32; 4]> = lq
-                            .iter()
-                            .map(|&qq| {
-                                seed_state_from(q.prefix[qq as usize], k as u64, Stream::Pdf)
-                            })
-                            .collect();
-                        std::array::from_fn(|c| st.iter().map(|s| s[c]).collect())
-                    };
-                    let lidx: Vec<u32> = (0..W::LANES as u32).collect();
-                    let mut rng = LaneRng::<W>::gather(&states, &lidx);
+                    let mut rng = LaneRng::<W>::from_states(|j| {
+                        seed_state_from(q.prefix[lq[j] as usize], k as u64, Stream::Pdf)
+                    });
                     let all = W::Mask::splat(true);
                     let p = pdf_walk(&self.ifaces, wi, wo, e_in, e_out, || {
                         (rng.uniform(all), rng.uniform(all), rng.uniform(all))
