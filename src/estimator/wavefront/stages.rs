@@ -716,7 +716,7 @@ impl<W: Wide> Wavefront<W> {
         let v = if eval { c.acc } else { c.beta };
         let spec = W::select(c.specular, W::one(), W::zero());
         let (d, z) = (c.d, W::zero());
-        let mut rows = [[0.0f32; 8]; 64];
+        let mut rows = [[0.0f32; 8]; 16];
         let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
         W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
         for j in Chunk::<W>::lanes(W::mask_from_bitmask(ended)) {
