@@ -1,11 +1,13 @@
 //! `strata bench`: throughput of the scalar reference and of the wavefront
 //! engine on the representative stacks, as ratios measured in one run.
 //!
-//! Each measurement runs the same eval batch (`--queries` queries over both
-//! hemispheres × `--samples` walks) repeatedly for at least `--min-seconds`
-//! and keeps the fastest repetition, which is the least disturbed by other
-//! work on a shared machine. The walks are the same on every engine (same
-//! seeds), so walk segments (one walk advancing by one event) are counted once
+//! Each engine runs the same eval batch (`--queries` queries over both
+//! hemispheres × `--samples` walks); the engines take turns, one batch each
+//! per round, until each has run for at least `--min-seconds`, and each keeps
+//! its fastest run. Taking turns makes a slow phase of a shared machine hit
+//! every engine alike, so the ratios hold even when single times do not. The
+//! walks are the same on every engine (same seeds), so walk segments (one
+//! walk advancing by one event) are counted once
 //! by the wavefront engine and used for the scalar rows too; the general
 //! (unspecialized) walk counts its own, since it runs more stages.
 
@@ -29,7 +31,8 @@ pub struct Args {
     /// Walks per query.
     #[arg(long, default_value_t = 512, value_parser = crate::common::positive)]
     samples: u64,
-    /// Minimum time spent on each measurement (the fastest repetition counts).
+    /// Minimum time each engine runs, in turns with the others (its fastest
+    /// batch counts).
     #[arg(long, default_value_t = 1.0)]
     min_seconds: f64,
     /// Threads of the "all threads" rows (default: every core).
@@ -50,20 +53,54 @@ struct Row {
     occupancy: Option<f64>,
 }
 
-/// Runs `f` until `min` has elapsed (at least twice, after one warm-up) and
-/// returns the fastest run's time and its result.
-fn fastest<R>(min: Duration, mut f: impl FnMut() -> R) -> (Duration, R) {
-    let mut r = f();
-    let mut best = Duration::MAX;
-    let start = Instant::now();
-    let mut reps = 0;
-    while reps < 2 || start.elapsed() < min {
-        let t = Instant::now();
-        r = f();
-        best = best.min(t.elapsed());
-        reps += 1;
+/// One engine configuration of a stack: runs the batch once per call and
+/// keeps its fastest time.
+struct Measurement<'a> {
+    engine: &'static str,
+    threads: usize,
+    /// Runs the batch; the wavefront engines return their counters.
+    run: Box<dyn FnMut() -> Option<Stats> + 'a>,
+    best: Duration,
+    spent: Duration,
+    reps: u32,
+    stats: Option<Stats>,
+}
+
+impl<'a> Measurement<'a> {
+    fn new(engine: &'static str, threads: usize, run: impl FnMut() -> Option<Stats> + 'a) -> Self {
+        Measurement {
+            engine,
+            threads,
+            run: Box::new(run),
+            best: Duration::MAX,
+            spent: Duration::ZERO,
+            reps: 0,
+            stats: None,
+        }
     }
-    (best, r)
+
+    fn once(&mut self) {
+        let t = Instant::now();
+        let st = (self.run)();
+        let e = t.elapsed();
+        self.best = self.best.min(e);
+        self.spent += e;
+        self.reps += 1;
+        self.stats = st.or(self.stats);
+    }
+}
+
+/// Runs the measurements in turn, one batch each per round (after one
+/// warm-up round), until each has run at least three times and for at least
+/// `min`: a slow phase of a shared machine then hits every engine alike, and
+/// each keeps its fastest run.
+fn interleaved(ms: &mut [Measurement], min: Duration) {
+    ms.iter_mut().for_each(|m| {
+        (m.run)();
+    });
+    while ms.iter().any(|m| m.reps < 3 || m.spent < min) {
+        ms.iter_mut().for_each(Measurement::once);
+    }
 }
 
 /// The batch: incidence and exit directions spread over the hemispheres
@@ -86,21 +123,24 @@ fn batch(stack: &LayerStack, n: usize) -> Vec<([f64; 3], [f64; 3])> {
         .collect()
 }
 
-fn measure_wave<W: Wide>(
+/// A wavefront measurement: `W` lanes, `plan`, on a pool of `threads`.
+fn wave<'a, W: Wide>(
+    engine: &'static str,
     stack: &LayerStack,
     plan: Plan,
-    pairs: &[([f64; 3], [f64; 3])],
-    args: &Args,
+    pairs: &'a [([f64; 3], [f64; 3])],
+    keys: &'a [u64],
+    samples: u64,
     threads: usize,
-) -> Result<(Duration, Stats), String> {
+) -> Result<Measurement<'a>, String> {
     let wf = Wavefront::<W>::new(stack, Settings::default(), plan);
-    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
     let pool = ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
-    let min = Duration::from_secs_f64(args.min_seconds);
-    Ok(pool.install(|| fastest(min, || wf.eval_batch(pairs, args.samples, 1, &keys).1)))
+    Ok(Measurement::new(engine, threads, move || {
+        Some(pool.install(|| wf.eval_batch(pairs, samples, 1, keys).1))
+    }))
 }
 
 fn bench_stack(
@@ -110,39 +150,46 @@ fn bench_stack(
     all: usize,
 ) -> Result<Vec<Row>, String> {
     let pairs = batch(stack, args.queries as usize);
+    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
     let q = pairs.len() as f64;
-    let min = Duration::from_secs_f64(args.min_seconds);
+    let n = args.samples;
     let sc = ScalarEngine::<f32>::new(stack, Settings::default());
-    let (ts, _) = fastest(min, || {
-        pairs
-            .iter()
-            .enumerate()
-            .map(|(k, &(wi, wo))| sc.eval(wi, wo, args.samples, 1, k as u64).value[0])
-            .sum::<f64>()
-    });
-    let mut rows = Vec::new();
-    let mut row = |engine, threads, t: Duration, st: &Stats, occupancy: bool| {
-        rows.push(Row {
-            stack: name.to_string(),
-            engine,
-            threads,
-            queries_per_s: q / t.as_secs_f64(),
-            segments_per_s: st.segments as f64 / t.as_secs_f64(),
-            occupancy: occupancy.then(|| st.occupancy()),
-        });
-    };
-    let (t1, st) = measure_wave::<F32x8>(stack, Plan::Specialized, &pairs, args, 1)?;
-    row("scalar", 1, ts, &st, false);
-    row("wavefront", 1, t1, &st, true);
+    let mut ms = vec![
+        Measurement::new("scalar", 1, || {
+            let s: f64 = pairs
+                .iter()
+                .enumerate()
+                .map(|(k, &(wi, wo))| sc.eval(wi, wo, n, 1, k as u64).value[0])
+                .sum();
+            std::hint::black_box(s);
+            None
+        }),
+        wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, 1)?,
+    ];
     if all > 1 {
-        let (tn, stn) = measure_wave::<F32x8>(stack, Plan::Specialized, &pairs, args, all)?;
-        row("wavefront", all, tn, &stn, true);
+        ms.push(wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, all)?);
     }
-    let (tg, stg) = measure_wave::<F32x8>(stack, Plan::General, &pairs, args, 1)?;
-    row("wavefront-general", 1, tg, &stg, true);
-    let (t16, st16) = measure_wave::<F32x16>(stack, Plan::Specialized, &pairs, args, 1)?;
-    row("wavefront-f32x16", 1, t16, &st16, true);
-    Ok(rows)
+    ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
+    ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
+    interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
+    // The scalar engine runs the same walks as the specialized wavefront: it
+    // takes that row's segment count.
+    let walks = ms[1].stats.unwrap_or_default();
+    Ok(ms
+        .iter()
+        .map(|m| {
+            let t = m.best.as_secs_f64();
+            let st = m.stats.unwrap_or(walks);
+            Row {
+                stack: name.to_string(),
+                engine: m.engine,
+                threads: m.threads,
+                queries_per_s: q / t,
+                segments_per_s: st.segments as f64 / t,
+                occupancy: m.stats.map(|s| s.occupancy()),
+            }
+        })
+        .collect())
 }
 
 pub fn run(args: Args) -> Result<(), String> {
@@ -193,7 +240,7 @@ pub fn run(args: Args) -> Result<(), String> {
 
 fn print_table(rows: &[Row], args: &Args) {
     println!(
-        "eval batches: {} queries x {} walks; fastest of repeated runs (>= {} s each)\n",
+        "eval batches: {} queries x {} walks; engines in turns, fastest run of each (>= {} s each)\n",
         args.queries, args.samples, args.min_seconds
     );
     println!(
