@@ -46,6 +46,7 @@ pub fn query_prefix(seed: u64, query: u64) -> u64 {
 }
 
 /// [`seed_state`] from a [`query_prefix`].
+#[cfg_attr(feature = "profiling", inline(never))]
 pub fn seed_state_from(prefix: u64, sample: u64, stream: Stream) -> [u32; 4] {
     let k = mix64(prefix ^ sample.wrapping_add(0x632b_e59b_d9b4_e019).wrapping_mul(G));
     let k = mix64(k ^ (stream as u64 + 1).wrapping_mul(0xd6e8_feb8_6659_fd93));

@@ -41,6 +41,9 @@ pub struct Args {
     /// Benchmark this material instead of the built-in representative stacks.
     #[arg(long)]
     material: Option<PathBuf>,
+    /// Run only this engine's one-thread row (to profile it).
+    #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16"])]
+    only: Option<String>,
 }
 
 /// One row of the table.
@@ -49,7 +52,7 @@ struct Row {
     engine: &'static str,
     threads: usize,
     queries_per_s: f64,
-    segments_per_s: f64,
+    segments_per_s: Option<f64>,
     occupancy: Option<f64>,
 }
 
@@ -171,21 +174,26 @@ fn bench_stack(
     }
     ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
     ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
+    if let Some(only) = &args.only {
+        ms.retain(|m| m.engine == only && m.threads == 1);
+    }
     interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
     // The scalar engine runs the same walks as the specialized wavefront: it
-    // takes that row's segment count.
-    let walks = ms[1].stats.unwrap_or_default();
+    // takes that row's segment count (unknown if it ran alone).
+    let walks = ms
+        .iter()
+        .find(|m| m.engine == "wavefront")
+        .and_then(|m| m.stats);
     Ok(ms
         .iter()
         .map(|m| {
             let t = m.best.as_secs_f64();
-            let st = m.stats.unwrap_or(walks);
             Row {
                 stack: name.to_string(),
                 engine: m.engine,
                 threads: m.threads,
                 queries_per_s: q / t,
-                segments_per_s: st.segments as f64 / t,
+                segments_per_s: m.stats.or(walks).map(|st| st.segments as f64 / t),
                 occupancy: m.stats.map(|s| s.occupancy()),
             }
         })
@@ -248,25 +256,27 @@ fn print_table(rows: &[Row], args: &Args) {
         "stack", "engine", "threads", "queries/s", "Msegments/s", "occupancy", "x scalar"
     );
     let mut last = "";
-    let mut scalar = 0.0;
+    let mut scalar = None;
     for r in rows {
         let name = if r.stack != last {
+            scalar = None;
             r.stack.as_str()
         } else {
             ""
         };
         if r.engine == "scalar" {
-            scalar = r.queries_per_s;
+            scalar = Some(r.queries_per_s);
         }
+        let dash = |x: Option<f64>, f: fn(f64) -> String| x.map_or("-".into(), f);
         println!(
-            "{:<24} {:<18} {:>7} {:>11.1} {:>12.2} {:>9} {:>9.2}",
+            "{:<24} {:<18} {:>7} {:>11.1} {:>12} {:>9} {:>9}",
             name,
             r.engine,
             r.threads,
             r.queries_per_s,
-            r.segments_per_s / 1e6,
-            r.occupancy.map_or("-".into(), |o| format!("{:.3}", o)),
-            r.queries_per_s / scalar
+            dash(r.segments_per_s, |s| format!("{:.2}", s / 1e6)),
+            dash(r.occupancy, |o| format!("{o:.3}")),
+            dash(scalar.map(|s| r.queries_per_s / s), |x| format!("{x:.2}")),
         );
         last = &r.stack;
     }

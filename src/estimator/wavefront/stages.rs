@@ -160,6 +160,7 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// Writes a new walk's scalar state into `slot`.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn init_walk(&self, q: &Queries, ws: &mut Walks, slot: u32, query: u32, w: u32, k: u64) {
         let qi = query as usize;
         let d = [-q.wi[0][qi], -q.wi[1][qi], -q.wi[2][qi]];
@@ -181,6 +182,7 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// The lane part of starting eval walks: the adjoint chain.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn launch(&self, q: &Queries, ws: &mut Walks, launched: &[(u32, u64)]) {
         if q.mode != Mode::Eval || self.layout.n < 2 {
             return;
@@ -201,6 +203,7 @@ impl<W: Wide> Wavefront<W> {
     /// Samples the adjoint chains of new eval walks (scalar:
     /// `ScalarEngine::adjoint_chain`). The first link goes to the walk
     /// record; further links (smooth exits only) to the slot's overflow list.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn launch_chain(
         &self,
         q: &Queries,
@@ -299,6 +302,7 @@ impl<W: Wide> Wavefront<W> {
 
     /// Transmittance of a full crossing of layer `layer` (per lane) along a
     /// direction with `|d.z| = mu`, as the scalar engine computes it.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn full_crossing(&self, layer: W, mu: W) -> Rgb<W> {
         let mut t = Rgb::one();
         for (l, m) in self.media_spec.iter().enumerate() {
@@ -362,6 +366,7 @@ impl<W: Wide> Wavefront<W> {
     /// `m` whose link passes `wanted`, with `contribution(link)` per unit
     /// throughput. Link order is the scalar engine's: the first link, then
     /// the overflow list.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn connect_links(
         ws: &Walks,
         idx: &[u32],
@@ -466,6 +471,7 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// One interface event for a chunk of walks at interface `i`.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn interface_event(
         &self,
         q: &Queries,
@@ -573,6 +579,7 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// One layer event for a chunk of walks inside scattering layer `l`.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn layer_event(
         &self,
         q: &Queries,
@@ -692,6 +699,7 @@ impl<W: Wide> Wavefront<W> {
 
     /// Ends the walks of lanes `ended` (those in `exited` left the stack):
     /// their outputs are transposed out of the lanes once for the chunk.
+    #[cfg_attr(feature = "profiling", inline(never))]
     fn finish_lanes(
         &self,
         q: &Queries,

@@ -114,6 +114,7 @@ impl Walks {
     /// `key`, with throughput 1, no events, and random state `rng`; `wo` and
     /// `e_out` are the query's outgoing direction and exit (eval).
     #[allow(clippy::too_many_arguments)]
+    #[cfg_attr(feature = "profiling", inline(never))]
     pub fn init(
         &mut self,
         s: usize,
@@ -238,7 +239,8 @@ impl Stage {
 impl<W: Wide> Chunk<W> {
     /// Loads slots `idx` (exactly `W::LANES` entries; lanes beyond `active`
     /// repeat the first slot and are overwritten by it on the way back).
-    #[inline(always)]
+    #[cfg_attr(not(feature = "profiling"), inline(always))]
+    #[cfg_attr(feature = "profiling", inline(never))]
     pub fn gather(ws: &Walks, idx: &[u32], active: W::Mask, stage: Stage) -> Self {
         let half = W::splat(0.5);
         let b0 = W::load8(&ws.rec, idx, 0);
@@ -277,7 +279,8 @@ impl<W: Wide> Chunk<W> {
 
     /// Loads the blocks `stage` uses that are not loaded yet (a chunk that
     /// stays in lanes for several events may need more as it goes).
-    #[inline(always)]
+    #[cfg_attr(not(feature = "profiling"), inline(always))]
+    #[cfg_attr(feature = "profiling", inline(never))]
     pub fn ensure(&mut self, ws: &Walks, idx: &[u32], stage: Stage) {
         let (block2, links, _) = stage.blocks();
         if block2 && !self.loaded.0 {
@@ -308,7 +311,8 @@ impl<W: Wide> Chunk<W> {
 
     /// Stores the chunk back (every lane; see [`Wide::store8`]): the blocks
     /// it loaded, and the chain's first link only after a launch.
-    #[inline(always)]
+    #[cfg_attr(not(feature = "profiling"), inline(always))]
+    #[cfg_attr(feature = "profiling", inline(never))]
     pub fn scatter(&self, ws: &mut Walks, idx: &[u32], stage: Stage) {
         let (_, _, link) = stage.blocks();
         let flag = |m: W::Mask| W::select(m, W::one(), W::zero());
