@@ -360,10 +360,10 @@ impl<W: Wide> Wavefront<W> {
         if count == 0 {
             return Stats::default();
         }
-        // Tasks: runs of units of at most TASK_WALKS walks, small enough that
-        // each thread gets several (for balance). Results do not depend on the
-        // boundaries: a unit's walks and their reduction are its own, and
-        // units reach the sink in order.
+        // Tasks: sets of units of at most TASK_WALKS walks, small enough that
+        // each thread gets several (for balance). Results do not depend on
+        // which units share a task: a unit's walks and their reduction are
+        // its own, and units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
         let threads = rayon::current_num_threads().max(1);
         let per_task = ((TASK_WALKS / walks_per_unit).max(1) as usize)
@@ -378,33 +378,44 @@ impl<W: Wide> Wavefront<W> {
         let window = 4 * rayon::current_num_threads().max(1);
         let mut stats = Stats::default();
         for w0 in (0..tasks).step_by(window) {
-            let results: Vec<(Vec<(Unit, R)>, Stats)> = (w0..tasks.min(w0 + window))
+            // The window's units are dealt to its tasks in turn (task j takes
+            // units j, j + nt, ...), so that each task gets a share of every
+            // kind of query and the tasks cost about the same.
+            let first = w0 * per_task;
+            let end = count.min((w0 + window) * per_task);
+            let nt = (end - first).div_ceil(per_task);
+            let results = (0..nt)
                 .into_par_iter()
-                .map(|t| {
-                    let units: Vec<Unit> = (t * per_task..count.min((t + 1) * per_task))
-                        .map(&unit)
-                        .collect();
+                .map(|j| {
+                    let ids: Vec<usize> = (first + j..end).step_by(nt).collect();
+                    let units: Vec<Unit> = ids.iter().map(|&i| unit(i)).collect();
                     with_wave(slots, |ws| {
                         let mut out = Vec::new();
                         let st = self.run_task(queries, &units, ws, &mut out);
                         let mut at = 0;
-                        let res = units
+                        let res: Vec<(usize, Unit, R)> = ids
                             .iter()
-                            .map(|u| {
+                            .zip(&units)
+                            .map(|(&i, u)| {
                                 let o = &out[at..at + u.count as usize];
                                 at += u.count as usize;
-                                (*u, per_unit(o))
+                                (i, *u, per_unit(o))
                             })
                             .collect();
                         (res, st)
                     })
                 })
-                .collect();
+                .collect::<Vec<_>>();
+            // Back in unit order for the sink.
+            let mut ordered: Vec<Option<(Unit, R)>> = (first..end).map(|_| None).collect();
             for (res, st) in results {
                 stats.add(&st);
-                for (u, r) in res {
-                    sink(u, r);
+                for (i, u, r) in res {
+                    ordered[i - first] = Some((u, r));
                 }
+            }
+            for (u, r) in ordered.into_iter().flatten() {
+                sink(u, r);
             }
         }
         stats
