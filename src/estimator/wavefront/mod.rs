@@ -5,7 +5,7 @@
 //!
 //! * **Waves.** A wave holds a fixed number of walk slots whose state lives in
 //!   structure-of-arrays columns ([`walks::Walks`]). Each round, every live walk
-//!   advances by one event. Walks are sorted into queues by where they are:
+//!   advances by one event. Walks wait in queues by where they are:
 //!   at interface `i`, or inside scattering layer `l`. A queue is processed in
 //!   chunks of `W::LANES` walks, gathered into lanes, run through the shared
 //!   event kernels ([`crate::estimator::events`], `interface`, `medium`) and
@@ -24,9 +24,11 @@
 //!   reduced per query in the canonical block order
 //!   ([`crate::estimator::BlockReducer`]), so they do not depend on the thread
 //!   count, the batch composition or the wave size.
-//! * **Threads.** A batch is cut into tasks of whole blocks, independently of
-//!   the thread count; rayon runs the tasks. Each task owns its wave: no shared
-//!   mutable state, and memory bounded by the wave and task sizes.
+//! * **Threads.** A batch is cut into tasks of whole blocks, dealt in turn so
+//!   that tasks cost alike whatever the order of the queries; rayon runs the
+//!   tasks. Each task owns its wave: no shared mutable state, and memory
+//!   bounded by the wave and task sizes. Which blocks share a task does not
+//!   change any result.
 //! * **Pay for what the stack uses** ([`Plan`]): clear and absorbing layers are
 //!   crossed inside the interface stage (transmittance, never free flight),
 //!   grey media skip spectral MIS, smooth interfaces skip microfacet code, and
