@@ -945,3 +945,66 @@ fn readme_examples_match_the_binary() {
         assert_eq!(got, expected, "README example `{cmd}`");
     }
 }
+
+#[test]
+fn bench_reports_every_engine_as_json_and_one_with_only() {
+    let mat = format!("{EXAMPLES}/coated_copper.toml");
+    let base = [
+        "bench",
+        "--json",
+        "--queries",
+        "3",
+        "--samples",
+        "16",
+        "--min-seconds",
+        "0",
+        "--threads",
+        "2",
+        "--material",
+        &mat,
+    ];
+    let rows = |out: &Output| -> Vec<Value> {
+        assert!(out.status.success(), "stderr: {}", text(&out.stderr));
+        text(&out.stdout)
+            .lines()
+            .map(|l| serde_json::from_str(l).expect("a JSON object per line"))
+            .collect()
+    };
+    let all = rows(&run(&base, ""));
+    let engines: Vec<(String, u64)> = all
+        .iter()
+        .map(|r| {
+            (
+                r["engine"].as_str().unwrap().to_string(),
+                r["threads"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let expect = [
+        ("scalar", 1),
+        ("wavefront", 1),
+        ("wavefront", 2),
+        ("wavefront-general", 1),
+        ("wavefront-f32x16", 1),
+    ];
+    assert_eq!(engines, expect.map(|(e, t)| (e.to_string(), t)).to_vec());
+    for r in &all {
+        let q = r["queries_per_s"].as_f64().unwrap();
+        let s = r["segments_per_s"].as_f64().unwrap();
+        assert!(q.is_finite() && q > 0.0 && s.is_finite() && s > q, "{r}");
+        match r["occupancy"].as_f64() {
+            Some(o) => assert!(o > 0.0 && o <= 1.0, "{r}"),
+            None => assert_eq!(r["engine"], "scalar", "{r}"),
+        }
+    }
+    let only = rows(&run(&[&base[..], &["--only", "wavefront"]].concat(), ""));
+    assert_eq!(only.len(), 1);
+    assert_eq!(
+        (&only[0]["engine"], &only[0]["threads"]),
+        (&Value::from("wavefront"), &Value::from(1))
+    );
+    assert_fails_with(
+        &run(&[&base[..], &["--only", "gpu"]].concat(), ""),
+        &["--only", "gpu"],
+    );
+}
