@@ -2,14 +2,16 @@
 //! representative stacks (`strata::materials::REPRESENTATIVE`): the same eval
 //! batch (same seeds, so the same walks) on the scalar engine, on the
 //! wavefront on one thread, and on the wavefront's specialized and general
-//! walks. Throughput is in queries per second.
+//! walks. Throughput is in queries per second. Then single `sample` and `pdf`
+//! calls through the public API on each engine (time per call).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use glam::Vec3;
 use std::hint::black_box;
 use strata::estimator::scalar::ScalarEngine;
 use strata::estimator::wavefront::{Plan, Wavefront};
 use strata::lane::F32x8;
-use strata::Settings;
+use strata::{Engine, LayeredBsdf, Settings};
 
 const QUERIES: usize = 16;
 const SAMPLES: u64 = 256;
@@ -62,9 +64,38 @@ fn estimators(c: &mut Criterion) {
     }
 }
 
+/// Single queries through the public API, as a renderer makes them: one
+/// `sample` or one `pdf` per call, on each engine, with a one-thread pool
+/// (time per call).
+fn single_queries(c: &mut Criterion) {
+    let wi = Vec3::new(0.3, 0.1, 0.9).normalize();
+    let wo = Vec3::new(-0.2, 0.4, 0.8).normalize();
+    for &name in strata::materials::REPRESENTATIVE {
+        let stack = strata::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("single/{name}"));
+        for (label, engine) in [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)] {
+            let bsdf = LayeredBsdf::new(stack.clone())
+                .engine(engine)
+                .threads(1)
+                .unwrap();
+            let mut k = 0u64;
+            g.bench_function(BenchmarkId::new("sample", label), |b| {
+                b.iter(|| {
+                    k += 1;
+                    black_box(bsdf.sample(wi, k).unwrap())
+                })
+            });
+            g.bench_function(BenchmarkId::new("pdf", label), |b| {
+                b.iter(|| black_box(bsdf.pdf(wi, wo).unwrap()))
+            });
+        }
+        g.finish();
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
-    targets = estimators
+    targets = estimators, single_queries
 }
 criterion_main!(benches);

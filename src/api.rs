@@ -8,7 +8,7 @@
 
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront};
-use crate::estimator::{Albedo, Estimate, Sample, Settings};
+use crate::estimator::{Albedo, Estimate, Sample, Settings, BLOCK};
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::LayerStack;
 use glam::Vec3;
@@ -115,9 +115,12 @@ impl Direction {
 /// seeds (walk by walk, up to rare rounding differences; tested).
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries, a wave, a rayon task), which its lanes repay many times over on a
-/// batch, or on an `eval` of many walks, but not on a single `sample` or
-/// `pdf`: for one direction at a time, the scalar engine is the cheaper one.
+/// queries and a wave, about 0.5–1 µs), which its lanes repay many times over
+/// on a batch, or on an `eval` of many walks, but not on a single `sample` or
+/// `pdf`: for one direction at a time, the scalar engine is the cheaper one
+/// (about 2× on a single `sample`; docs/performance.md). Work of one block of
+/// walks or less runs on the calling thread on either engine, with or
+/// without [`LayeredBsdf::threads`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// The scalar reference: one walk at a time.
@@ -272,10 +275,14 @@ impl LayeredBsdf {
         &self.wave
     }
 
-    fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+    /// Runs `f` on this BSDF's thread pool, if it has one, when the work
+    /// (`queries` queries of `walks` walks each) is more than one block of
+    /// walks; one block is one task, which runs on the calling thread (a
+    /// hand-over to a pool's thread costs more than a single `sample` or `pdf`).
+    fn install<R: Send>(&self, queries: usize, walks: u64, f: impl FnOnce() -> R + Send) -> R {
         match &self.pool {
-            Some(p) => p.install(f),
-            None => f(),
+            Some(p) if queries > 1 || walks > BLOCK => p.install(f),
+            _ => f(),
         }
     }
 
@@ -300,7 +307,7 @@ impl LayeredBsdf {
             Engine::Scalar => self
                 .scalar
                 .eval(a.get(), b.get(), samples, self.seed, query),
-            Engine::Wavefront => self.install(|| {
+            Engine::Wavefront => self.install(1, samples, || {
                 self.wave
                     .eval_batch(&[(a.get(), b.get())], samples, self.seed, &[query])
                     .0[0]
@@ -353,9 +360,9 @@ impl LayeredBsdf {
                 .zip(keys)
                 .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
                 .collect(),
-            Engine::Wavefront => {
-                self.install(|| self.wave.eval_batch(&dirs, samples, self.seed, keys).0)
-            }
+            Engine::Wavefront => self.install(dirs.len(), samples, || {
+                self.wave.eval_batch(&dirs, samples, self.seed, keys).0
+            }),
         })
     }
 
@@ -389,7 +396,7 @@ impl LayeredBsdf {
                     self.scalar.sample(a, &mut rng)
                 })
                 .collect(),
-            Engine::Wavefront => self.install(|| {
+            Engine::Wavefront => self.install(dirs.len(), 1, || {
                 self.wave
                     .sample_batch(&dirs, self.seed, keys, sample_index)
                     .0
@@ -407,7 +414,7 @@ impl LayeredBsdf {
                 .zip(&keys)
                 .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
                 .collect(),
-            Engine::Wavefront => self.install(|| {
+            Engine::Wavefront => self.install(dirs.len(), 1, || {
                 self.wave
                     .pdf_batch(&dirs, self.pdf_samples, self.seed, &keys)
             }),
@@ -438,9 +445,9 @@ impl LayeredBsdf {
                 .zip(keys)
                 .map(|(&a, &k)| self.scalar.albedo(a, n, self.seed, k))
                 .collect(),
-            Engine::Wavefront => {
-                self.install(|| self.wave.albedo_batch(&dirs, n, self.seed, keys).0)
-            }
+            Engine::Wavefront => self.install(dirs.len(), n, || {
+                self.wave.albedo_batch(&dirs, n, self.seed, keys).0
+            }),
         })
     }
 }

@@ -386,28 +386,32 @@ impl<W: Wide> Wavefront<W> {
             let first = w0 * per_task;
             let end = count.min((w0 + window) * per_task);
             let nt = (end - first).div_ceil(per_task);
-            let results = (0..nt)
-                .into_par_iter()
-                .map(|j| {
-                    let ids: Vec<usize> = (first + j..end).step_by(nt).collect();
-                    let units: Vec<Unit> = ids.iter().map(|&i| unit(i)).collect();
-                    with_wave(slots, |ws| {
-                        let mut out = Vec::new();
-                        let st = self.run_task(queries, &units, ws, &mut out);
-                        let mut at = 0;
-                        let res: Vec<(usize, Unit, R)> = ids
-                            .iter()
-                            .zip(&units)
-                            .map(|(&i, u)| {
-                                let o = &out[at..at + u.count as usize];
-                                at += u.count as usize;
-                                (i, *u, per_unit(o))
-                            })
-                            .collect();
-                        (res, st)
-                    })
+            let task = |j: usize| {
+                let ids: Vec<usize> = (first + j..end).step_by(nt).collect();
+                let units: Vec<Unit> = ids.iter().map(|&i| unit(i)).collect();
+                with_wave(slots, |ws| {
+                    let mut out = Vec::new();
+                    let st = self.run_task(queries, &units, ws, &mut out);
+                    let mut at = 0;
+                    let res: Vec<(usize, Unit, R)> = ids
+                        .iter()
+                        .zip(&units)
+                        .map(|(&i, u)| {
+                            let o = &out[at..at + u.count as usize];
+                            at += u.count as usize;
+                            (i, *u, per_unit(o))
+                        })
+                        .collect();
+                    (res, st)
                 })
-                .collect::<Vec<_>>();
+            };
+            // A lone task runs on the calling thread: handing it to a pool's
+            // thread would cost more than a single `sample` or `pdf` does.
+            let results: Vec<_> = if nt == 1 {
+                vec![task(0)]
+            } else {
+                (0..nt).into_par_iter().map(task).collect()
+            };
             // Back in unit order for the sink.
             let mut ordered: Vec<Option<(Unit, R)>> = (first..end).map(|_| None).collect();
             for (res, st) in results {
@@ -664,6 +668,10 @@ impl<W: Wide> Wavefront<W> {
         let queries = self.prepare(Mode::Eval, seed, &spec);
         let chunk = 64usize;
         let idx: Vec<usize> = (0..pairs.len()).collect();
+        if idx.len() <= chunk {
+            // One chunk: on the calling thread (see `run`).
+            return self.pdf_queries(&queries, &idx, samples);
+        }
         idx.par_chunks(chunk)
             .flat_map_iter(|qs| self.pdf_queries(&queries, qs, samples))
             .collect()
