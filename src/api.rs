@@ -115,10 +115,10 @@ impl Direction {
 /// seeds (walk by walk, up to rare rounding differences; tested).
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries and a wave, about 0.5–1 µs), which its lanes repay many times over
+/// queries and a wave, about 0.6–1.4 µs), which its lanes repay many times over
 /// on a batch, or on an `eval` of many walks, but not on a single `sample` or
 /// `pdf`: for one direction at a time, the scalar engine is the cheaper one
-/// (about 2× on a single `sample`; docs/performance.md). Work of one block of
+/// (1.5–3× faster on a single `sample`; docs/performance.md). Work of one block of
 /// walks or less runs on the calling thread on either engine, with or
 /// without [`LayeredBsdf::threads`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
