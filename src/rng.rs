@@ -5,7 +5,7 @@
 //! on those numbers: not on the thread that ran it, the batch it was in, or the
 //! engine (the wavefront's lane generator is tested bit for bit against it).
 
-use crate::lane::Wide;
+use crate::lane::{Wide, LANE_IDS};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -135,9 +135,8 @@ impl<W: Wide> LaneRng<W> {
                 col[j] = v;
             }
         }
-        let ident: [u32; 64] = std::array::from_fn(|j| j as u32);
         LaneRng {
-            s: std::array::from_fn(|k| W::gather_bits(&cols[k], &ident[..W::LANES])),
+            s: std::array::from_fn(|k| W::gather_bits(&cols[k], &LANE_IDS[..W::LANES])),
         }
     }
 

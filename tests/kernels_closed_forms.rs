@@ -15,6 +15,7 @@ mod common;
 use common::chi2::{gauss_kronrod, SphereGrid};
 use common::dir;
 use common::reference::fresnel as fresnel_ref;
+use common::reference::fresnel_conductor as conductor_ref;
 use std::f64::consts::PI;
 use strata::fresnel;
 use strata::interface::InterfaceLanes;
@@ -31,51 +32,6 @@ use strata::rng::{Stream, WalkRng};
 /// The transmitted cosine of [`fresnel_ref`] (`common::reference::fresnel`) (0 under total internal reflection).
 fn cos_t_ref(ci: f64, n1: f64, n2: f64) -> f64 {
     (1.0 - (n1 / n2).powi(2) * (1.0 - ci * ci)).max(0.0).sqrt()
-}
-
-/// Minimal complex arithmetic for the conductor reference.
-#[derive(Clone, Copy, Debug)]
-struct C(f64, f64);
-impl C {
-    fn add(self, o: C) -> C {
-        C(self.0 + o.0, self.1 + o.1)
-    }
-    fn sub(self, o: C) -> C {
-        C(self.0 - o.0, self.1 - o.1)
-    }
-    fn mul(self, o: C) -> C {
-        C(self.0 * o.0 - self.1 * o.1, self.0 * o.1 + self.1 * o.0)
-    }
-    fn div(self, o: C) -> C {
-        let d = o.0 * o.0 + o.1 * o.1;
-        C(
-            (self.0 * o.0 + self.1 * o.1) / d,
-            (self.1 * o.0 - self.0 * o.1) / d,
-        )
-    }
-    fn norm2(self) -> f64 {
-        self.0 * self.0 + self.1 * self.1
-    }
-    /// Principal square root.
-    fn sqrt(self) -> C {
-        let r = self.norm2().sqrt();
-        let re = (0.5 * (r + self.0)).max(0.0).sqrt();
-        let im = (0.5 * (r - self.0)).max(0.0).sqrt();
-        C(re, if self.1 < 0.0 { -im } else { im })
-    }
-}
-
-/// Conductor reflectance from the complex Fresnel equations, IOR `n + ik`
-/// relative to the incident medium, incidence cosine `ci`.
-fn conductor_ref(ci: f64, n: f64, k: f64) -> f64 {
-    let eta = C(n, k);
-    let eta2 = eta.mul(eta);
-    let c = C(ci, 0.0);
-    let s = eta2.sub(C(1.0 - ci * ci, 0.0)).sqrt(); // η cos θt
-    let rs = c.sub(s).div(c.add(s));
-    let e2c = eta2.mul(c);
-    let rp = e2c.sub(s).div(e2c.add(s));
-    0.5 * (rs.norm2() + rp.norm2())
 }
 
 /// Exact Beckmann Λ (for reference): (erf(a) - 1)/2 + e^{-a²} / (2a√π), with

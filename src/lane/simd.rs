@@ -17,6 +17,19 @@ use std::ops::{
     SubAssign,
 };
 
+/// `LANE_IDS[j] == j`: the index list under which lane `j` reads or writes
+/// row `j` of a small per-chunk table (with [`Wide::load8`], [`Wide::store8`],
+/// [`Wide::gather_bits`]).
+pub const LANE_IDS: [u32; 64] = {
+    let mut a = [0u32; 64];
+    let mut j = 0;
+    while j < 64 {
+        a[j] = j as u32;
+        j += 1;
+    }
+    a
+};
+
 /// Unsigned 32-bit integer lanes: the state of the lane random number generator.
 pub trait BitLanes:
     Copy

@@ -12,7 +12,7 @@ use crate::estimator::layout::{depth_to_boundary, flight_limit, move_depth, Laye
 use crate::estimator::pdf::{mix_uniform, pdf_walk};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, V3};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, LANE_IDS, V3};
 use crate::medium;
 use crate::rng::{seed_state_from, to_unit, xoshiro_step, LaneRng, Stream};
 
@@ -709,22 +709,13 @@ impl<W: Wide> Wavefront<W> {
         ended: u32,
         exited: u32,
     ) {
-        const LANE_IDS: [u32; 64] = {
-            let mut a = [0u32; 64];
-            let mut j = 0;
-            while j < 64 {
-                a[j] = j as u32;
-                j += 1;
-            }
-            a
-        };
         let eval = q.mode == Mode::Eval;
         // Eval: the contribution whatever the ending. Sample: the weight of
         // a walk that left (one absorbed inside leaves 0).
         let v = if eval { c.acc } else { c.beta };
         let spec = W::select(c.specular, W::one(), W::zero());
         let (d, z) = (c.d, W::zero());
-        let mut rows = [[0.0f32; 8]; 16];
+        let mut rows = [[0.0f32; 8]; 16]; // one row per lane (at most 16)
         let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
         W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
         for j in Chunk::<W>::lanes(W::mask_from_bitmask(ended)) {
