@@ -88,7 +88,7 @@ pub struct Budget {
 }
 
 impl Budget {
-    /// The budget of `strata stress` (a few minutes on two cores).
+    /// The budget of `strata stress` (under a minute on two cores).
     pub fn full() -> Self {
         Budget {
             eval_walks: 500_000,

@@ -243,7 +243,9 @@ fn pdf_of_a_lone_rough_interface_is_its_density() {
 /// is the entrance itself in a transmission query), so the pdf must carry
 /// the transmitted lobe, not just the uniform floor. The floor alone would
 /// integrate to 0.05 over the lower hemisphere; the stack transmits about
-/// 0.9, nearly all of it straight through the smooth bottom.
+/// 0.9, nearly all of it straight through the smooth bottom. The approximate
+/// pdf puts 0.87 (from above) and 0.77 (from below) there, ± 0.01: the bound
+/// 0.7 fails a pdf that loses a fifth of the transmitted lobe.
 #[test]
 fn pdf_sees_transmission_through_a_smooth_exit() {
     let st = stack(
@@ -269,6 +271,6 @@ fn pdf_sees_transmission_through_a_smooth_exit() {
             100 + q as u64,
         );
         eprintln!("wi {wi:?}: ∫ pdf over the transmission side = {t:.4} ± {se:.4}");
-        assert!(t > 0.5 && t <= 1.0 + 4.0 * se, "wi {wi:?}: {t} ± {se}");
+        assert!(t > 0.7 && t <= 1.0 + 4.0 * se, "wi {wi:?}: {t} ± {se}");
     }
 }

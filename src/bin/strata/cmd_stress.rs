@@ -7,7 +7,7 @@ use strata::stress::{cases, format_table, Budget, Runner};
 /// Arguments of `strata stress`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The test suite's smaller budget (seconds instead of minutes).
+    /// The test suite's smaller budget (a few seconds).
     #[arg(long)]
     quick: bool,
     /// Run only the cases whose name contains this text.

@@ -1,5 +1,5 @@
 //! The stages of a wave: launch, interface events, layer events; and the
-//! round loop that sorts walks into queues between them.
+//! round loop that passes walks between queues.
 //!
 //! Each stage mirrors one part of the scalar reference's walk
 //! (`estimator::scalar`) operation for operation, with masks where the scalar
