@@ -25,8 +25,8 @@ for m in clear_coat_lambertian coated_copper thick_scattering scattering_slab th
       /^ +[0-9.]+%/ {
         p = $1; sub("%", "", p); $1 = ""; s = $0
         if (s ~ /InterfaceLanes<L>::|interface_event|layer_event|connect_links|full_crossing|medium::/) c = "physics"
-        else if (s ~ /seed_state|init_walk|launch|Walks::init/) c = "start"
-        else if (s ~ /Chunk<W>::|enqueue|finish_lanes|memmove|memset|FnMut<A> for &F>::call_mut|run_task|advance/) c = "moving"
+        else if (s ~ /seed_state|start_walks|launch_chain|Walks::claim|Chunk<W>::start/) c = "start"
+        else if (s ~ /Chunk<W>::|enqueue|finish_lanes|memmove|memset|FnMut<A> for &F>::call_mut|run_task|Wavefront<W>::run::|advance/) c = "moving"
         else if (s ~ /Map<I,F> as core::iter::traits::iterator::Iterator>::fold|MeanVar|BlockReducer/) c = "reduction"
         else c = "other"
         t[c] += p

@@ -14,7 +14,7 @@ use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, LANE_IDS, V3};
 use crate::medium;
-use crate::rng::{seed_state_from, to_unit, xoshiro_step, LaneRng, Stream};
+use crate::rng::{seed_state_from, LaneRng, Stream};
 
 /// Where the lanes of a chunk go after an event.
 struct Outcome {
@@ -114,7 +114,8 @@ impl<W: Wide> Wavefront<W> {
                 let Some(slot) = wave.free.pop() else { break };
                 let u = task[unit];
                 let k = u.first + offset as u64;
-                self.init_walk(q, wave.ws, slot, u.query, w, k);
+                let key = q.e_in[u.query as usize];
+                wave.ws.claim(slot as usize, key, w, u.query);
                 launched.push((slot, k));
                 w += 1;
                 offset += 1;
@@ -124,14 +125,16 @@ impl<W: Wide> Wavefront<W> {
                 }
             }
             wave.live += launched.len();
-            self.launch(q, wave.ws, &launched);
-            if wave.live == 0 {
-                break;
-            }
             wave.draining = unit >= task.len();
-            for &(s, _) in &launched {
-                let key = wave.ws.key[s as usize];
-                wave.next[key as usize].push(s);
+            // New walks start in lanes and take their first events at once.
+            for chunk in launched.chunks(W::LANES) {
+                self.start_walks(q, &mut wave, chunk);
+            }
+            if wave.live == 0 {
+                if wave.draining {
+                    break;
+                }
+                continue;
             }
             std::mem::swap(&mut queues, &mut wave.next);
             // Advance every queue by one event, a chunk of lanes at a time.
@@ -159,44 +162,43 @@ impl<W: Wide> Wavefront<W> {
         wave.stats
     }
 
-    /// Writes a new walk's scalar state into `slot`.
+    /// Starts the walks of `chunk` (slot, sample index) in lanes: seeds their
+    /// streams, samples their adjoint chains (eval), and runs their first
+    /// events before their records are ever written.
     #[cfg_attr(feature = "profiling", inline(never))]
-    fn init_walk(&self, q: &Queries, ws: &mut Walks, slot: u32, query: u32, w: u32, k: u64) {
-        let qi = query as usize;
-        let d = [-q.wi[0][qi], -q.wi[1][qi], -q.wi[2][qi]];
-        let wo = [q.wo[0][qi], q.wo[1][qi], q.wo[2][qi]];
-        let mut state = seed_state_from(q.prefix[qi], k, Stream::Walk);
-        // The hero channel takes the stream's first uniform, as in the scalar walk.
-        let hero = events::hero_channel(to_unit(xoshiro_step(&mut state)));
-        ws.init(
-            slot as usize,
-            q.e_in[qi],
-            w,
-            query,
-            d,
-            wo,
-            q.e_out[qi],
-            state,
-            hero,
-        );
-    }
-
-    /// The lane part of starting eval walks: the adjoint chain.
-    #[cfg_attr(feature = "profiling", inline(never))]
-    fn launch(&self, q: &Queries, ws: &mut Walks, launched: &[(u32, u64)]) {
-        if q.mode != Mode::Eval || self.layout.n < 2 {
-            return;
+    fn start_walks(&self, q: &Queries, wave: &mut Wave, chunk: &[(u32, u64)]) {
+        let mut idx = [chunk[0].0; 64];
+        let mut lq = [0u32; 64];
+        for (j, &(s, _)) in chunk.iter().enumerate() {
+            idx[j] = s;
         }
-        for chunk in launched.chunks(W::LANES) {
-            let mut idx = [chunk[0].0; 64];
-            for (j, &(s, _)) in chunk.iter().enumerate() {
-                idx[j] = s;
+        for j in 0..W::LANES {
+            lq[j] = wave.ws.query[idx[j] as usize];
+        }
+        let (idx, lq) = (&idx[..W::LANES], &lq[..W::LANES]);
+        let active = W::mask_from_bitmask(lane_bits(chunk.len()));
+        let rng = LaneRng::<W>::from_states(|j| {
+            let (_, k) = chunk[j.min(chunk.len() - 1)];
+            seed_state_from(q.prefix[lq[j] as usize], k, Stream::Walk)
+        });
+        let g = |col: &[f32]| W::gather(col, lq);
+        let d = -V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
+        let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
+        let eval = q.mode == Mode::Eval;
+        let mut c = Chunk::<W>::start(active, d, (wo, g(&q.e_out), eval), rng);
+        if eval && self.layout.n >= 2 {
+            self.launch_chain(q, wave.ws, &mut c, chunk, idx);
+        }
+        let key = q.e_in[lq[0] as usize];
+        if chunk.iter().all(|&(s, _)| wave.ws.key[s as usize] == key) {
+            self.advance_chunk(q, wave, idx, c, key as usize);
+        } else {
+            // Walks entering from both sides: each waits in its entrance's queue.
+            c.scatter(wave.ws, idx);
+            for &(s, _) in chunk {
+                let key = wave.ws.key[s as usize];
+                wave.enqueue(s, key);
             }
-            let idx = &idx[..W::LANES];
-            let active = W::mask_from_bitmask(lane_bits(chunk.len()));
-            let mut c = Chunk::<W>::gather(ws, idx, active, Stage::Launch);
-            self.launch_chain(q, ws, &mut c, chunk, idx);
-            c.scatter(ws, idx, Stage::Launch);
         }
     }
 
@@ -427,9 +429,22 @@ impl<W: Wide> Wavefront<W> {
         active: W::Mask,
         key: usize,
     ) {
+        let c = Chunk::<W>::gather(wave.ws, idx, active, self.stage_for(q, key));
+        self.advance_chunk(q, wave, idx, c, key);
+    }
+
+    /// [`Wavefront::advance`] for a chunk already in lanes.
+    #[cfg_attr(feature = "profiling", inline(never))]
+    fn advance_chunk(
+        &self,
+        q: &Queries,
+        wave: &mut Wave,
+        idx: &[u32],
+        mut c: Chunk<W>,
+        key: usize,
+    ) {
         let n = self.layout.n;
         let mut key = key;
-        let mut c = Chunk::<W>::gather(wave.ws, idx, active, self.stage_for(q, key));
         loop {
             c.ensure(wave.ws, idx, self.stage_for(q, key));
             let busy = W::bitmask(c.active);
@@ -455,14 +470,7 @@ impl<W: Wide> Wavefront<W> {
                 key = next as usize;
                 continue;
             }
-            c.scatter(
-                wave.ws,
-                idx,
-                Stage::Interface {
-                    acc: false,
-                    links: false,
-                },
-            );
+            c.scatter(wave.ws, idx);
             for j in Chunk::<W>::lanes(c.active) {
                 wave.enqueue(idx[j], o.keys[j]);
             }

@@ -13,7 +13,7 @@
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
 use crate::estimator::events::Connection;
-use crate::lane::{Rgb, Wide, V3};
+use crate::lane::{LaneMask, Rgb, Wide, V3};
 use crate::rng::LaneRng;
 
 /// The key of an empty slot.
@@ -22,7 +22,8 @@ pub const FREE: u16 = u16::MAX;
 /// Floats per walk record (a multiple of 16, so both lane widths tile it).
 pub const REC: usize = 48;
 
-/// Field offsets in a record. Blocks of eight fields:
+/// The record, in blocks of eight fields (the order [`Chunk::gather`] and
+/// [`Chunk::scatter`] use):
 ///
 /// | block | fields | loaded by |
 /// |---|---|---|
@@ -31,23 +32,7 @@ pub const REC: usize = 48;
 /// | 2 | channel ratios (3), contribution (3), chain length, – | layer events, eval |
 /// | 3 | first link: direction (3), factor (3), MIS density, layer | eval |
 /// | 4 | first link: transmittance (3), start; `wo` (3), exit | eval |
-mod f {
-    pub const D: usize = 0;
-    pub const BETA: usize = 3;
-    pub const EVENTS: usize = 6;
-    pub const SPECULAR: usize = 7;
-    pub const RNG: usize = 8;
-    pub const FIRST: usize = 12;
-    pub const HERO: usize = 13;
-    pub const ORDER: usize = 14;
-    pub const Z: usize = 15;
-    pub const RATIOS: usize = 16;
-    pub const ACC: usize = 19;
-    pub const LINKS: usize = 22;
-    pub const L0_U: usize = 24;
-    pub const WO: usize = 36;
-    pub const E_OUT: usize = 39;
-}
+const LINK0_U: usize = 24;
 
 /// One segment of a walk's adjoint chain, with the transmittance of a full
 /// crossing of its layer (what a surface vertex connects through).
@@ -95,7 +80,7 @@ impl Walks {
     /// A wave of `slots` empty slots.
     pub fn new(slots: usize) -> Self {
         let mut rec = [0.0f32; REC];
-        rec[f::L0_U + 2] = 1.0; // a harmless direction where there is no link
+        rec[LINK0_U + 2] = 1.0; // a harmless direction where there is no link
         Walks {
             key: vec![FREE; slots],
             walk: vec![0; slots],
@@ -110,53 +95,14 @@ impl Walks {
         self.key.len()
     }
 
-    /// Starts a walk in slot `s`: travelling along `d` towards interface
-    /// `key`, with throughput 1, no events, and random state `rng`; `wo` and
-    /// `e_out` are the query's outgoing direction and exit (eval).
-    #[allow(clippy::too_many_arguments)]
-    #[cfg_attr(feature = "profiling", inline(never))]
-    pub fn init(
-        &mut self,
-        s: usize,
-        key: u16,
-        walk: u32,
-        query: u32,
-        d: [f32; 3],
-        wo: [f32; 3],
-        e_out: f32,
-        rng: [u32; 4],
-        hero: f32,
-    ) {
+    /// Gives slot `s` to walk `walk` of query `query`, waiting for interface
+    /// `key`. Its record is written when the walk first leaves the lanes it
+    /// starts in ([`Chunk::start`], [`Chunk::scatter`]).
+    pub fn claim(&mut self, s: usize, key: u16, walk: u32, query: u32) {
         self.key[s] = key;
         self.walk[s] = walk;
         self.query[s] = query;
-        let r = &mut self.rec[s];
-        r[f::D..f::D + 3].copy_from_slice(&d);
-        r[f::WO..f::WO + 3].copy_from_slice(&wo);
-        r[f::E_OUT] = e_out;
-        r[f::BETA..f::BETA + 3].fill(1.0);
-        r[f::RATIOS..f::RATIOS + 3].fill(1.0);
-        r[f::ACC..f::ACC + 3].fill(0.0);
-        r[f::EVENTS] = 0.0;
-        r[f::ORDER] = 0.0;
-        r[f::FIRST] = 1.0;
-        r[f::SPECULAR] = 1.0;
-        r[f::Z] = 0.0;
-        r[f::HERO] = hero;
-        r[f::LINKS] = 0.0;
-        // The random state travels as f32 bit patterns: only moved, never
-        // computed with, so every bit pattern survives (SSE/AVX loads and
-        // shuffles are exact; an x87 target would not be).
-        for (k, v) in rng.into_iter().enumerate() {
-            r[f::RNG + k] = f32::from_bits(v);
-        }
         self.chain[s].clear();
-    }
-
-    /// Appends a further link to slot `s`'s chain.
-    pub fn push_link(&mut self, s: usize, k: Link) {
-        self.chain[s].push(k);
-        self.rec[s][f::LINKS] += 1.0;
     }
 }
 
@@ -198,6 +144,9 @@ pub struct Chunk<W: Wide> {
     /// Blocks of the record loaded so far: 2 (ratios, contribution, chain
     /// length) and 3–4 (the chain's first link, `wo`).
     loaded: (bool, bool),
+    /// New eval walks, started in lanes: blocks 3–4 (the chain's first link,
+    /// `wo`) are not in the record yet, so [`Chunk::scatter`] stores them too.
+    new_link: bool,
 }
 
 /// Which stage a chunk is loaded for: each loads and stores only the blocks
@@ -218,20 +167,18 @@ pub enum Stage {
         /// Some walk may connect to the viewer here (the chain's links).
         links: bool,
     },
-    /// Starting walks (hero channel, adjoint chain): everything.
-    Launch,
 }
 
 impl Stage {
-    /// Blocks loaded and stored: 0 and 1 always; 2 (ratios, contribution,
-    /// chain length) for layer events and eval; 3 and 4 (the chain's first
-    /// link, `wo`) where walks may connect, stored only by a launch.
+    /// Blocks loaded: 0 and 1 always; 2 (ratios, contribution, chain length)
+    /// for layer events and eval; 3 and 4 (the chain's first link, `wo`)
+    /// where walks may connect. Blocks 3 and 4 are only read after a walk's
+    /// start: [`Chunk::scatter`] stores them for a fresh chunk only.
     #[inline(always)]
-    fn blocks(self) -> (bool, bool, bool) {
+    fn blocks(self) -> (bool, bool) {
         match self {
-            Stage::Interface { acc, links } => (acc, links, false),
-            Stage::Layer { links, .. } => (true, links, false),
-            Stage::Launch => (true, true, true),
+            Stage::Interface { acc, links } => (acc, links),
+            Stage::Layer { links, .. } => (true, links),
         }
     }
 }
@@ -272,9 +219,54 @@ impl<W: Wide> Chunk<W> {
             wo: V3::z_axis(),
             e_out: W::zero(),
             loaded: (false, false),
+            new_link: false,
         };
         c.ensure(ws, idx, stage);
         c
+    }
+
+    /// New walks in lanes, without touching their records: travelling along
+    /// `d` with throughput 1, no events, random state `rng` (whose first
+    /// uniform picks the hero channel, as in the scalar walk), and the
+    /// query's `wo` and exit `e_out` (`eval`). The chain's first link is for
+    /// the caller to sample.
+    #[inline(always)]
+    pub fn start(
+        active: W::Mask,
+        d: V3<W>,
+        (wo, e_out, eval): (V3<W>, W, bool),
+        mut rng: LaneRng<W>,
+    ) -> Self {
+        let hero = crate::estimator::events::hero_channel(rng.uniform(active));
+        Chunk {
+            active,
+            z: W::zero(),
+            d,
+            beta: Rgb::one(),
+            ratios: Rgb::one(),
+            hero,
+            events: W::zero(),
+            order: W::zero(),
+            first: W::Mask::splat(true),
+            specular: W::Mask::splat(true),
+            acc: Rgb::zero(),
+            rng,
+            links: W::zero(),
+            link0: LinkLanes {
+                conn: Connection {
+                    u: V3::z_axis(),
+                    v: Rgb::zero(),
+                    mis_pdf: W::zero(),
+                },
+                t: Rgb::one(),
+                layer: W::zero(),
+                start: W::zero(),
+            },
+            wo,
+            e_out,
+            loaded: (true, true),
+            new_link: eval,
+        }
     }
 
     /// Loads the blocks `stage` uses that are not loaded yet (a chunk that
@@ -282,7 +274,7 @@ impl<W: Wide> Chunk<W> {
     #[cfg_attr(not(feature = "profiling"), inline(always))]
     #[cfg_attr(feature = "profiling", inline(never))]
     pub fn ensure(&mut self, ws: &Walks, idx: &[u32], stage: Stage) {
-        let (block2, links, _) = stage.blocks();
+        let (block2, links) = stage.blocks();
         if block2 && !self.loaded.0 {
             let b2 = W::load8(&ws.rec, idx, 16);
             self.ratios = Rgb::new(b2[0], b2[1], b2[2]);
@@ -310,11 +302,10 @@ impl<W: Wide> Chunk<W> {
     }
 
     /// Stores the chunk back (every lane; see [`Wide::store8`]): the blocks
-    /// it loaded, and the chain's first link only after a launch.
+    /// it loaded, and the chain's first link and `wo` only for new walks.
     #[cfg_attr(not(feature = "profiling"), inline(always))]
     #[cfg_attr(feature = "profiling", inline(never))]
-    pub fn scatter(&self, ws: &mut Walks, idx: &[u32], stage: Stage) {
-        let (_, _, link) = stage.blocks();
+    pub fn scatter(&self, ws: &mut Walks, idx: &[u32]) {
         let flag = |m: W::Mask| W::select(m, W::one(), W::zero());
         let (d, b) = (self.d, self.beta);
         let b0 = [
@@ -345,7 +336,7 @@ impl<W: Wide> Chunk<W> {
             let b2 = [r.r, r.g, r.b, a.r, a.g, a.b, self.links, W::zero()];
             W::store8(b2, &mut ws.rec, idx, 16);
         }
-        if link {
+        if self.new_link {
             let k = &self.link0;
             let (u, v, t) = (k.conn.u, k.conn.v, k.t);
             let b3 = [u.x, u.y, u.z, v.r, v.g, v.b, k.conn.mis_pdf, k.layer];
