@@ -3,7 +3,9 @@
 //! batch (same seeds, so the same walks) on the scalar engine, on the
 //! wavefront on one thread, and on the wavefront's specialized and general
 //! walks. Throughput is in queries per second. Then single `sample` and `pdf`
-//! calls through the public API on each engine (time per call).
+//! calls through the public API on each engine (time per call), and small
+//! batches of them (`small`: 4 and 16 queries per call, a BSDF with a pool of
+//! two threads, time per call).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
@@ -93,9 +95,42 @@ fn single_queries(c: &mut Criterion) {
     }
 }
 
+fn small_batches(c: &mut Criterion) {
+    let wo = Vec3::new(-0.2, 0.4, 0.8).normalize();
+    for &name in strata::materials::REPRESENTATIVE {
+        let stack = strata::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("small/{name}"));
+        for n in [4usize, 16] {
+            let wis: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(0.05 * i as f32, 0.1, 0.9).normalize())
+                .collect();
+            let pairs: Vec<(Vec3, Vec3)> = wis.iter().map(|&w| (w, wo)).collect();
+            let keys: Vec<u64> = (0..n as u64).collect();
+            for (label, engine) in [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)] {
+                let bsdf = LayeredBsdf::new(stack.clone())
+                    .engine(engine)
+                    .threads(2)
+                    .unwrap();
+                let mut k = 0u64;
+                g.bench_function(BenchmarkId::new(format!("sample{n}"), label), |b| {
+                    b.iter(|| {
+                        k += 1;
+                        let idx = vec![k; n];
+                        black_box(bsdf.sample_batch_keyed(&wis, &keys, &idx).unwrap())
+                    })
+                });
+                g.bench_function(BenchmarkId::new(format!("pdf{n}"), label), |b| {
+                    b.iter(|| black_box(bsdf.pdf_batch(&pairs).unwrap()))
+                });
+            }
+        }
+        g.finish();
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
-    targets = estimators, single_queries
+    targets = estimators, single_queries, small_batches
 }
 criterion_main!(benches);

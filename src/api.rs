@@ -7,8 +7,9 @@
 //! silent NaN.
 
 use crate::estimator::scalar::ScalarEngine;
-use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront};
-use crate::estimator::{Albedo, Estimate, Sample, Settings, BLOCK};
+use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, SERIAL_WALKS};
+use crate::estimator::{Albedo, Estimate, Sample, Settings};
+use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::LayerStack;
 use glam::Vec3;
@@ -116,29 +117,49 @@ impl Direction {
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
 /// queries and a wave, about 0.6–1.4 µs), which its lanes repay many times over
-/// on a batch, or on an `eval` of many walks, but not on a single `sample` or
-/// `pdf`: for one direction at a time, the scalar engine is the cheaper one
-/// (1.5–3× faster on a single `sample`; docs/performance.md). Work of one block of
-/// walks or less runs on the calling thread on either engine, with or
+/// on a batch, or on an `eval` of many walks, but not on a call of fewer walks
+/// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
+/// the cheaper one (1.5–3× faster on a single `sample`; docs/performance.md).
+/// [`Engine::Auto`], the default, picks per call. Calls of at most
+/// [`SERIAL_WALKS`] walks run on the calling thread on either engine, with or
 /// without [`LayeredBsdf::threads`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
+    /// Per call: the scalar engine for calls of fewer walks (queries × walks
+    /// per query) than the wavefront has lanes, the wavefront otherwise.
+    #[default]
+    Auto,
     /// The scalar reference: one walk at a time.
     Scalar,
-    /// The SIMD wavefront engine (the default): walks in lanes, batches over
-    /// threads.
-    #[default]
+    /// The SIMD wavefront engine: walks in lanes, batches over threads.
     Wavefront,
+}
+
+impl Engine {
+    /// The engine that answers a call of `queries` queries of `walks` walks
+    /// each: `Scalar` or `Wavefront`, never `Auto`.
+    pub fn resolve(self, queries: usize, walks: u64) -> Engine {
+        match self {
+            Engine::Auto
+                if (queries as u64).saturating_mul(walks) < <DefaultWide as Lane>::LANES as u64 =>
+            {
+                Engine::Scalar
+            }
+            Engine::Auto => Engine::Wavefront,
+            e => e,
+        }
+    }
 }
 
 impl std::str::FromStr for Engine {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
+            "auto" => Ok(Engine::Auto),
             "scalar" => Ok(Engine::Scalar),
             "wavefront" => Ok(Engine::Wavefront),
             _ => Err(format!(
-                "unknown engine {s:?} (expected scalar or wavefront)"
+                "unknown engine {s:?} (expected auto, scalar or wavefront)"
             )),
         }
     }
@@ -276,12 +297,12 @@ impl LayeredBsdf {
     }
 
     /// Runs `f` on this BSDF's thread pool, if it has one, when the work
-    /// (`queries` queries of `walks` walks each) is more than one block of
-    /// walks; one block is one task, which runs on the calling thread (a
-    /// hand-over to a pool's thread costs more than a single `sample` or `pdf`).
+    /// (`queries` queries of `walks` walks each) is more than
+    /// [`SERIAL_WALKS`]; less runs as one task on the calling thread (a
+    /// hand-over to a pool's thread costs more than such a batch).
     fn install<R: Send>(&self, queries: usize, walks: u64, f: impl FnOnce() -> R + Send) -> R {
         match &self.pool {
-            Some(p) if queries > 1 || walks > BLOCK => p.install(f),
+            Some(p) if (queries as u64).saturating_mul(walks) > SERIAL_WALKS => p.install(f),
             _ => f(),
         }
     }
@@ -303,11 +324,11 @@ impl LayeredBsdf {
     ) -> Result<Estimate, QueryError> {
         let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
         at_least_one("samples", samples)?;
-        Ok(match self.engine {
+        Ok(match self.engine.resolve(1, samples) {
             Engine::Scalar => self
                 .scalar
                 .eval(a.get(), b.get(), samples, self.seed, query),
-            Engine::Wavefront => self.install(1, samples, || {
+            _ => self.install(1, samples, || {
                 self.wave
                     .eval_batch(&[(a.get(), b.get())], samples, self.seed, &[query])
                     .0[0]
@@ -354,13 +375,13 @@ impl LayeredBsdf {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
         at_least_one("samples", samples).map_err(|error| BatchError { index: 0, error })?;
-        Ok(match self.engine {
+        Ok(match self.engine.resolve(dirs.len(), samples) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(keys)
                 .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
                 .collect(),
-            Engine::Wavefront => self.install(dirs.len(), samples, || {
+            _ => self.install(dirs.len(), samples, || {
                 self.wave.eval_batch(&dirs, samples, self.seed, keys).0
             }),
         })
@@ -387,7 +408,7 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
-        Ok(match self.engine {
+        Ok(match self.engine.resolve(dirs.len(), 1) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(keys.iter().zip(sample_index))
@@ -396,7 +417,7 @@ impl LayeredBsdf {
                     self.scalar.sample(a, &mut rng)
                 })
                 .collect(),
-            Engine::Wavefront => self.install(dirs.len(), 1, || {
+            _ => self.install(dirs.len(), 1, || {
                 self.wave
                     .sample_batch(&dirs, self.seed, keys, sample_index)
                     .0
@@ -408,13 +429,13 @@ impl LayeredBsdf {
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
         let dirs = directions2(pairs)?;
         let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
-        let p: Vec<f64> = match self.engine {
+        let p: Vec<f64> = match self.engine.resolve(dirs.len(), self.pdf_samples as u64) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(&keys)
                 .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
                 .collect(),
-            Engine::Wavefront => self.install(dirs.len(), 1, || {
+            _ => self.install(dirs.len(), self.pdf_samples as u64, || {
                 self.wave
                     .pdf_batch(&dirs, self.pdf_samples, self.seed, &keys)
             }),
@@ -439,13 +460,13 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         at_least_one("n", n).map_err(|error| BatchError { index: 0, error })?;
-        Ok(match self.engine {
+        Ok(match self.engine.resolve(dirs.len(), n) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(keys)
                 .map(|(&a, &k)| self.scalar.albedo(a, n, self.seed, k))
                 .collect(),
-            Engine::Wavefront => self.install(dirs.len(), n, || {
+            _ => self.install(dirs.len(), n, || {
                 self.wave.albedo_batch(&dirs, n, self.seed, keys).0
             }),
         })

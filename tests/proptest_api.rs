@@ -596,7 +596,7 @@ fn keyed_batches_check_their_lengths_and_counts() {
         (Vec3::new(0.2, 0.1, 0.9), Vec3::Z),
     ];
     let wis = [Vec3::Z, Vec3::new(0.2, 0.1, 0.9)];
-    for engine in [Engine::Scalar, Engine::Wavefront] {
+    for engine in [Engine::Auto, Engine::Scalar, Engine::Wavefront] {
         let b = LayeredBsdf::new(stack.clone()).engine(engine);
         let e = b
             .eval_batch_keyed(&pairs, 16, &[1])
@@ -630,4 +630,59 @@ fn keyed_batches_check_their_lengths_and_counts() {
             2
         );
     }
+}
+
+/// `Engine::Auto`, the default, takes the scalar engine for calls of fewer
+/// walks (queries × walks per query) than the wavefront has lanes and the
+/// wavefront for the rest; either way its answers are the chosen engine's.
+#[test]
+fn auto_engine_picks_by_walks_per_call() {
+    assert_eq!(Engine::default(), Engine::Auto);
+    let lanes = 8; // DefaultWide
+    for (queries, walks, want) in [
+        (1, 1, Engine::Scalar),
+        (1, lanes - 1, Engine::Scalar),
+        (lanes as usize - 1, 1, Engine::Scalar),
+        (1, lanes, Engine::Wavefront),
+        (2, 4, Engine::Wavefront),
+        (1, 256, Engine::Wavefront),
+        (usize::MAX, u64::MAX, Engine::Wavefront),
+    ] {
+        assert_eq!(
+            Engine::Auto.resolve(queries, walks),
+            want,
+            "{queries} x {walks}"
+        );
+        assert_eq!(Engine::Scalar.resolve(queries, walks), Engine::Scalar);
+        assert_eq!(Engine::Wavefront.resolve(queries, walks), Engine::Wavefront);
+    }
+    let stack = strata::materials::builtin("three_interfaces").expect("built-in");
+    let auto = LayeredBsdf::new(stack).samples(64).seed(5);
+    let scalar = auto.clone().engine(Engine::Scalar);
+    let wave = auto.clone().engine(Engine::Wavefront);
+    let wis: Vec<Vec3> = (0..12)
+        .map(|i| Vec3::new(0.07 * i as f32, -0.03 * i as f32, 1.0).normalize())
+        .collect();
+    let wo = Vec3::new(-0.4, 0.2, 0.8).normalize();
+    let pairs: Vec<(Vec3, Vec3)> = wis.iter().map(|&w| (w, wo)).collect();
+    let mut exited = 0;
+    for (i, &wi) in wis.iter().enumerate() {
+        let s = auto.sample(wi, i as u64).expect("valid");
+        assert_eq!(s, scalar.sample(wi, i as u64).expect("valid"));
+        exited += s.is_some() as usize;
+        // A pdf takes 4 short walks: fewer than the lanes.
+        assert_eq!(auto.pdf(wi, wo), scalar.pdf(wi, wo));
+        // An eval of 64 walks fills the lanes.
+        assert_eq!(auto.eval(wi, wo), wave.eval(wi, wo));
+    }
+    assert!(
+        exited > 0,
+        "no sample left the stack: the comparison saw nothing"
+    );
+    let keys: Vec<u64> = (0..wis.len() as u64).collect();
+    assert_eq!(
+        auto.sample_batch_keyed(&wis, &keys, &keys),
+        wave.sample_batch_keyed(&wis, &keys, &keys)
+    );
+    assert_eq!(auto.pdf_batch(&pairs), wave.pdf_batch(&pairs));
 }

@@ -54,8 +54,9 @@ pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
 /// The engine flags shared by `eval`, `albedo` and `sample`.
 #[derive(clap::Args, Clone, Copy, Debug)]
 pub struct EngineArgs {
-    /// Engine: the SIMD wavefront (default) or the scalar reference. Both give
-    /// the same results for the same seed.
+    /// Engine: the SIMD wavefront (default), the scalar reference, or auto
+    /// (the scalar engine for calls of fewer walks than the wavefront has
+    /// lanes). All give the same results for the same seed.
     #[arg(long, default_value = "wavefront")]
     pub engine: strata::Engine,
     /// Threads for the wavefront engine (default: every core). Results do not

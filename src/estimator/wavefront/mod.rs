@@ -57,6 +57,13 @@ const SLOTS_PER_LANE: usize = 64;
 /// Walks per task: the unit of work a thread takes. Tasks are whole blocks.
 const TASK_WALKS: u64 = 32 * BLOCK;
 
+/// A batch of at most this many walks (queries × walks per query) runs as
+/// one task on the calling thread: handing work to another thread costs
+/// about 10 µs on the test machine (measured: a batch of two single-walk
+/// `sample` queries took 13–23 µs in a one-thread pool and 0.6–4 µs on the
+/// calling thread), more than such a batch takes.
+pub const SERIAL_WALKS: u64 = BLOCK;
+
 /// How much the walk is specialized to the stack.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Plan {
@@ -368,9 +375,13 @@ impl<W: Wide> Wavefront<W> {
         // its own, and units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
         let threads = rayon::current_num_threads().max(1);
-        let per_task = ((TASK_WALKS / walks_per_unit).max(1) as usize)
-            .min(count.div_ceil(4 * threads))
-            .max(1);
+        let per_task = if count as u64 * walks_per_unit <= SERIAL_WALKS {
+            count
+        } else {
+            ((TASK_WALKS / walks_per_unit).max(1) as usize)
+                .min(count.div_ceil(4 * threads))
+                .max(1)
+        };
         let tasks = count.div_ceil(per_task);
         let largest = (per_task.min(count) as u64 * walks_per_unit) as usize;
         let slots = self
@@ -668,8 +679,8 @@ impl<W: Wide> Wavefront<W> {
         let queries = self.prepare(Mode::Eval, seed, &spec);
         let chunk = 64usize;
         let idx: Vec<usize> = (0..pairs.len()).collect();
-        if idx.len() <= chunk {
-            // One chunk: on the calling thread (see `run`).
+        if idx.len() as u64 * samples as u64 <= SERIAL_WALKS {
+            // A small batch: on the calling thread (see `SERIAL_WALKS`).
             return self.pdf_queries(&queries, &idx, samples);
         }
         idx.par_chunks(chunk)
