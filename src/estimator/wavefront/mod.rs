@@ -194,6 +194,20 @@ fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
     r
 }
 
+/// Units per task for a batch of `count` units of `walks_per_unit` walks:
+/// all of them for a batch of at most [`SERIAL_WALKS`] walks, else at most
+/// [`TASK_WALKS`] walks' worth and small enough that each thread gets several
+/// tasks (for balance).
+fn units_per_task(count: usize, walks_per_unit: u64) -> usize {
+    if count as u64 * walks_per_unit <= SERIAL_WALKS {
+        return count;
+    }
+    let threads = rayon::current_num_threads().max(1);
+    ((TASK_WALKS / walks_per_unit).max(1) as usize)
+        .min(count.div_ceil(4 * threads))
+        .max(1)
+}
+
 /// The reduction of `samples` walks that all gave zero.
 fn zero_sum(samples: u64) -> MeanVar {
     let mut r = BlockReducer::new();
@@ -369,19 +383,10 @@ impl<W: Wide> Wavefront<W> {
         if count == 0 {
             return Stats::default();
         }
-        // Tasks: sets of units of at most TASK_WALKS walks, small enough that
-        // each thread gets several (for balance). Results do not depend on
-        // which units share a task: a unit's walks and their reduction are
-        // its own, and units reach the sink in order.
+        // Results do not depend on which units share a task: a unit's walks
+        // and their reduction are its own, and units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
-        let threads = rayon::current_num_threads().max(1);
-        let per_task = if count as u64 * walks_per_unit <= SERIAL_WALKS {
-            count
-        } else {
-            ((TASK_WALKS / walks_per_unit).max(1) as usize)
-                .min(count.div_ceil(4 * threads))
-                .max(1)
-        };
+        let per_task = units_per_task(count, walks_per_unit);
         let tasks = count.div_ceil(per_task);
         let largest = (per_task.min(count) as u64 * walks_per_unit) as usize;
         let slots = self

@@ -1,4 +1,4 @@
-//! The stages of a wave: launch, interface events, layer events; and the
+//! The stages of a wave: starting walks, interface events, layer events; and the
 //! round loop that passes walks between queues.
 //!
 //! Each stage mirrors one part of the scalar reference's walk
