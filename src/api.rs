@@ -7,7 +7,7 @@
 //! silent NaN.
 
 use crate::estimator::scalar::ScalarEngine;
-use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, SERIAL_WALKS};
+use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS};
 use crate::estimator::{Albedo, Estimate, Sample, Settings};
 use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
@@ -112,8 +112,9 @@ impl Direction {
     }
 }
 
-/// Which engine answers a query. Both give the same results for the same
-/// seeds (walk by walk, up to rare rounding differences; tested).
+/// Which engine answers a query. The scalar and the wavefront engine give the
+/// same results for the same seeds (walk by walk, up to rare rounding
+/// differences; tested); `Auto` gives one of theirs.
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
 /// queries and a wave, about 0.6–1.4 µs), which its lanes repay many times over
@@ -121,12 +122,14 @@ impl Direction {
 /// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
 /// the cheaper one (1.5–3× faster on a single `sample`; docs/performance.md).
 /// [`Engine::Auto`], the default, picks per call. Calls of at most
-/// [`SERIAL_WALKS`] walks run on the calling thread on either engine, with or
-/// without [`LayeredBsdf::threads`].
+/// [`SERIAL_WALKS`] walks (pdf batches of at most [`PDF_CHUNK`] queries) run
+/// on the calling thread on either engine, with or without
+/// [`LayeredBsdf::threads`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// Per call: the scalar engine for calls of fewer walks (queries × walks
-    /// per query) than the wavefront has lanes, the wavefront otherwise.
+    /// per query) than the wavefront has lanes, and for a single `pdf` (the
+    /// wavefront's pdf runs one query per lane); the wavefront otherwise.
     #[default]
     Auto,
     /// The scalar reference: one walk at a time.
@@ -145,6 +148,18 @@ impl Engine {
             {
                 Engine::Scalar
             }
+            Engine::Auto => Engine::Wavefront,
+            e => e,
+        }
+    }
+
+    /// The engine that answers a pdf call of `queries` queries. The
+    /// wavefront runs one query per lane, so a single query leaves seven of
+    /// eight lanes idle whatever its walk count; from two queries on it is
+    /// the faster one (docs/performance.md).
+    pub fn resolve_pdf(self, queries: usize) -> Engine {
+        match self {
+            Engine::Auto if queries < 2 => Engine::Scalar,
             Engine::Auto => Engine::Wavefront,
             e => e,
         }
@@ -186,9 +201,11 @@ impl std::error::Error for BatchError {}
 ///
 /// Every query is deterministic: its random streams are seeded from the
 /// BSDF's seed and a query key. The plain methods derive the key from the
-/// directions' bits (so the same `(wi, wo)` always gives the same answer, on
-/// either engine, alone or in a batch); the `_keyed` variants take the keys
-/// explicitly, so that a renderer can draw fresh noise per call.
+/// directions' bits (so the same `(wi, wo)` always gives the same answer,
+/// alone or in a batch, on either engine; the two engines agree up to rare
+/// rounding differences, and [`Engine::Auto`] picks one by the size of the
+/// call); the `_keyed` variants take the keys explicitly, so that a renderer
+/// can draw fresh noise per call.
 ///
 /// ```
 /// use strata::{Engine, LayeredBsdf, LayerStack};
@@ -269,7 +286,9 @@ impl LayeredBsdf {
 
     /// Runs the wavefront engine's batches on a pool of `n` threads (by
     /// default, rayon's global pool; `n = 0` also means one thread per
-    /// core). Results do not depend on it.
+    /// core). Calls of at most [`SERIAL_WALKS`] walks (and pdf batches of at
+    /// most [`PDF_CHUNK`] queries) run on the calling thread whatever the
+    /// pool. Results do not depend on it.
     pub fn threads(mut self, n: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
         self.pool = Some(Arc::new(pool));
@@ -301,8 +320,13 @@ impl LayeredBsdf {
     /// [`SERIAL_WALKS`]; less runs as one task on the calling thread (a
     /// hand-over to a pool's thread costs more than such a batch).
     fn install<R: Send>(&self, queries: usize, walks: u64, f: impl FnOnce() -> R + Send) -> R {
+        self.install_if((queries as u64).saturating_mul(walks) > SERIAL_WALKS, f)
+    }
+
+    /// Runs `f` on this BSDF's pool, if it has one and `parallel` is set.
+    fn install_if<R: Send>(&self, parallel: bool, f: impl FnOnce() -> R + Send) -> R {
         match &self.pool {
-            Some(p) if (queries as u64).saturating_mul(walks) > SERIAL_WALKS => p.install(f),
+            Some(p) if parallel => p.install(f),
             _ => f(),
         }
     }
@@ -429,13 +453,13 @@ impl LayeredBsdf {
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
         let dirs = directions2(pairs)?;
         let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
-        let p: Vec<f64> = match self.engine.resolve(dirs.len(), self.pdf_samples as u64) {
+        let p: Vec<f64> = match self.engine.resolve_pdf(dirs.len()) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(&keys)
                 .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
                 .collect(),
-            _ => self.install(dirs.len(), self.pdf_samples as u64, || {
+            _ => self.install_if(dirs.len() > PDF_CHUNK, || {
                 self.wave
                     .pdf_batch(&dirs, self.pdf_samples, self.seed, &keys)
             }),

@@ -849,6 +849,7 @@ fn engines_and_thread_counts_print_the_same_answers() {
     ));
     for extra in [
         &["--engine", "wavefront"][..],
+        &["--engine", "auto"],
         &["--threads", "1"],
         &["--threads", "3"],
     ] {
@@ -894,6 +895,7 @@ fn engines_and_thread_counts_print_the_same_answers() {
         assert_ok(&run(&args, ""))
     };
     assert_eq!(sample(&["--engine", "scalar"]), sample(&[]), "sample");
+    assert_eq!(sample(&["--engine", "auto"]), sample(&[]), "sample, auto");
     assert_fails_with(
         &run(&[&base[..], &["--engine", "gpu"]].concat(), queries),
         &["--engine", "gpu"],

@@ -208,9 +208,15 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
         let st = stack(toml);
         let sc = ScalarEngine::<f32>::new(&st, Settings::default());
         let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
-        // Sample: one walk per query, every walk compared.
+        // Sample: one walk per query, every walk compared. Every third query
+        // comes from below, so on a transmissive stack the new walks of one
+        // chunk enter at both outer interfaces (not every other one: tasks
+        // take every n-th query, and n is even).
         let wis: Vec<[f64; 3]> = (0..2000)
-            .map(|k| dir((k % 89) as f64, (k * 37 % 360) as f64))
+            .map(|k| {
+                let d = dir((k % 89) as f64, (k * 37 % 360) as f64);
+                [d[0], d[1], if k % 3 == 1 { -d[2] } else { d[2] }]
+            })
             .collect();
         let keys: Vec<u64> = (0..wis.len() as u64).collect();
         let idx: Vec<u64> = keys.iter().map(|k| k * 3 + 1).collect();

@@ -199,7 +199,7 @@ fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
 /// [`TASK_WALKS`] walks' worth and small enough that each thread gets several
 /// tasks (for balance).
 fn units_per_task(count: usize, walks_per_unit: u64) -> usize {
-    if count as u64 * walks_per_unit <= SERIAL_WALKS {
+    if (count as u64).saturating_mul(walks_per_unit) <= SERIAL_WALKS {
         return count;
     }
     let threads = rayon::current_num_threads().max(1);
@@ -207,6 +207,10 @@ fn units_per_task(count: usize, walks_per_unit: u64) -> usize {
         .min(count.div_ceil(4 * threads))
         .max(1)
 }
+
+/// Queries per task of a pdf batch, which runs one query per lane: a batch
+/// of at most this many runs on the calling thread.
+pub const PDF_CHUNK: usize = 64;
 
 /// The reduction of `samples` walks that all gave zero.
 fn zero_sum(samples: u64) -> MeanVar {
@@ -388,7 +392,7 @@ impl<W: Wide> Wavefront<W> {
         let walks_per_unit = unit(0).count.max(1) as u64;
         let per_task = units_per_task(count, walks_per_unit);
         let tasks = count.div_ceil(per_task);
-        let largest = (per_task.min(count) as u64 * walks_per_unit) as usize;
+        let largest = (per_task.min(count) as u64).saturating_mul(walks_per_unit) as usize;
         let slots = self
             .slots
             .min(largest.div_ceil(W::LANES) * W::LANES)
@@ -682,13 +686,12 @@ impl<W: Wide> Wavefront<W> {
             .map(|(&(wi, wo), &k)| (wi, Some(wo), k))
             .collect();
         let queries = self.prepare(Mode::Eval, seed, &spec);
-        let chunk = 64usize;
         let idx: Vec<usize> = (0..pairs.len()).collect();
-        if idx.len() as u64 * samples as u64 <= SERIAL_WALKS {
-            // A small batch: on the calling thread (see `SERIAL_WALKS`).
+        if idx.len() <= PDF_CHUNK {
+            // One chunk: on the calling thread (see `SERIAL_WALKS`).
             return self.pdf_queries(&queries, &idx, samples);
         }
-        idx.par_chunks(chunk)
+        idx.par_chunks(PDF_CHUNK)
             .flat_map_iter(|qs| self.pdf_queries(&queries, qs, samples))
             .collect()
     }

@@ -203,8 +203,9 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// Samples the adjoint chains of new eval walks (scalar:
-    /// `ScalarEngine::adjoint_chain`). The first link goes to the walk
-    /// record; further links (smooth exits only) to the slot's overflow list.
+    /// `ScalarEngine::adjoint_chain`). The first link goes to the chunk
+    /// (`link0`, stored with the record when the chunk is); further links
+    /// (smooth exits only) to the slot's overflow list.
     #[cfg_attr(feature = "profiling", inline(never))]
     fn launch_chain(
         &self,
