@@ -117,7 +117,7 @@ impl Direction {
 /// differences; tested); `Auto` gives one of theirs.
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries and a wave, about 0.6–1.4 µs), which its lanes repay many times over
+/// queries and a wave, about 0.8–1.9 µs), which its lanes repay many times over
 /// on a batch, or on an `eval` of many walks, but not on a call of fewer walks
 /// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
 /// the cheaper one (1.5–3× faster on a single `sample`; docs/performance.md).
