@@ -75,11 +75,7 @@ fn single_queries(c: &mut Criterion) {
     for &name in strata::materials::REPRESENTATIVE {
         let stack = strata::materials::builtin(name).unwrap();
         let mut g = c.benchmark_group(format!("single/{name}"));
-        for (label, engine) in [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)] {
-            let bsdf = LayeredBsdf::new(stack.clone())
-                .engine(engine)
-                .threads(1)
-                .unwrap();
+        for (label, bsdf) in engines(&stack, 1) {
             let mut k = 0u64;
             g.bench_function(BenchmarkId::new("sample", label), |b| {
                 b.iter(|| {
@@ -95,6 +91,14 @@ fn single_queries(c: &mut Criterion) {
     }
 }
 
+/// The stack on each engine, with a pool of `threads` threads.
+fn engines(stack: &strata::LayerStack, threads: usize) -> [(&'static str, LayeredBsdf); 2] {
+    [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)].map(|(label, engine)| {
+        let bsdf = LayeredBsdf::new(stack.clone()).engine(engine);
+        (label, bsdf.threads(threads).unwrap())
+    })
+}
+
 fn small_batches(c: &mut Criterion) {
     let wo = Vec3::new(-0.2, 0.4, 0.8).normalize();
     for &name in strata::materials::REPRESENTATIVE {
@@ -106,11 +110,7 @@ fn small_batches(c: &mut Criterion) {
                 .collect();
             let pairs: Vec<(Vec3, Vec3)> = wis.iter().map(|&w| (w, wo)).collect();
             let keys: Vec<u64> = (0..n as u64).collect();
-            for (label, engine) in [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)] {
-                let bsdf = LayeredBsdf::new(stack.clone())
-                    .engine(engine)
-                    .threads(2)
-                    .unwrap();
+            for (label, bsdf) in engines(&stack, 2) {
                 let mut k = 0u64;
                 g.bench_function(BenchmarkId::new(format!("sample{n}"), label), |b| {
                     b.iter(|| {

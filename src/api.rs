@@ -155,8 +155,9 @@ impl Engine {
 
     /// The engine that answers a pdf call of `queries` queries. The
     /// wavefront runs one query per lane, so a single query leaves seven of
-    /// eight lanes idle whatever its walk count; from two queries on it is
-    /// the faster one (docs/performance.md).
+    /// eight lanes idle whatever its walk count; at 4 queries and more it is
+    /// the faster one on every representative stack (docs/performance.md),
+    /// and from 2 on it fills at least two lanes.
     pub fn resolve_pdf(self, queries: usize) -> Engine {
         match self {
             Engine::Auto if queries < 2 => Engine::Scalar,

@@ -703,20 +703,13 @@ fn auto_engine_picks_by_walks_per_call() {
     assert_eq!(auto.pdf_batch(&pairs), wave.pdf_batch(&pairs));
 }
 
-/// A call of at most `SERIAL_WALKS` walks runs on the calling thread, a
-/// larger one on the BSDF's pool: answers on either side of the boundary are
-/// the same with one thread and with three.
+/// A call of at most `SERIAL_WALKS` walks (or `PDF_CHUNK` pdf queries) runs
+/// on the calling thread, a larger one on the BSDF's pool. A batch just past
+/// the limit (the pool) answers exactly what the same queries answer in
+/// batches within it (the calling thread), with one thread and with three.
 #[test]
-fn answers_do_not_depend_on_threads_around_the_serial_boundary() {
+fn batches_past_the_calling_thread_limit_answer_as_smaller_ones() {
     let stack = strata::materials::builtin("scattering_slab").expect("built-in");
-    let one = LayeredBsdf::new(stack.clone())
-        .engine(Engine::Wavefront)
-        .threads(1)
-        .expect("pool");
-    let three = LayeredBsdf::new(stack)
-        .engine(Engine::Wavefront)
-        .threads(3)
-        .expect("pool");
     let s = SERIAL_WALKS as usize;
     let pairs: Vec<(Vec3, Vec3)> = (0..s + 1)
         .map(|i| {
@@ -728,31 +721,42 @@ fn answers_do_not_depend_on_threads_around_the_serial_boundary() {
         })
         .collect();
     let wis: Vec<Vec3> = pairs.iter().map(|p| p.0).collect();
-    for n in [s / 64, s / 64 + 1] {
-        // n queries of 64 walks: 256 walks in all, then 320.
-        let keys: Vec<u64> = (0..n as u64).collect();
-        let (a, b) = (
-            one.eval_batch_keyed(&pairs[..n], 64, &keys),
-            three.eval_batch_keyed(&pairs[..n], 64, &keys),
-        );
-        assert_eq!(a.expect("valid"), b.expect("valid"), "{n} x 64 walks");
-    }
-    for n in [s, s + 1] {
-        let keys: Vec<u64> = (0..n as u64).collect();
-        assert_eq!(
-            one.sample_batch_keyed(&wis[..n], &keys, &keys)
+    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+    for threads in [1, 3] {
+        let b = LayeredBsdf::new(stack.clone())
+            .engine(Engine::Wavefront)
+            .threads(threads)
+            .expect("pool");
+        // Eval, 64 walks per query: 5 queries are 320 walks (the pool), 4 are
+        // 256 (the calling thread).
+        let n = s / 64 + 1;
+        let big = b
+            .eval_batch_keyed(&pairs[..n], 64, &keys[..n])
+            .expect("valid");
+        let mut parts = b
+            .eval_batch_keyed(&pairs[..n - 1], 64, &keys[..n - 1])
+            .expect("valid");
+        parts.extend(
+            b.eval_batch_keyed(&pairs[n - 1..n], 64, &keys[n - 1..n])
                 .expect("valid"),
-            three
-                .sample_batch_keyed(&wis[..n], &keys, &keys)
+        );
+        assert_eq!(big, parts, "eval, {threads} threads");
+        // Sample, one walk per query: s + 1 queries against s and 1.
+        let big = b.sample_batch_keyed(&wis, &keys, &keys).expect("valid");
+        let mut parts = b
+            .sample_batch_keyed(&wis[..s], &keys[..s], &keys[..s])
+            .expect("valid");
+        parts.extend(
+            b.sample_batch_keyed(&wis[s..], &keys[s..], &keys[s..])
                 .expect("valid"),
-            "{n} samples"
         );
-    }
-    for n in [PDF_CHUNK, PDF_CHUNK + 1] {
-        assert_eq!(
-            one.pdf_batch(&pairs[..n]).expect("valid"),
-            three.pdf_batch(&pairs[..n]).expect("valid"),
-            "{n} pdfs"
-        );
+        assert_eq!(big, parts, "sample, {threads} threads");
+        assert!(big.iter().filter(|x| x.is_some()).count() > s / 2);
+        // Pdf: PDF_CHUNK + 1 queries against PDF_CHUNK and 1.
+        let m = PDF_CHUNK + 1;
+        let big = b.pdf_batch(&pairs[..m]).expect("valid");
+        let mut parts = b.pdf_batch(&pairs[..m - 1]).expect("valid");
+        parts.extend(b.pdf_batch(&pairs[m - 1..m]).expect("valid"));
+        assert_eq!(big, parts, "pdf, {threads} threads");
     }
 }

@@ -59,9 +59,8 @@ const TASK_WALKS: u64 = 32 * BLOCK;
 
 /// A batch of at most this many walks (queries × walks per query) runs as
 /// one task on the calling thread: handing work to another thread costs
-/// about 10 µs on the test machine (measured: a batch of two single-walk
-/// `sample` queries took 13–23 µs in a one-thread pool and 0.6–4 µs on the
-/// calling thread), more than such a batch takes.
+/// about 10 µs on the test machine, more than such a batch takes (the
+/// criterion group `small` in benches/estimators.rs; docs/performance.md).
 pub const SERIAL_WALKS: u64 = BLOCK;
 
 /// How much the walk is specialized to the stack.

@@ -185,7 +185,7 @@ impl<W: Wide> Wavefront<W> {
         let d = -V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
         let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
         let eval = q.mode == Mode::Eval;
-        let mut c = Chunk::<W>::start(active, d, (wo, g(&q.e_out), eval), rng);
+        let mut c = Chunk::<W>::start(active, d, wo, g(&q.e_out), eval, rng);
         if eval && self.layout.n >= 2 {
             self.launch_chain(q, wave.ws, &mut c, chunk, idx);
         }

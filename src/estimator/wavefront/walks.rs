@@ -73,6 +73,23 @@ struct Record([f32; REC]);
 // `Walks::recs` relies on this: no padding in or after the floats.
 const _: () = assert!(std::mem::size_of::<Record>() == REC * 4);
 
+impl<W: Wide> LinkLanes<W> {
+    /// No link: a harmless direction and factor 0 (until a launch samples one).
+    #[inline(always)]
+    pub fn none() -> Self {
+        LinkLanes {
+            conn: Connection {
+                u: V3::z_axis(),
+                v: Rgb::zero(),
+                mis_pdf: W::zero(),
+            },
+            t: Rgb::one(),
+            layer: W::zero(),
+            start: W::zero(),
+        }
+    }
+}
+
 /// The walks of one wave.
 #[derive(Debug, Default)]
 pub struct Walks {
@@ -232,16 +249,7 @@ impl<W: Wide> Chunk<W> {
             ratios: Rgb::one(),
             acc: Rgb::zero(),
             links: W::zero(),
-            link0: LinkLanes {
-                conn: Connection {
-                    u: V3::z_axis(),
-                    v: Rgb::zero(),
-                    mis_pdf: W::zero(),
-                },
-                t: Rgb::one(),
-                layer: W::zero(),
-                start: W::zero(),
-            },
+            link0: LinkLanes::none(),
             wo: V3::z_axis(),
             e_out: W::zero(),
             loaded: (false, false),
@@ -260,7 +268,9 @@ impl<W: Wide> Chunk<W> {
     pub fn start(
         active: W::Mask,
         d: V3<W>,
-        (wo, e_out, eval): (V3<W>, W, bool),
+        wo: V3<W>,
+        e_out: W,
+        eval: bool,
         mut rng: LaneRng<W>,
     ) -> Self {
         let hero = crate::estimator::events::hero_channel(rng.uniform(active));
@@ -278,16 +288,7 @@ impl<W: Wide> Chunk<W> {
             acc: Rgb::zero(),
             rng,
             links: W::zero(),
-            link0: LinkLanes {
-                conn: Connection {
-                    u: V3::z_axis(),
-                    v: Rgb::zero(),
-                    mis_pdf: W::zero(),
-                },
-                t: Rgb::one(),
-                layer: W::zero(),
-                start: W::zero(),
-            },
+            link0: LinkLanes::none(),
             wo,
             e_out,
             loaded: (true, true),
