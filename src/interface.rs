@@ -150,13 +150,14 @@ impl<L: Lane> InterfaceLanes<L> {
         transmit_only: L::Mask,
     ) -> BsdfSample<L> {
         let zero = L::zero();
-        let mut out = BsdfSample {
-            b: V3::z_axis(),
-            weight: Rgb::zero(),
-            pdf: zero,
-            valid: L::Mask::splat(false),
-            delta: self.smooth,
-        };
+        // The result's fields, kept in locals (not in a `BsdfSample` updated
+        // in place: that is the return slot, in memory, and LLVM would turn
+        // each masked update of it into a slow masked store).
+        let mut out_b = V3::z_axis();
+        let mut weight = Rgb::zero();
+        let mut pdf_out = zero;
+        let mut valid = L::Mask::splat(false);
+        let mut delta = self.smooth;
         let a_up = a.z.gt(zero);
         let rough = !self.smooth;
         let any_rough = self.run_all || rough.any();
@@ -190,10 +191,10 @@ impl<L: Lane> InterfaceLanes<L> {
             };
             let w = L::select(self.smooth, L::one(), w_rough) * fresnel_w;
             let ok = ok & (self.smooth | pdf.gt(zero));
-            out.b = V3::select(self.dielectric, b, out.b);
-            out.weight = Rgb::select(ok, Rgb::splat(w), out.weight);
-            out.pdf = L::select(self.dielectric, pdf, out.pdf);
-            out.valid = out.valid | ok;
+            out_b = V3::select(self.dielectric, b, out_b);
+            weight = Rgb::select(ok, Rgb::splat(w), weight);
+            pdf_out = L::select(self.dielectric, pdf, pdf_out);
+            valid = valid | ok;
         }
 
         if self.run_all || self.conductor.any() {
@@ -214,23 +215,29 @@ impl<L: Lane> InterfaceLanes<L> {
                 & b.z.gt(zero)
                 & !transmit_only
                 & (self.smooth | pdf.gt(zero));
-            out.b = V3::select(self.conductor, b, out.b);
-            out.weight = Rgb::select(ok, f.scale(w), out.weight);
-            out.pdf = L::select(self.conductor, pdf, out.pdf);
-            out.valid = out.valid | ok;
+            out_b = V3::select(self.conductor, b, out_b);
+            weight = Rgb::select(ok, f.scale(w), weight);
+            pdf_out = L::select(self.conductor, pdf, pdf_out);
+            valid = valid | ok;
         }
 
         if self.run_all || self.diffuse.any() {
             let b = sample_cosine_hemisphere(u1, u2);
             let pdf = b.z * L::splat(std::f64::consts::FRAC_1_PI);
             let ok = self.diffuse & a_up & pdf.gt(zero) & !transmit_only;
-            out.b = V3::select(self.diffuse, b, out.b);
-            out.weight = Rgb::select(ok, self.albedo, out.weight);
-            out.pdf = L::select(self.diffuse, pdf, out.pdf);
-            out.valid = out.valid | ok;
-            out.delta = out.delta & !self.diffuse;
+            out_b = V3::select(self.diffuse, b, out_b);
+            weight = Rgb::select(ok, self.albedo, weight);
+            pdf_out = L::select(self.diffuse, pdf, pdf_out);
+            valid = valid | ok;
+            delta = delta & !self.diffuse;
         }
-        out
+        BsdfSample {
+            b: out_b,
+            weight,
+            pdf: pdf_out,
+            valid,
+            delta,
+        }
     }
 
     /// `f(a → b) |b.z| / pdf` for a microfacet sample `b` made from normal `m`,

@@ -137,6 +137,51 @@ fn put_rows8<const R: usize>(
     }
 }
 
+/// The result of a blend, hidden from the optimizer.
+///
+/// Without AVX-512, LLVM turns "blend a new value into one just loaded from
+/// memory, store the blend back" (a masked update of a walk's field) into a
+/// masked store, `vmaskmovps`. On AMD Zen that instruction is microcoded:
+/// about four times the cost of a load, a blend and a store (see
+/// docs/performance.md). An empty `asm!` block between the blend and its uses
+/// keeps the blend a blend; it emits no instruction. With AVX-512 the masked
+/// store is a fast `vmovups {k}`, and on other targets there is none, so
+/// there this is the identity.
+#[inline(always)]
+fn opaque<T: wide::bytemuck::Pod>(x: T) -> T {
+    #[cfg(all(
+        target_arch = "x86_64",
+        target_feature = "avx",
+        not(target_feature = "avx512f")
+    ))]
+    {
+        use std::arch::x86_64::__m256;
+        use wide::bytemuck::cast;
+        #[inline(always)]
+        fn hide(mut r: __m256) -> __m256 {
+            // SAFETY: an empty instruction string: nothing runs and no memory
+            // is touched; the register is only declared read and written.
+            unsafe {
+                std::arch::asm!("/* {0} */", inout(ymm_reg) r, options(pure, nomem, nostack, preserves_flags));
+            }
+            r
+        }
+        match size_of::<T>() {
+            32 => cast(hide(cast(x))),
+            64 => cast(cast::<T, [__m256; 2]>(x).map(hide)),
+            _ => x,
+        }
+    }
+    #[cfg(not(all(
+        target_arch = "x86_64",
+        target_feature = "avx",
+        not(target_feature = "avx512f")
+    )))]
+    {
+        x
+    }
+}
+
 macro_rules! wide_lane {
     (
         $(#[$doc:meta])* $name:ident,
@@ -333,7 +378,7 @@ macro_rules! wide_lane {
             }
             #[inline]
             fn select(m: $mask, t: Self, f: Self) -> Self {
-                $name(m.0.select(t.0, f.0))
+                $name(opaque(m.0.select(t.0, f.0)))
             }
         }
 
@@ -397,7 +442,7 @@ macro_rules! wide_lane {
             #[inline]
             fn select_bits(m: $mask, t: wide::$u, f: wide::$u) -> wide::$u {
                 let m: wide::$u = m.0.to_bits();
-                (t & m) | (f & !m)
+                opaque((t & m) | (f & !m))
             }
             #[inline]
             fn bits_to_unit(b: wide::$u) -> Self {
