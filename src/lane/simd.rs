@@ -456,7 +456,11 @@ macro_rules! wide_lane {
             }
             #[inline]
             fn mask_from_bitmask(bits: u32) -> $mask {
-                $mask::from_bools(std::array::from_fn(|j| bits & (1 << j) != 0))
+                // Lane j tests bit j: a splat, an and and a compare (building
+                // the mask from bools took a chain of lane inserts).
+                let lane_bit = wide::$u::from(std::array::from_fn::<u32, $n, _>(|j| 1 << j));
+                let set = (wide::$u::splat(bits) & lane_bit).simd_eq(lane_bit);
+                $mask(wide::$f::from_bits(set))
             }
             #[inline]
             fn to_bit_lanes(self) -> wide::$u {
@@ -664,5 +668,88 @@ impl Wide for f32 {
     #[inline]
     fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize) {
         recs[idx[0] as usize][first..first + 8].copy_from_slice(&vals);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every bit pattern of `W::LANES` lanes survives mask ↔ bitmask, and a
+    /// select takes lane `j` from `t` exactly where bit `j` is set.
+    fn masks_and_selects<W: Wide>() {
+        let t = W::from_fn(|j| j as f64 + 1.0);
+        let f = W::from_fn(|j| -(j as f64) - 0.5);
+        let tb = t.to_bit_lanes();
+        let fb = f.to_bit_lanes();
+        for bits in 0..(1u32 << W::LANES) {
+            let m = W::mask_from_bitmask(bits);
+            assert_eq!(W::bitmask(m), bits);
+            let s = W::select(m, t, f);
+            let sb = W::select_bits(m, tb, fb);
+            for j in 0..W::LANES {
+                let on = bits & (1 << j) != 0;
+                assert_eq!(m.lane(j), on);
+                assert_eq!(s.lane(j), if on { t.lane(j) } else { f.lane(j) });
+                let want = if on {
+                    W::bits_lane(tb, j)
+                } else {
+                    W::bits_lane(fb, j)
+                };
+                assert_eq!(W::bits_lane(sb, j), want);
+            }
+        }
+    }
+
+    #[test]
+    fn f32x8_masks_and_selects() {
+        masks_and_selects::<F32x8>();
+    }
+
+    #[test]
+    fn f32x16_masks_and_selects() {
+        masks_and_selects::<F32x16>();
+    }
+
+    #[test]
+    fn one_lane_masks_and_selects() {
+        masks_and_selects::<f32>();
+    }
+
+    /// `load8` transposes eight fields of the indexed records into lanes, and
+    /// `store8` puts them back (records not indexed are left alone).
+    fn load_store_round_trip<W: Wide>() {
+        const R: usize = 24;
+        let recs: Vec<[f32; R]> = (0..40)
+            .map(|r| std::array::from_fn(|k| (r * R + k) as f32))
+            .collect();
+        let idx: Vec<u32> = (0..W::LANES as u32).map(|j| (7 * j + 3) % 40).collect();
+        for first in [0, 8, 16] {
+            let v = W::load8(&recs, &idx, first);
+            for (k, vk) in v.iter().enumerate() {
+                for (j, &i) in idx.iter().enumerate() {
+                    assert_eq!(vk.lane(j) as f32, recs[i as usize][first + k]);
+                }
+            }
+            let mut out = vec![[-1.0f32; R]; 40];
+            W::store8(v, &mut out, &idx, first);
+            for (r, rec) in out.iter().enumerate() {
+                for k in 0..R {
+                    let written = idx.contains(&(r as u32)) && (first..first + 8).contains(&k);
+                    let want = if written { recs[r][k] } else { -1.0 };
+                    assert_eq!(rec[k], want);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn f32x8_load_store_round_trip() {
+        load_store_round_trip::<F32x8>();
+    }
+
+    #[test]
+    fn f32x16_load_store_round_trip() {
+        load_store_round_trip::<F32x16>();
     }
 }
