@@ -175,6 +175,58 @@ fn eval_walk_by_walk() {
     }
 }
 
+/// A fixed adjoint chain (a smooth exit over a non-smooth interface: the same
+/// for every walk, computed once per query, no adjoint stream) and sampled
+/// ones in the same chunks: walk by walk, the values are the scalar engine's.
+#[test]
+fn fixed_and_sampled_chains_share_chunks() {
+    use strata::estimator::events::chain_is_fixed;
+    use strata::estimator::layout::Layout;
+    let fixed = |toml: &str, e: usize| {
+        let st = stack(toml);
+        chain_is_fixed(&st, &Layout::new(&st), e)
+    };
+    assert!(
+        fixed(STACKS[0].1, 0),
+        "clear coat: smooth exit over Lambertian"
+    );
+    assert!(!fixed(STACKS[1].1, 0), "rough exit");
+    assert!(
+        !fixed(STACKS[4].1, 0),
+        "smooth exit over a smooth interface"
+    );
+    // Exits at the rough top (sampled chains) and the smooth bottom (fixed
+    // chains) alternate; 3 walks per query, so a chunk of 8 holds both.
+    let (name, toml) = STACKS[5];
+    assert!(!fixed(toml, 0) && fixed(toml, 1), "{name}");
+    let st = stack(toml);
+    let sc = ScalarEngine::<f32>::new(&st, Settings::default());
+    let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
+    let qs: Vec<_> = (0..60)
+        .map(|k| {
+            let wo = dir(10.0 + k as f64, 37.0 * k as f64);
+            let wo = if k % 2 == 0 {
+                wo
+            } else {
+                [wo[0], wo[1], -wo[2]]
+            };
+            (dir(5.0 + k as f64, 0.0), wo)
+        })
+        .collect();
+    let keys: Vec<u64> = (0..qs.len() as u64).collect();
+    let w = wf.eval_walk_values(&qs, 3, 21, &keys);
+    let mut nonzero = [0usize; 2];
+    for (k, &(wi, wo)) in qs.iter().enumerate() {
+        let s = sc.eval_walk_values(wi, wo, 3, 21, keys[k]);
+        assert_eq!(s, w[k], "{name}: query {k}");
+        nonzero[k % 2] += s.iter().filter(|v| v.iter().any(|&x| x != 0.0)).count();
+    }
+    assert!(
+        nonzero[0] >= 30 && nonzero[1] >= 30,
+        "{name}: walks that contribute, by exit: {nonzero:?}"
+    );
+}
+
 #[test]
 fn eval_means_agree_with_independent_seeds() {
     let n = 20_000;

@@ -10,6 +10,7 @@
 //! already holds the exit interface's value, the cosine of `u` and the
 //! inverse density of `u` (next-event estimation "from the other side").
 
+use super::layout::Layout;
 use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
@@ -163,6 +164,19 @@ pub fn continue_to_exit<L: Lane>(
         L::select(delta, L::one(), L::zero())
     };
     (t * fe).scale(w)
+}
+
+/// Whether the adjoint chain from exit `e` is the same for every walk: a
+/// smooth exit's refraction is deterministic ([`chain_start`] draws its
+/// uniforms but no lane uses them), and the chain stops at the interface
+/// across the exit's layer unless that one is smooth too. Engines then compute
+/// the chain once per query and seed no adjoint stream: the walks' values are
+/// the same, and a clear coat's walks cost one stream less.
+pub fn chain_is_fixed(stack: &crate::stack::LayerStack, layout: &Layout, e: usize) -> bool {
+    stack.interface(e).smooth
+        && layout
+            .exit_region(e)
+            .is_none_or(|(_, k)| !stack.interface(k).smooth)
 }
 
 /// The first segment of the adjoint chain: sample the exit interface from

@@ -40,10 +40,11 @@ mod stages;
 pub mod walks;
 
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
+use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::{Albedo, Estimate, Sample, Settings};
 use crate::interface::InterfaceLanes;
-use crate::lane::{F32x8, Wide, V3};
+use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use rayon::prelude::*;
 use walks::Walks;
@@ -132,6 +133,11 @@ pub(crate) struct Queries {
     pub e_in: Vec<u16>,
     /// Exit interface (eval), as a lane value.
     pub e_out: Vec<f32>,
+    /// Eval: every walk's adjoint chain is the same ([`events::chain_is_fixed`]).
+    pub fixed: Vec<bool>,
+    /// Where `fixed`, that chain's one link: direction (3), factor (3), MIS
+    /// density, layer, full-crossing transmittance (3), start, 1 if it exists.
+    pub link0: Vec<[f32; 16]>,
 }
 
 impl Queries {
@@ -244,6 +250,9 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     connects_at: Vec<bool>,
     /// Layers where some eval walk may connect to the viewer.
     connects_in: Vec<bool>,
+    /// Per interface as an exit: its adjoint chain is the same for every
+    /// walk ([`events::chain_is_fixed`]), so its walks seed no adjoint stream.
+    fixed_chain: Vec<bool>,
     slots: usize,
 }
 
@@ -294,6 +303,9 @@ impl<W: Wide> Wavefront<W> {
             .filter_map(|e| layout.exit_region(e).map(|(l0, k0)| (e, l0, k0)))
             .collect();
         Wavefront {
+            fixed_chain: (0..n)
+                .map(|e| events::chain_is_fixed(stack, &layout, e))
+                .collect(),
             tail: (W::LANES > 1).then(|| Box::new(Wavefront::<f32>::new(stack, settings, plan))),
             exits,
             connects_at,
@@ -346,6 +358,8 @@ impl<W: Wide> Wavefront<W> {
             wo: f3(),
             e_in: vec![0; m],
             e_out: vec![0.0; m],
+            fixed: vec![false; m],
+            link0: vec![[0.0; 16]; m],
         };
         for (k, &(wi, wo, key)) in pairs.iter().enumerate() {
             q.prefix.push(crate::rng::query_prefix(seed, key));
@@ -364,10 +378,48 @@ impl<W: Wide> Wavefront<W> {
                 q.wo[0][k] = b.x;
                 q.wo[1][k] = b.y;
                 q.wo[2][k] = b.z;
-                q.e_out[k] = self.layout.outer(b.z > 0.0) as f32;
+                let e = self.layout.outer(b.z > 0.0);
+                q.e_out[k] = e as f32;
+                if self.fixed_chain[e] && self.layout.n >= 2 {
+                    q.fixed[k] = true;
+                    q.link0[k] = self.fixed_link(e, b);
+                }
             }
         }
         q
+    }
+
+    /// The one link of the fixed adjoint chain from exit `e` towards `wo`,
+    /// as a row of [`Queries::link0`]: computed in lanes exactly as
+    /// `launch_chain` would for each walk (its uniforms go unused).
+    fn fixed_link(&self, e: usize, wo: V3<f32>) -> [f32; 16] {
+        let n = self.layout.n;
+        let s = |x: f32| W::splat(x as f64);
+        let wo = V3::new(s(wo.x), s(wo.y), s(wo.z));
+        let top = W::Mask::splat(e == 0);
+        let u = (W::zero(), W::zero(), W::zero());
+        let (l, ok) = stages::first_link(&self.ifaces[e], &self.media_spec, n, wo, top, u);
+        let lane0 = |x: W| x.lane(0) as f32;
+        let exists = if ok.lane(0) { 1.0 } else { 0.0 };
+        let (c, t) = (l.conn, l.t);
+        [
+            lane0(c.u.x),
+            lane0(c.u.y),
+            lane0(c.u.z),
+            lane0(c.v.r),
+            lane0(c.v.g),
+            lane0(c.v.b),
+            lane0(c.mis_pdf),
+            lane0(l.layer),
+            lane0(t.r),
+            lane0(t.g),
+            lane0(t.b),
+            lane0(l.start),
+            exists,
+            0.0,
+            0.0,
+            0.0,
+        ]
     }
 
     /// Runs the walks of `units` (an indexable sequence of `count` units)

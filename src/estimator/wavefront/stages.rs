@@ -8,7 +8,9 @@
 use super::walks::{Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
-use crate::estimator::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Next};
+use crate::estimator::layout::{
+    depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes, Next,
+};
 use crate::estimator::pdf::{mix_uniform, pdf_walk};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
@@ -187,7 +189,7 @@ impl<W: Wide> Wavefront<W> {
         let eval = q.mode == Mode::Eval;
         let mut c = Chunk::<W>::start(active, d, wo, g(&q.e_out), eval, rng);
         if eval && self.layout.n >= 2 {
-            self.launch_chain(q, wave.ws, &mut c, chunk, idx);
+            self.launch_chain(q, wave.ws, &mut c, chunk, idx, lq);
         }
         let key = q.e_in[lq[0] as usize];
         if chunk.iter().all(|&(s, _)| wave.ws.key[s as usize] == key) {
@@ -214,13 +216,35 @@ impl<W: Wide> Wavefront<W> {
         c: &mut Chunk<W>,
         chunk: &[(u32, u64)],
         idx: &[u32],
+        lq: &[u32],
     ) {
         let n = self.layout.n;
         let active = c.active;
+        if Chunk::<W>::lanes(active).all(|j| q.fixed[lq[j] as usize]) {
+            // Every walk's chain is its query's, computed once in `prepare`.
+            let lo = W::load8(&q.link0, lq, 0);
+            let hi = W::load8(&q.link0, lq, 8);
+            c.link0 = LinkLanes {
+                conn: Connection {
+                    u: V3::new(lo[0], lo[1], lo[2]),
+                    v: Rgb::new(lo[3], lo[4], lo[5]),
+                    mis_pdf: lo[6],
+                },
+                layer: lo[7],
+                t: Rgb::new(hi[0], hi[1], hi[2]),
+                start: hi[3],
+            };
+            c.links = W::select(active, hi[4], W::zero());
+            return;
+        }
         let mut rng = LaneRng::<W>::from_states(|j| {
             let (_, k) = chunk[j.min(chunk.len() - 1)];
             let qi = ws.query[idx[j] as usize] as usize;
-            seed_state_from(q.prefix[qi], k, Stream::Adjoint)
+            if self.fixed_chain[q.e_out[qi] as usize] {
+                [1, 0, 0, 0] // its draws go unused (as in the scalar engine)
+            } else {
+                seed_state_from(q.prefix[qi], k, Stream::Adjoint)
+            }
         });
         let top = c.e_out.eq(W::zero());
         let exit = InterfaceLanes::select(top, &self.ifaces[0], &self.ifaces[n - 1]);
@@ -229,18 +253,8 @@ impl<W: Wide> Wavefront<W> {
             rng.uniform(active),
             rng.uniform(active),
         );
-        let (conn, ok) = events::chain_start(&exit, c.wo, u);
+        let (mut last, ok) = first_link(&exit, &self.media_spec, n, c.wo, top, u);
         let ok = ok & active;
-        // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
-        let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
-        let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
-        let t = self.full_crossing(layer, conn.u.z.abs());
-        let mut last = LinkLanes {
-            conn,
-            t,
-            layer,
-            start,
-        };
         c.link0 = last;
         c.links = W::select(ok, W::one(), W::zero());
         // Continue through delta interfaces while the chain stays smooth.
@@ -285,7 +299,7 @@ impl<W: Wide> Wavefront<W> {
             let conn = Connection { v, ..c2 };
             last = LinkLanes {
                 conn,
-                t: self.full_crossing(layer, conn.u.z.abs()),
+                t: full_crossing(&self.media_spec, layer, conn.u.z.abs()),
                 layer,
                 start,
             };
@@ -301,20 +315,6 @@ impl<W: Wide> Wavefront<W> {
             alive = next_alive;
             len += 1;
         }
-    }
-
-    /// Transmittance of a full crossing of layer `layer` (per lane) along a
-    /// direction with `|d.z| = mu`, as the scalar engine computes it.
-    #[cfg_attr(feature = "profiling", inline(never))]
-    fn full_crossing(&self, layer: W, mu: W) -> Rgb<W> {
-        let mut t = Rgb::one();
-        for (l, m) in self.media_spec.iter().enumerate() {
-            let here = layer.eq(W::splat(l as f64));
-            if here.any() {
-                t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
-            }
-        }
-        t
     }
 
     /// Lanes of the chunk's walks' overflow links `k` (link `k + 1` of the
@@ -812,4 +812,47 @@ fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
     } else {
         d.z.lt(W::zero())
     }
+}
+
+/// The first link of the adjoint chain from `wo` through `exit` (the top
+/// interface where `top`, else the bottom one), with the full-crossing
+/// transmittance of the exit's layer, and the lanes where it exists (scalar:
+/// the first step of `ScalarEngine::adjoint_chain`).
+#[inline]
+pub(super) fn first_link<W: Wide>(
+    exit: &InterfaceLanes<W>,
+    media: &[MediumLanes<W>],
+    n: usize,
+    wo: V3<W>,
+    top: W::Mask,
+    u: (W, W, W),
+) -> (LinkLanes<W>, W::Mask) {
+    let (conn, ok) = events::chain_start(exit, wo, u);
+    // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
+    let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
+    let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
+    let t = full_crossing(media, layer, conn.u.z.abs());
+    (
+        LinkLanes {
+            conn,
+            t,
+            layer,
+            start,
+        },
+        ok,
+    )
+}
+
+/// Transmittance of a full crossing of layer `layer` (per lane) of `media`
+/// along a direction with `|d.z| = mu`, as the scalar engine computes it.
+#[cfg_attr(feature = "profiling", inline(never))]
+fn full_crossing<L: Lane>(media: &[MediumLanes<L>], layer: L, mu: L) -> Rgb<L> {
+    let mut t = Rgb::one();
+    for (l, m) in media.iter().enumerate() {
+        let here = layer.eq(L::splat(l as f64));
+        if here.any() {
+            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
+        }
+    }
+    t
 }
