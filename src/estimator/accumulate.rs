@@ -19,10 +19,12 @@ impl MeanVar {
     #[inline]
     pub fn push(&mut self, x: [f64; 3]) {
         self.n += 1;
-        let n = self.n as f64;
+        // One division per sample, off the chain of dependent updates (a
+        // division per channel on that chain set the pace of the reduction).
+        let inv_n = 1.0 / self.n as f64;
         for ((m, m2), x) in self.mean.iter_mut().zip(&mut self.m2).zip(x) {
             let d = x - *m;
-            *m += d / n;
+            *m += d * inv_n;
             *m2 += d * (x - *m);
         }
     }
