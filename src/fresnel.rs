@@ -1,4 +1,10 @@
 //! Fresnel reflectance of dielectric and conductor boundaries.
+//!
+//! Its functions are `#[inline(always)]`: each event kernel (an interface's
+//! sample, eval or pdf; a layer event) then compiles to one self-contained body
+//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
+//! changed between builds that differed elsewhere, and moved whole stacks'
+//! throughput by up to 8 % (docs/performance.md).
 
 use crate::lane::{Lane, Rgb};
 
@@ -9,7 +15,7 @@ use crate::lane::{Lane, Rgb};
 /// `cos_i` means incidence from below (then the relative IOR is `1 / eta`).
 /// Returns 1 under total internal reflection. Exact at `eta = 1` (returns 0),
 /// with no cancellation near it. See [`dielectric_rt`] for the formulation.
-#[inline]
+#[inline(always)]
 pub fn dielectric<L: Lane>(cos_i: L, eta: L) -> L {
     dielectric_rt(cos_i, eta).0
 }
@@ -28,7 +34,7 @@ pub fn dielectric<L: Lane>(cos_i: L, eta: L) -> L {
 /// relative precision where `R → 1` (at grazing incidence `1 - R` in single
 /// precision loses it: at cos 1e-7 and η = 1.5 a smooth coat's `1 - F` was
 /// 23 % off; see docs/numerics.md).
-#[inline]
+#[inline(always)]
 pub fn dielectric_rt<L: Lane>(cos_i: L, eta: L) -> (L, L) {
     let one = L::one();
     let below = cos_i.lt(L::zero());
@@ -60,7 +66,7 @@ pub fn dielectric_rt<L: Lane>(cos_i: L, eta: L) -> (L, L) {
 
 /// Unpolarized reflectance of a conductor with complex relative IOR `eta + i k`
 /// (per channel, relative to the region above), for incidence cosine `cos_i >= 0`.
-#[inline]
+#[inline(always)]
 pub fn conductor<L: Lane>(cos_i: L, eta: Rgb<L>, k: Rgb<L>) -> Rgb<L> {
     let ci = cos_i.abs().min(L::one());
     let c2 = ci * ci;
@@ -99,7 +105,7 @@ pub fn conductor<L: Lane>(cos_i: L, eta: Rgb<L>, k: Rgb<L>) -> Rgb<L> {
 /// unit normal `m` on `a`'s side; `eta = n_other / n_a`. Returns the refracted
 /// direction (pointing away on the other side) and a mask, false under total
 /// internal reflection (the direction is then unspecified but finite).
-#[inline]
+#[inline(always)]
 pub fn refract<L: Lane>(
     a: crate::lane::V3<L>,
     m: crate::lane::V3<L>,

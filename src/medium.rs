@@ -4,6 +4,12 @@
 //! into `d'`, and the phase function depends on `μ = d · d'` (forward
 //! scattering for `g > 0`). Henyey–Greenstein with `g = 0` is the isotropic
 //! phase function, so one code path serves both.
+//!
+//! Its functions are `#[inline(always)]`: each event kernel (an interface's
+//! sample, eval or pdf; a layer event) then compiles to one self-contained body
+//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
+//! changed between builds that differed elsewhere, and moved whole stacks'
+//! throughput by up to 8 % (docs/performance.md).
 
 use crate::lane::{Lane, Rgb, V3};
 use crate::math::Frame;
@@ -18,7 +24,7 @@ const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
 /// near the peak of a strongly forward or backward phase function
 /// (`|g| = 0.999`, peak width 1e-3 rad) the plain form cancels to 23 % error
 /// in single precision. See [`hg_eval_dirs`], which takes the directions.
-#[inline]
+#[inline(always)]
 pub fn hg_eval_1mp<L: Lane>(g: L, one_minus_mu: L, one_plus_mu: L) -> L {
     let one = L::one();
     let two = L::splat(2.0);
@@ -40,7 +46,7 @@ pub fn hg_eval_1mp<L: Lane>(g: L, one_minus_mu: L, one_plus_mu: L) -> L {
 /// Henyey–Greenstein phase function value for `μ = d·d'` (see
 /// [`hg_eval_1mp`]; here `1 ∓ μ` come from `μ` itself, so they are only as
 /// precise as `μ`).
-#[inline]
+#[inline(always)]
 pub fn hg_eval<L: Lane>(g: L, mu: L) -> L {
     hg_eval_1mp(g, L::one() - mu, L::one() + mu)
 }
@@ -50,7 +56,7 @@ pub fn hg_eval<L: Lane>(g: L, mu: L) -> L {
 /// `1 + μ = |d + u|² / 2` keep their relative precision near the peak, where
 /// `1 - d·u` would lose it (and would also pick up the rounding of the two
 /// vectors' lengths, ~1e-7, as large as `1 - μ` itself at `g = 0.999`).
-#[inline]
+#[inline(always)]
 pub fn hg_eval_dirs<L: Lane>(g: L, d: V3<L>, u: V3<L>) -> L {
     let h = L::splat(0.5);
     let m = d - u;
@@ -67,7 +73,7 @@ pub fn hg_eval_dirs<L: Lane>(g: L, d: V3<L>, u: V3<L>) -> L {
 /// negative `g` mirrors it (`μ(-g, u) = -μ(g, 1 - u)`). The plain
 /// `μ = (1 + g² - s²) / 2g` rounds near `μ = 1`: at `g = 0.999` in single
 /// precision it put 6 % of the samples at exactly `μ = 1` instead of 1 %.
-#[inline]
+#[inline(always)]
 pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
     let one = L::one();
     let two = L::splat(2.0);
@@ -88,7 +94,7 @@ pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
 
 /// Transmittance `exp(-σt · Δz / |d.z|)` per channel over a depth `dz >= 0`
 /// along a direction with `|d.z| = mu > 0`.
-#[inline]
+#[inline(always)]
 pub fn transmittance<L: Lane>(sigma_t: Rgb<L>, dz: L, mu: L) -> Rgb<L> {
     let s = dz / mu.max(L::splat(1e-30));
     sigma_t.map(|st| (-(st * s)).exp())
@@ -117,7 +123,7 @@ pub struct FreeFlight<L: Lane> {
 }
 
 /// The extinction of the hero channel `hero` (0, 1 or 2 as a lane value).
-#[inline]
+#[inline(always)]
 pub fn hero_sigma<L: Lane>(sigma_t: Rgb<L>, hero: L) -> L {
     L::select(
         hero.lt(L::splat(0.5)),
@@ -129,7 +135,7 @@ pub fn hero_sigma<L: Lane>(sigma_t: Rgb<L>, hero: L) -> L {
 /// Samples a free flight of at most `max_dist` in a medium of extinction
 /// `sigma_t` and single-scattering albedo `albedo`, for a walk with hero
 /// channel `hero` and channel-density ratios `ratios` (see [`FreeFlight`]).
-#[inline]
+#[inline(always)]
 pub fn free_flight<L: Lane>(
     sigma_t: Rgb<L>,
     albedo: Rgb<L>,
@@ -170,7 +176,7 @@ pub fn free_flight<L: Lane>(
 /// no spectral MIS is needed, so the channel ratios pass through unchanged and
 /// the weight is the albedo at a collision, 1 otherwise. (The general
 /// [`free_flight`] gives the same result with more work.)
-#[inline]
+#[inline(always)]
 pub fn free_flight_grey<L: Lane>(
     sigma_t: L,
     albedo: Rgb<L>,
@@ -191,7 +197,7 @@ pub fn free_flight_grey<L: Lane>(
 
 /// Free flight with the variant the medium needs: [`free_flight_grey`] when
 /// `grey` (the same `sigma_t` in every channel), [`free_flight`] otherwise.
-#[inline]
+#[inline(always)]
 pub fn sample_free_flight<L: Lane>(
     sigma_t: Rgb<L>,
     albedo: Rgb<L>,
@@ -210,7 +216,7 @@ pub fn sample_free_flight<L: Lane>(
 
 /// The density in depth of a collision at distance `t` along a direction with
 /// `|d.z| = mu`: `p̄_s(t) / mu` (method.md §3, the 1/|cos| of the position-free RTE).
-#[inline]
+#[inline(always)]
 pub fn collision_density<L: Lane>(sigma_t: Rgb<L>, t: L, mu: L) -> L {
     let tr = sigma_t.map(|s| (-(s * t)).exp());
     (sigma_t * tr).average() / mu.max(L::splat(1e-30))

@@ -11,6 +11,12 @@
 //!   2018), density `D_a(m) = G1(a) max(0, a·m) D(m) / |a.z|`. Beckmann samples
 //!   `D(m) cos θm` (Walter et al. 2007), density `D(m) |m.z|`; its visible-normal
 //!   sampler has no closed form.
+//!
+//! Its functions are `#[inline(always)]`: each event kernel (an interface's
+//! sample, eval or pdf; a layer event) then compiles to one self-contained body
+//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
+//! changed between builds that differed elsewhere, and moved whole stacks'
+//! throughput by up to 8 % (docs/performance.md).
 
 use crate::lane::{Lane, LaneMask, V3};
 
@@ -44,7 +50,7 @@ impl<L: Lane> Microfacet<L> {
     /// single precision near the horizon, and a floor on `wz²` (the former
     /// formulation) made `G` stop falling with `cos θ` below 1e-15, so that
     /// `f = D G F / (4 cos θi cos θo)` grew without bound there.
-    #[inline]
+    #[inline(always)]
     fn lengths(&self, w: V3<L>) -> (L, L) {
         let s2 = self.alpha_x.sqr() * w.x.sqr() + self.alpha_y.sqr() * w.y.sqr();
         (s2.sqrt(), (w.z.sqr() + s2).sqrt())
@@ -55,7 +61,7 @@ impl<L: Lane> Microfacet<L> {
     /// (where Λ is infinite), and beyond `a = 1.6` the fit is `(0, 1)`. Kept as
     /// a fraction so that `G1 = den / (den + num)` and `G` never go through an
     /// infinity.
-    #[inline]
+    #[inline(always)]
     fn lambda_beckmann(&self, w: V3<L>) -> (L, L) {
         let (s, _) = self.lengths(w);
         let c = w.z.abs();
@@ -72,14 +78,14 @@ impl<L: Lane> Microfacet<L> {
     }
 
     /// Beckmann `G1 = 1 / (1 + Λ) = den / (den + num)`.
-    #[inline]
+    #[inline(always)]
     fn g1_beckmann(&self, w: V3<L>) -> L {
         let (n, d) = self.lambda_beckmann(w);
         L::div_or_zero(d, d + n, (d + n).gt(L::zero()))
     }
 
     /// The normal distribution D(m) (zero below the macro surface).
-    #[inline]
+    #[inline(always)]
     pub fn d(&self, m: V3<L>) -> L {
         let up = m.z.gt(L::zero());
         let ax = self.alpha_x;
@@ -108,7 +114,7 @@ impl<L: Lane> Microfacet<L> {
     /// GGX: `(sqrt(1 + α² tan²θ) - 1) / 2`, written `(αs)² / (2c (S + c))`
     /// with `c = |w.z|`, `S = sqrt(c² + (αs)²)`: no cancellation for small
     /// `α tanθ`. [`Microfacet::g1`] and [`Microfacet::g`] do not go through Λ.
-    #[inline]
+    #[inline(always)]
     pub fn lambda(&self, w: V3<L>) -> L {
         let (s, root) = self.lengths(w);
         let c = w.z.abs();
@@ -134,7 +140,7 @@ impl<L: Lane> Microfacet<L> {
 
     /// Masking `G1(w) = 1 / (1 + Λ(w))`; for GGX `2c / (c + S)` (see
     /// [`Microfacet::lambda`]), which goes to 0 with `c` instead of dividing by it.
-    #[inline]
+    #[inline(always)]
     pub fn g1(&self, w: V3<L>) -> L {
         let (_, root) = self.lengths(w);
         let c = w.z.abs();
@@ -150,7 +156,7 @@ impl<L: Lane> Microfacet<L> {
     /// Shadowing-masking for the pair (a, b). GGX height-correlated:
     /// `1 / (1 + Λ(a) + Λ(b)) = 2 ca cb / (cb Sa + ca Sb)`; separable:
     /// `G1(a) G1(b)`.
-    #[inline]
+    #[inline(always)]
     pub fn g(&self, a: V3<L>, b: V3<L>) -> L {
         let two = L::splat(2.0);
         let (_, ra) = self.lengths(a);
@@ -182,7 +188,7 @@ impl<L: Lane> Microfacet<L> {
     /// `G(a, b) / G1(a)`, the weight of visible-normal sampling from `a`,
     /// without dividing two small numbers: for GGX height-correlated
     /// `cb (ca + Sa) / (cb Sa + ca Sb)`, separable `G1(b)`.
-    #[inline]
+    #[inline(always)]
     pub fn g_over_g1(&self, a: V3<L>, b: V3<L>) -> L {
         let two = L::splat(2.0);
         let (_, ra) = self.lengths(a);
@@ -207,7 +213,7 @@ impl<L: Lane> Microfacet<L> {
 
     /// Samples a microfacet normal (on the +z side) as seen from `w`, which may
     /// lie on either side. See the module docs for the densities.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, w: V3<L>, u1: L, u2: L) -> V3<L> {
         let w = V3::select(w.z.lt(L::zero()), -w, w);
         let ggx = self.sample_ggx_visible(w, u1, u2);
@@ -219,7 +225,7 @@ impl<L: Lane> Microfacet<L> {
     }
 
     /// The density of [`Microfacet::sample`] producing `m`, seen from `w`.
-    #[inline]
+    #[inline(always)]
     pub fn pdf(&self, w: V3<L>, m: V3<L>) -> L {
         let d = self.d(m);
         let wz = w.z.abs();
@@ -236,7 +242,7 @@ impl<L: Lane> Microfacet<L> {
     }
 
     /// Heitz (2018), "Sampling the GGX distribution of visible normals".
-    #[inline]
+    #[inline(always)]
     fn sample_ggx_visible(&self, w: V3<L>, u1: L, u2: L) -> V3<L> {
         let ax = self.alpha_x;
         let ay = self.alpha_y;
@@ -267,7 +273,7 @@ impl<L: Lane> Microfacet<L> {
     }
 
     /// Beckmann normals with density D(m) cos θm: Gaussian slopes by Box–Muller.
-    #[inline]
+    #[inline(always)]
     fn sample_beckmann(&self, u1: L, u2: L) -> V3<L> {
         let r = (-(L::one() - u1).ln()).safe_sqrt();
         let (s, c) = u2.sin_cos_turns();

@@ -10,12 +10,18 @@
 //! `tests/kernels_closed_forms.rs`).
 //! No fused multiply-add is used: `mul_add` fuses only when FMA is compiled in,
 //! which would make results depend on target features.
+//!
+//! Its functions are `#[inline(always)]`: each event kernel (an interface's
+//! sample, eval or pdf; a layer event) then compiles to one self-contained body
+//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
+//! changed between builds that differed elsewhere, and moved whole stacks'
+//! throughput by up to 8 % (docs/performance.md).
 
 use crate::lane::LaneBits;
 
 /// e^x. Inputs below -87 (where e^x is below the smallest normal f32) give 0;
 /// inputs above 88 are clamped to 88 (e^88 ≈ 1.65e38).
-#[inline]
+#[inline(always)]
 pub fn exp<L: LaneBits>(x: L) -> L {
     let c = |v: f64| L::splat(v);
     let tiny = x.lt(c(-87.0));
@@ -39,7 +45,7 @@ pub fn exp<L: LaneBits>(x: L) -> L {
 /// elsewhere. The switch sits at ln 2 because below it `exp(x) - 1` would
 /// magnify exp's rounding error up to fourfold (e^x in [1, 2), the result in
 /// [0.25, 1)); beyond it at most twofold, which keeps the 2 ulp bound.
-#[inline]
+#[inline(always)]
 pub fn exp_m1<L: LaneBits>(x: L) -> L {
     let c = |v: f64| L::splat(v);
     let ln2 = std::f64::consts::LN_2;
@@ -69,7 +75,7 @@ pub fn exp_m1<L: LaneBits>(x: L) -> L {
 /// Natural logarithm of a positive input. Inputs below the smallest normal
 /// (including 0) are raised to it, so `ln(0)` is -87.34 rather than -inf:
 /// callers use it for free-flight distances, where that is a safe finite value.
-#[inline]
+#[inline(always)]
 pub fn ln<L: LaneBits>(x: L) -> L {
     let c = |v: f64| L::splat(v);
     let x = x.max(c(f32::MIN_POSITIVE as f64));
@@ -101,7 +107,7 @@ pub fn ln<L: LaneBits>(x: L) -> L {
 /// `(sin 2πt, cos 2πt)`. The reduction to `[-π/4, π/4]` is exact for `t` in
 /// `[0, 1]` (the azimuths strata samples); what remains is the rounding of 2π
 /// and of the product, so the result is within 2 ulp (measured).
-#[inline]
+#[inline(always)]
 pub fn sin_cos_turns<L: LaneBits>(t: L) -> (L, L) {
     let c = |v: f64| L::splat(v);
     let t = t - t.floor();

@@ -220,7 +220,7 @@ impl<W: Wide> Wavefront<W> {
     ) {
         let n = self.layout.n;
         let active = c.active;
-        if Chunk::<W>::lanes(active).all(|j| q.fixed[lq[j] as usize]) {
+        if Chunk::<W>::set_bits(W::bitmask(active)).all(|j| q.fixed[lq[j] as usize]) {
             // Every walk's chain is its query's, computed once in `prepare`.
             let lo = W::load8(&q.link0, lq, 0);
             let hi = W::load8(&q.link0, lq, 8);
@@ -466,13 +466,15 @@ impl<W: Wide> Wavefront<W> {
             }
             c.active = W::mask_from_bitmask(o.going);
             let next = o.keys[o.going.trailing_zeros() as usize];
-            let together = Chunk::<W>::lanes(c.active).all(|j| o.keys[j] == next);
+            // Branch-free: every lane compared, the going ones must agree.
+            let same = (0..W::LANES).fold(0u32, |m, j| m | ((o.keys[j] == next) as u32) << j);
+            let together = o.going & !same == 0;
             if together && (wave.draining || o.going.count_ones() as usize == W::LANES) {
                 key = next as usize;
                 continue;
             }
             c.scatter(wave.ws, idx);
-            for j in Chunk::<W>::lanes(c.active) {
+            for j in Chunk::<W>::set_bits(o.going) {
                 wave.enqueue(idx[j], o.keys[j]);
             }
             return;
@@ -727,7 +729,7 @@ impl<W: Wide> Wavefront<W> {
         let mut rows = [[0.0f32; 8]; 16]; // one row per lane (at most 16)
         let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
         W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
-        for j in Chunk::<W>::lanes(W::mask_from_bitmask(ended)) {
+        for j in Chunk::<W>::set_bits(ended) {
             let r = rows[j];
             let out = if exited & (1 << j) != 0 {
                 let qi = wave.ws.query[idx[j] as usize] as usize;

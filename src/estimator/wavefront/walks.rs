@@ -375,11 +375,17 @@ impl<W: Wide> Chunk<W> {
         }
     }
 
-    /// The lanes set in `m`, in increasing order (one step per set bit, not
-    /// per lane: fewer branches to mispredict).
+    /// The lanes set in `m`.
     #[inline]
     pub fn lanes(m: W::Mask) -> impl Iterator<Item = usize> {
-        let mut bits = W::bitmask(m);
+        let bits = W::bitmask(m);
+        (0..W::LANES).filter(move |j| bits & (1 << j) != 0)
+    }
+
+    /// The lanes set in `bits`, in increasing order, one step per set bit
+    /// (not per lane: for sparse masks, fewer branches to mispredict).
+    #[inline]
+    pub fn set_bits(mut bits: u32) -> impl Iterator<Item = usize> {
         std::iter::from_fn(move || {
             (bits != 0).then(|| {
                 let j = bits.trailing_zeros() as usize;
