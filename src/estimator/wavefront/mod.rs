@@ -135,8 +135,9 @@ pub(crate) struct Queries {
     pub e_out: Vec<f32>,
     /// Eval: every walk's adjoint chain is the same ([`events::chain_is_fixed`]).
     pub fixed: Vec<bool>,
-    /// Where `fixed`, that chain's one link: direction (3), factor (3), MIS
-    /// density, layer, full-crossing transmittance (3), start, 1 if it exists.
+    /// Where `fixed`, that chain's one link: its twelve
+    /// [`walks::LinkLanes::fields`], then 1 if it exists (0 under total
+    /// internal reflection).
     pub link0: Vec<[f32; 16]>,
 }
 
@@ -399,27 +400,13 @@ impl<W: Wide> Wavefront<W> {
         let top = W::Mask::splat(e == 0);
         let u = (W::zero(), W::zero(), W::zero());
         let (l, ok) = stages::first_link(&self.ifaces[e], &self.media_spec, n, wo, top, u);
-        let lane0 = |x: W| x.lane(0) as f32;
-        let exists = if ok.lane(0) { 1.0 } else { 0.0 };
-        let (c, t) = (l.conn, l.t);
-        [
-            lane0(c.u.x),
-            lane0(c.u.y),
-            lane0(c.u.z),
-            lane0(c.v.r),
-            lane0(c.v.g),
-            lane0(c.v.b),
-            lane0(c.mis_pdf),
-            lane0(l.layer),
-            lane0(t.r),
-            lane0(t.g),
-            lane0(t.b),
-            lane0(l.start),
-            exists,
-            0.0,
-            0.0,
-            0.0,
-        ]
+        let f = l.fields();
+        let mut row = [0.0f32; 16];
+        for (r, x) in row.iter_mut().zip(f) {
+            *r = x.lane(0) as f32;
+        }
+        row[12] = if ok.lane(0) { 1.0 } else { 0.0 };
+        row
     }
 
     /// Runs the walks of `units` (an indexable sequence of `count` units)

@@ -224,17 +224,9 @@ impl<W: Wide> Wavefront<W> {
             // Every walk's chain is its query's, computed once in `prepare`.
             let lo = W::load8(&q.link0, lq, 0);
             let hi = W::load8(&q.link0, lq, 8);
-            c.link0 = LinkLanes {
-                conn: Connection {
-                    u: V3::new(lo[0], lo[1], lo[2]),
-                    v: Rgb::new(lo[3], lo[4], lo[5]),
-                    mis_pdf: lo[6],
-                },
-                layer: lo[7],
-                t: Rgb::new(hi[0], hi[1], hi[2]),
-                start: hi[3],
-            };
-            c.links = W::select(active, hi[4], W::zero());
+            let f: [W; 16] = std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] });
+            c.link0 = LinkLanes::from_fields(&f);
+            c.links = W::select(active, f[12], W::zero());
             return;
         }
         let mut rng = LaneRng::<W>::from_states(|j| {

@@ -74,6 +74,43 @@ struct Record([f32; REC]);
 const _: () = assert!(std::mem::size_of::<Record>() == REC * 4);
 
 impl<W: Wide> LinkLanes<W> {
+    /// The link as twelve fields, in the order of a walk record's blocks 3
+    /// and 4: direction (3), factor (3), MIS density, layer, full-crossing
+    /// transmittance (3), start.
+    #[inline(always)]
+    pub fn fields(&self) -> [W; 12] {
+        let (u, v, t) = (self.conn.u, self.conn.v, self.t);
+        [
+            u.x,
+            u.y,
+            u.z,
+            v.r,
+            v.g,
+            v.b,
+            self.conn.mis_pdf,
+            self.layer,
+            t.r,
+            t.g,
+            t.b,
+            self.start,
+        ]
+    }
+
+    /// The link from its [`LinkLanes::fields`] (the first twelve of `f`).
+    #[inline(always)]
+    pub fn from_fields(f: &[W]) -> Self {
+        LinkLanes {
+            conn: Connection {
+                u: V3::new(f[0], f[1], f[2]),
+                v: Rgb::new(f[3], f[4], f[5]),
+                mis_pdf: f[6],
+            },
+            layer: f[7],
+            t: Rgb::new(f[8], f[9], f[10]),
+            start: f[11],
+        }
+    }
+
     /// No link: a harmless direction and factor 0 (until a launch samples one).
     #[inline(always)]
     pub fn none() -> Self {
@@ -312,18 +349,10 @@ impl<W: Wide> Chunk<W> {
         if links && !self.loaded.1 {
             let b3 = W::load8(ws.recs(), idx, 24);
             let b4 = W::load8(ws.recs(), idx, 32);
-            self.link0 = LinkLanes {
-                conn: Connection {
-                    u: V3::new(b3[0], b3[1], b3[2]),
-                    v: Rgb::new(b3[3], b3[4], b3[5]),
-                    mis_pdf: b3[6],
-                },
-                layer: b3[7],
-                t: Rgb::new(b4[0], b4[1], b4[2]),
-                start: b4[3],
-            };
-            self.wo = V3::new(b4[4], b4[5], b4[6]);
-            self.e_out = b4[7];
+            let f: [W; 16] = std::array::from_fn(|k| if k < 8 { b3[k] } else { b4[k - 8] });
+            self.link0 = LinkLanes::from_fields(&f);
+            self.wo = V3::new(f[12], f[13], f[14]);
+            self.e_out = f[15];
             self.loaded.1 = true;
         }
     }
@@ -365,12 +394,11 @@ impl<W: Wide> Chunk<W> {
             W::store8(b2, ws.recs_mut(), idx, 16);
         }
         if self.new_link {
-            let k = &self.link0;
-            let (u, v, t) = (k.conn.u, k.conn.v, k.t);
-            let b3 = [u.x, u.y, u.z, v.r, v.g, v.b, k.conn.mis_pdf, k.layer];
+            let f = self.link0.fields();
+            let b3 = std::array::from_fn(|k| f[k]);
             W::store8(b3, ws.recs_mut(), idx, 24);
             let w = self.wo;
-            let b4 = [t.r, t.g, t.b, k.start, w.x, w.y, w.z, self.e_out];
+            let b4 = [f[8], f[9], f[10], f[11], w.x, w.y, w.z, self.e_out];
             W::store8(b4, ws.recs_mut(), idx, 32);
         }
     }
