@@ -12,11 +12,8 @@
 //!   `D(m) cos θm` (Walter et al. 2007), density `D(m) |m.z|`; its visible-normal
 //!   sampler has no closed form.
 //!
-//! Its functions are `#[inline(always)]`: each event kernel (an interface's
-//! sample, eval or pdf; a layer event) then compiles to one self-contained body
-//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
-//! changed between builds that differed elsewhere, and moved whole stacks'
-//! throughput by up to 8 % (docs/performance.md).
+//! Its functions are `#[inline(always)]` (docs/architecture.md, *Code
+//! generation is part of the design*).
 
 use crate::lane::{Lane, LaneMask, V3};
 

@@ -177,7 +177,11 @@ fn eval_walk_by_walk() {
 
 /// A fixed adjoint chain (a smooth exit over a non-smooth interface: the same
 /// for every walk, computed once per query, no adjoint stream) and sampled
-/// ones in the same chunks: walk by walk, the values are the scalar engine's.
+/// ones: walk by walk, the values are the scalar engine's, on every width.
+/// With 3 walks per query, chunks of new walks mix queries whose chains are
+/// fixed with ones whose chains are sampled (this reaches the mixed path: a
+/// panic placed there made the test fail); with 16, whole chunks have fixed
+/// chains (the path that loads the query's link).
 #[test]
 fn fixed_and_sampled_chains_share_chunks() {
     use strata::estimator::events::chain_is_fixed;
@@ -196,13 +200,10 @@ fn fixed_and_sampled_chains_share_chunks() {
         "smooth exit over a smooth interface"
     );
     // Exits at the rough top (sampled chains) and the smooth bottom (fixed
-    // chains) alternate; 3 walks per query, so a chunk of 8 holds both.
+    // chains) alternate.
     let (name, toml) = STACKS[5];
     assert!(!fixed(toml, 0) && fixed(toml, 1), "{name}");
-    let st = stack(toml);
-    let sc = ScalarEngine::<f32>::new(&st, Settings::default());
-    let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
-    let qs: Vec<_> = (0..60)
+    let alternate: Vec<_> = (0..60)
         .map(|k| {
             let wo = dir(10.0 + k as f64, 37.0 * k as f64);
             let wo = if k % 2 == 0 {
@@ -213,18 +214,88 @@ fn fixed_and_sampled_chains_share_chunks() {
             (dir(5.0 + k as f64, 0.0), wo)
         })
         .collect();
-    let keys: Vec<u64> = (0..qs.len() as u64).collect();
-    let w = wf.eval_walk_values(&qs, 3, 21, &keys);
-    let mut nonzero = [0usize; 2];
-    for (k, &(wi, wo)) in qs.iter().enumerate() {
-        let s = sc.eval_walk_values(wi, wo, 3, 21, keys[k]);
-        assert_eq!(s, w[k], "{name}: query {k}");
-        nonzero[k % 2] += s.iter().filter(|v| v.iter().any(|&x| x != 0.0)).count();
+    // A denser exterior: past about 53° from the normal, `wo` cannot be
+    // refracted into the coat (total internal reflection), so the fixed chain
+    // has no link and the walks give 0.
+    let tir = r#"
+        exterior_ior = 1.5
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.2 }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.8 }
+        "#;
+    assert!(fixed(tir, 0), "dense exterior");
+    let steep_and_grazing: Vec<_> = (0..30)
+        .map(|k| (dir(40.0, 0.0), dir(3.0 * k as f64, 100.0 + k as f64)))
+        .collect();
+    for (name, toml, qs) in [
+        (name, toml, &alternate),
+        ("dense exterior", tir, &steep_and_grazing),
+    ] {
+        let st = stack(toml);
+        let sc = ScalarEngine::<f32>::new(&st, Settings::default());
+        let keys: Vec<u64> = (0..qs.len() as u64).collect();
+        for n in [3, 16] {
+            let want: Vec<_> = qs
+                .iter()
+                .zip(&keys)
+                .map(|(&(wi, wo), &key)| sc.eval_walk_values(wi, wo, n, 21, key))
+                .collect();
+            let settings = Settings::default();
+            let x8 = Wavefront::<F32x8>::new(&st, settings, Plan::Specialized);
+            let x16 = Wavefront::<F32x16>::new(&st, settings, Plan::Specialized);
+            let x1 = Wavefront::<f32>::new(&st, settings, Plan::Specialized);
+            assert_eq!(
+                x8.eval_walk_values(qs, n, 21, &keys),
+                want,
+                "{name}: {n} walks, f32x8"
+            );
+            assert_eq!(
+                x16.eval_walk_values(qs, n, 21, &keys),
+                want,
+                "{name}: {n} walks, f32x16"
+            );
+            assert_eq!(
+                x1.eval_walk_values(qs, n, 21, &keys),
+                want,
+                "{name}: {n} walks, one lane"
+            );
+            // Parity on walks that all give zero would prove little: walks
+            // contribute through both exits (even and odd queries) of the
+            // first stack, and on the steep side of the critical angle of
+            // the second.
+            let contributing = |k: usize| want[k].iter().filter(|v| v[0] != 0.0).count();
+            let (even, odd): (usize, usize) = (0..qs.len()).fold((0, 0), |(e, o), k| {
+                let c = contributing(k);
+                if k % 2 == 0 {
+                    (e + c, o)
+                } else {
+                    (e, o + c)
+                }
+            });
+            assert!(
+                even + odd >= qs.len() * n as usize / 20,
+                "{name}: {even} + {odd} contribute"
+            );
+            assert!(
+                name == "dense exterior" || (even > 0 && odd > 0),
+                "{name}: {even}, {odd}"
+            );
+        }
+        if name == "dense exterior" {
+            // Past the critical angle nothing reaches `wo`; before it, walks do.
+            let past = sc.eval_walk_values(qs[25].0, qs[25].1, 64, 21, 25);
+            assert!(
+                past.iter().all(|v| *v == [0.0; 3]),
+                "{name}: past the critical angle"
+            );
+            let before = sc.eval_walk_values(qs[5].0, qs[5].1, 64, 21, 5);
+            assert!(
+                before.iter().any(|v| v[0] > 0.0),
+                "{name}: before the critical angle"
+            );
+        }
     }
-    assert!(
-        nonzero[0] >= 30 && nonzero[1] >= 30,
-        "{name}: walks that contribute, by exit: {nonzero:?}"
-    );
 }
 
 #[test]

@@ -166,12 +166,14 @@ pub fn continue_to_exit<L: Lane>(
     (t * fe).scale(w)
 }
 
-/// Whether the adjoint chain from exit `e` is the same for every walk: a
-/// smooth exit's refraction is deterministic ([`chain_start`] draws its
-/// uniforms but no lane uses them), and the chain stops at the interface
-/// across the exit's layer unless that one is smooth too. Engines then compute
-/// the chain once per query and seed no adjoint stream: the walks' values are
-/// the same, and a clear coat's walks cost one stream less.
+/// Whether the adjoint chain from exit `e` (an outer interface: 0 or the
+/// last) is the same for every walk: a smooth exit's refraction is
+/// deterministic ([`chain_start`] draws its uniforms but no lane uses them),
+/// and the chain stops at the interface across the exit's layer unless that
+/// one is smooth too. Engines then compute the chain once per query instead
+/// of sampling it per walk (the scalar engine from one adjoint stream per
+/// query, the wavefront from none): the walks' values are the same, and a
+/// clear coat's walks cost one stream less.
 pub fn chain_is_fixed(stack: &crate::stack::LayerStack, layout: &Layout, e: usize) -> bool {
     stack.interface(e).smooth
         && layout

@@ -19,7 +19,9 @@
 //! | phase function at a collision | 2 |
 //!
 //! The adjoint chain of `eval` draws from its own stream: 3 per interface,
-//! then 1 for Russian roulette per further segment.
+//! then 1 for Russian roulette per further segment. A fixed chain
+//! (`events::chain_is_fixed`) uses none of its draws, so it is computed once
+//! per query, from the stream of the query's first walk.
 
 use super::accumulate::BlockReducer;
 use super::events::{self, Connection};

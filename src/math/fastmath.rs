@@ -11,11 +11,8 @@
 //! No fused multiply-add is used: `mul_add` fuses only when FMA is compiled in,
 //! which would make results depend on target features.
 //!
-//! Its functions are `#[inline(always)]`: each event kernel (an interface's
-//! sample, eval or pdf; a layer event) then compiles to one self-contained body
-//! whatever calls it. With plain `#[inline]`, LLVM's per-call-site choices
-//! changed between builds that differed elsewhere, and moved whole stacks'
-//! throughput by up to 8 % (docs/performance.md).
+//! Its functions are `#[inline(always)]` (docs/architecture.md, *Code
+//! generation is part of the design*).
 
 use crate::lane::LaneBits;
 

@@ -251,8 +251,9 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     connects_at: Vec<bool>,
     /// Layers where some eval walk may connect to the viewer.
     connects_in: Vec<bool>,
-    /// Per interface as an exit: its adjoint chain is the same for every
-    /// walk ([`events::chain_is_fixed`]), so its walks seed no adjoint stream.
+    /// Per interface (true for outer ones only) as an exit: its adjoint chain
+    /// is the same for every walk ([`events::chain_is_fixed`]), so its walks
+    /// seed no adjoint stream.
     fixed_chain: Vec<bool>,
     slots: usize,
 }
@@ -305,7 +306,7 @@ impl<W: Wide> Wavefront<W> {
             .collect();
         Wavefront {
             fixed_chain: (0..n)
-                .map(|e| events::chain_is_fixed(stack, &layout, e))
+                .map(|e| (e == 0 || e == n - 1) && events::chain_is_fixed(stack, &layout, e))
                 .collect(),
             tail: (W::LANES > 1).then(|| Box::new(Wavefront::<f32>::new(stack, settings, plan))),
             exits,

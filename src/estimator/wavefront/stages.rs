@@ -5,7 +5,7 @@
 //! (`estimator::scalar`) operation for operation, with masks where the scalar
 //! code returns early.
 
-use super::walks::{Chunk, Link, LinkLanes, Stage, Walks, FREE};
+use super::walks::{load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{
@@ -222,17 +222,15 @@ impl<W: Wide> Wavefront<W> {
         let active = c.active;
         if Chunk::<W>::set_bits(W::bitmask(active)).all(|j| q.fixed[lq[j] as usize]) {
             // Every walk's chain is its query's, computed once in `prepare`.
-            let lo = W::load8(&q.link0, lq, 0);
-            let hi = W::load8(&q.link0, lq, 8);
-            let f: [W; 16] = std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] });
+            let f = load16::<W, 16>(&q.link0, lq, 0);
             c.link0 = LinkLanes::from_fields(&f);
             c.links = W::select(active, f[12], W::zero());
             return;
         }
         let mut rng = LaneRng::<W>::from_states(|j| {
             let (_, k) = chunk[j.min(chunk.len() - 1)];
-            let qi = ws.query[idx[j] as usize] as usize;
-            if self.fixed_chain[q.e_out[qi] as usize] {
+            let qi = lq[j] as usize;
+            if q.fixed[qi] {
                 [1, 0, 0, 0] // its draws go unused (as in the scalar engine)
             } else {
                 seed_state_from(q.prefix[qi], k, Stream::Adjoint)

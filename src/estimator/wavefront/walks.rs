@@ -127,6 +127,14 @@ impl<W: Wide> LinkLanes<W> {
     }
 }
 
+/// Fields `first..first + 16` of records `recs[idx[j]]` in lanes (two
+/// [`Wide::load8`]s): a chain link's twelve fields and what follows them.
+#[inline(always)]
+pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [W; 16] {
+    let (lo, hi) = (W::load8(recs, idx, first), W::load8(recs, idx, first + 8));
+    std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] })
+}
+
 /// The walks of one wave.
 #[derive(Debug, Default)]
 pub struct Walks {
@@ -347,9 +355,7 @@ impl<W: Wide> Chunk<W> {
             self.loaded.0 = true;
         }
         if links && !self.loaded.1 {
-            let b3 = W::load8(ws.recs(), idx, 24);
-            let b4 = W::load8(ws.recs(), idx, 32);
-            let f: [W; 16] = std::array::from_fn(|k| if k < 8 { b3[k] } else { b4[k - 8] });
+            let f = load16::<W, REC>(ws.recs(), idx, 24);
             self.link0 = LinkLanes::from_fields(&f);
             self.wo = V3::new(f[12], f[13], f[14]);
             self.e_out = f[15];
