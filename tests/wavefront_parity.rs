@@ -176,12 +176,12 @@ fn eval_walk_by_walk() {
 }
 
 /// A fixed adjoint chain (a smooth exit over a non-smooth interface: the same
-/// for every walk, computed once per query, no adjoint stream) and sampled
-/// ones: walk by walk, the values are the scalar engine's, on every width.
-/// With 3 walks per query, chunks of new walks mix queries whose chains are
-/// fixed with ones whose chains are sampled (this reaches the mixed path: a
-/// panic placed there made the test fail); with 16, whole chunks have fixed
-/// chains (the path that loads the query's link).
+/// for every walk, computed once per query) and sampled ones: walk by walk,
+/// the values are the scalar engine's, on every width. With 3 walks per
+/// query, chunks of new walks mix queries whose chains are fixed with ones
+/// whose chains are sampled (those chunks sample every lane's chain); with
+/// 16, whole chunks have fixed chains and load their query's link (checked
+/// once by a panic placed on each path).
 #[test]
 fn fixed_and_sampled_chains_share_chunks() {
     use strata::estimator::events::chain_is_fixed;

@@ -171,9 +171,8 @@ pub fn continue_to_exit<L: Lane>(
 /// deterministic ([`chain_start`] draws its uniforms but no lane uses them),
 /// and the chain stops at the interface across the exit's layer unless that
 /// one is smooth too. Engines then compute the chain once per query instead
-/// of sampling it per walk (the scalar engine from one adjoint stream per
-/// query, the wavefront from none): the walks' values are the same, and a
-/// clear coat's walks cost one stream less.
+/// of sampling it per walk: the walks' values are the same, and a clear
+/// coat's walks cost one stream less.
 pub fn chain_is_fixed(stack: &crate::stack::LayerStack, layout: &Layout, e: usize) -> bool {
     stack.interface(e).smooth
         && layout

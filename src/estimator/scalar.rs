@@ -441,14 +441,10 @@ impl<S: Scalar> ScalarEngine<S> {
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
         let mut chain = Vec::with_capacity(8);
+        // A fixed chain is the same for every walk: the first walk's serves all.
         let fixed = events::chain_is_fixed(&self.stack, &self.layout, e_out);
-        if fixed {
-            // The same chain for every walk, whatever its stream draws.
-            let mut rng_a = WalkRng::new(seed, query, 0, Stream::Adjoint);
-            self.adjoint_chain(wo, e_out, &mut rng_a, &mut chain);
-        }
         for k in 0..n {
-            if !fixed {
+            if k == 0 || !fixed {
                 let mut rng_a = WalkRng::new(seed, query, k, Stream::Adjoint);
                 self.adjoint_chain(wo, e_out, &mut rng_a, &mut chain);
             }

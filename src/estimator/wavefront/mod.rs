@@ -252,8 +252,8 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     /// Layers where some eval walk may connect to the viewer.
     connects_in: Vec<bool>,
     /// Per interface (true for outer ones only) as an exit: its adjoint chain
-    /// is the same for every walk ([`events::chain_is_fixed`]), so its walks
-    /// seed no adjoint stream.
+    /// is the same for every walk ([`events::chain_is_fixed`]), computed once
+    /// per query in `prepare`.
     fixed_chain: Vec<bool>,
     slots: usize,
 }

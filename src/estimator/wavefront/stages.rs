@@ -227,14 +227,11 @@ impl<W: Wide> Wavefront<W> {
             c.links = W::select(active, f[12], W::zero());
             return;
         }
+        // (A lane with a fixed chain, in a chunk that mixes them, samples it
+        // too: its draws go unused, and it comes out the same.)
         let mut rng = LaneRng::<W>::from_states(|j| {
             let (_, k) = chunk[j.min(chunk.len() - 1)];
-            let qi = lq[j] as usize;
-            if q.fixed[qi] {
-                [1, 0, 0, 0] // its draws go unused (as in the scalar engine)
-            } else {
-                seed_state_from(q.prefix[qi], k, Stream::Adjoint)
-            }
+            seed_state_from(q.prefix[lq[j] as usize], k, Stream::Adjoint)
         });
         let top = c.e_out.eq(W::zero());
         let exit = InterfaceLanes::select(top, &self.ifaces[0], &self.ifaces[n - 1]);

@@ -32,7 +32,9 @@ pub const REC: usize = 48;
 /// | 2 | channel ratios (3), contribution (3), chain length, – | layer events, eval |
 /// | 3 | first link: direction (3), factor (3), MIS density, layer | eval |
 /// | 4 | first link: transmittance (3), start; `wo` (3), exit | eval |
-const LINK0_U: usize = 24;
+///
+/// `LINK0` is the first field of block 3.
+const LINK0: usize = 24;
 
 /// One segment of a walk's adjoint chain, with the transmittance of a full
 /// crossing of its layer (what a surface vertex connects through).
@@ -153,8 +155,9 @@ pub struct Walks {
 impl Walks {
     /// A wave of `slots` empty slots.
     pub fn new(slots: usize) -> Self {
+        // Block 3 onwards: no link yet (a harmless direction, factor 0).
         let mut rec = [0.0f32; REC];
-        rec[LINK0_U + 2] = 1.0; // a harmless direction where there is no link
+        rec[LINK0..LINK0 + 12].copy_from_slice(&LinkLanes::<f32>::none().fields());
         Walks {
             key: vec![FREE; slots],
             walk: vec![0; slots],
@@ -355,7 +358,7 @@ impl<W: Wide> Chunk<W> {
             self.loaded.0 = true;
         }
         if links && !self.loaded.1 {
-            let f = load16::<W, REC>(ws.recs(), idx, 24);
+            let f = load16::<W, REC>(ws.recs(), idx, LINK0);
             self.link0 = LinkLanes::from_fields(&f);
             self.wo = V3::new(f[12], f[13], f[14]);
             self.e_out = f[15];
@@ -402,10 +405,10 @@ impl<W: Wide> Chunk<W> {
         if self.new_link {
             let f = self.link0.fields();
             let b3 = std::array::from_fn(|k| f[k]);
-            W::store8(b3, ws.recs_mut(), idx, 24);
+            W::store8(b3, ws.recs_mut(), idx, LINK0);
             let w = self.wo;
             let b4 = [f[8], f[9], f[10], f[11], w.x, w.y, w.z, self.e_out];
-            W::store8(b4, ws.recs_mut(), idx, 32);
+            W::store8(b4, ws.recs_mut(), idx, LINK0 + 8);
         }
     }
 
