@@ -91,6 +91,11 @@ struct Connect<'a, S: Scalar> {
     region: Option<(usize, usize)>,
     chain: &'a [Link<S>],
     acc: Rgb<S>,
+    /// The path continuations from medium collisions, summed apart from
+    /// `acc` and added to it when the walk ends: the wavefront engine defers
+    /// them until it has a chunk's worth, and this keeps the two engines'
+    /// sums in the same order.
+    from_collisions: Rgb<S>,
 }
 
 impl<S: Scalar> Connect<'_, S> {
@@ -273,7 +278,7 @@ impl<S: Scalar> ScalarEngine<S> {
                                 let t = m.transmittance(dz_e, dn.z.abs());
                                 let pv = medium::hg_eval_dirs(m.g, d, dn);
                                 let ex = &self.ifaces[c.exit];
-                                c.acc += beta
+                                c.from_collisions += beta
                                     * events::continue_to_exit(ex, c.wo, dn, pv, false, t, mis);
                             }
                         }
@@ -455,10 +460,11 @@ impl<S: Scalar> ScalarEngine<S> {
                 region: self.layout.exit_region(e_out),
                 chain: &chain,
                 acc: Rgb::zero(),
+                from_collisions: Rgb::zero(),
             };
             let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
             self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
-            f(rgb_f64(c.acc));
+            f(rgb_f64(c.acc + c.from_collisions));
         }
         // First-order term: the entrance alone, when it is also the exit.
         if e_in == e_out {

@@ -36,6 +36,7 @@
 //!   that off (every layer runs free flight, every interface all code paths):
 //!   the unspecialized walk the benchmarks compare against.
 
+mod deferred;
 mod stages;
 pub mod walks;
 

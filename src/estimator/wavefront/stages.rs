@@ -5,6 +5,7 @@
 //! (`estimator::scalar`) operation for operation, with masks where the scalar
 //! code returns early.
 
+use super::deferred::Deferred;
 use super::walks::{load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
@@ -39,6 +40,8 @@ pub(super) struct Wave<'a> {
     /// The queues of the next round, one per key: walks join the queue of
     /// their next event as they leave a chunk, so a round needs no sort.
     next: Vec<Vec<u32>>,
+    /// Path continuations from collisions, waiting for a full chunk.
+    deferred: Deferred,
     stats: Stats,
 }
 
@@ -93,6 +96,10 @@ impl<W: Wide> Wavefront<W> {
         ws.key.fill(FREE);
         let n = self.layout.n;
         let nkeys = 2 * n - 1;
+        // Eval walks defer their continuations from collisions (MIS only).
+        let defers = q.mode == Mode::Eval
+            && self.settings.mis
+            && (self.exits.iter()).any(|&(_, l, _)| self.media[l].kind == LayerKind::Scattering);
         let mut wave = Wave {
             ws,
             out,
@@ -100,6 +107,7 @@ impl<W: Wide> Wavefront<W> {
             live: 0,
             draining: false,
             next: vec![Vec::with_capacity(slots); nkeys],
+            deferred: Deferred::new(self.exits.len(), if defers { total } else { 0 }),
             stats: Stats {
                 walks: total as u64,
                 ..Stats::default()
@@ -160,6 +168,13 @@ impl<W: Wide> Wavefront<W> {
                 }
                 queue.clear();
             }
+        }
+        if defers {
+            for x in 0..self.exits.len() {
+                self.run_deferred(&mut wave.deferred, x, true);
+            }
+            let values = wave.out.iter_mut().map(|o| &mut o.value);
+            wave.deferred.add_sums(values);
         }
         wave.stats
     }
@@ -442,7 +457,7 @@ impl<W: Wide> Wavefront<W> {
             let o = if key < n {
                 self.interface_event(q, wave.ws, idx, &mut c, key)
             } else {
-                self.layer_event(q, wave.ws, idx, &mut c, key - n)
+                self.layer_event(q, wave.ws, idx, &mut c, key - n, &mut wave.deferred)
             };
             let ended = busy & !o.going;
             if ended != 0 {
@@ -585,6 +600,7 @@ impl<W: Wide> Wavefront<W> {
         idx: &[u32],
         c: &mut Chunk<W>,
         l: usize,
+        deferred: &mut Deferred,
     ) -> Outcome {
         let eval = q.mode == Mode::Eval;
         let mis = self.settings.mis;
@@ -643,28 +659,21 @@ impl<W: Wide> Wavefront<W> {
         let u2 = c.rng.uniform(col);
         let dn = medium::hg_sample(med.g, d, u1, u2);
         c.specular = c.specular & !col;
-        // Path continuation from the collision towards a rough exit.
+        // Path continuation from the collision towards a rough exit: only
+        // some lanes need it, so it waits for a full chunk (`deferred`).
         if links && mis {
-            for &(e, l0, _) in &self.exits {
+            for (x, &(e, l0, _)) in self.exits.iter().enumerate() {
                 if l0 != l {
                     continue;
                 }
-                let m = col & e_out.eq(W::splat(e as f64)) & toward(dn, e);
-                if m.any() {
+                let m = W::bitmask(col & e_out.eq(W::splat(e as f64)) & toward(dn, e));
+                if m != 0 {
                     let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
-                    let t = med.transmittance(dz_e, dn.z.abs());
-                    let pv = medium::hg_eval_dirs(med.g, d, dn);
-                    let add = c.beta
-                        * events::continue_to_exit(
-                            &self.ifaces[e],
-                            wo,
-                            dn,
-                            pv,
-                            W::Mask::splat(false),
-                            t,
-                            mis,
-                        );
-                    c.acc = Rgb::select(m, c.acc + add, c.acc);
+                    let walk = |j: usize| ws.walk[idx[j] as usize];
+                    deferred.push::<W>(x, m, walk, (wo, d, dn, dz_e, c.beta));
+                    if deferred.full(x, W::LANES) {
+                        self.run_deferred(deferred, x, false);
+                    }
                 }
             }
         }

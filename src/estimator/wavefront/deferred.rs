@@ -1,0 +1,125 @@
+//! Path continuations from medium collisions, deferred until a chunk's worth
+//! is pending.
+//!
+//! After a collision, an eval walk whose new direction heads for a rough exit
+//! adds the exit's BSDF toward the viewer, MIS-weighted
+//! ([`events::continue_to_exit`]): an `eval` and a `pdf` of the exit
+//! interface, the costliest kernels of a layer event. In a chunk only the
+//! lanes heading for the exit need it (about half of them, in a thick
+//! medium), but run in place it would cost the whole chunk. So those lanes
+//! leave a row here instead, and the kernel runs on full chunks of rows.
+//!
+//! A walk's continuations are summed in the order they were made, apart from
+//! its other contributions, and added to them when the task ends; the scalar
+//! engine sums them the same way (`Connect::from_collisions`), so walk values
+//! stay bit for bit the scalar engine's.
+
+use super::walks::{load16, Chunk};
+use super::Wavefront;
+use crate::estimator::events;
+use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, V3};
+use crate::medium;
+
+/// One pending continuation: the viewer direction `wo` (3), the direction
+/// before the collision (3) and after it (3), the depth to the exit's side
+/// of the layer, the throughput (3) and the walk (its index in the task, as
+/// float bits); two unused.
+type Row = [f32; 16];
+const WALK: usize = 13;
+
+/// The pending continuations of a task, per rough exit, and each walk's sum.
+#[derive(Default)]
+pub(super) struct Deferred {
+    /// Rows per exit, in the order of `Wavefront::exits`.
+    pending: Vec<Vec<Row>>,
+    /// Per walk of the task: the sum of its continuations so far.
+    sums: Vec<[f32; 3]>,
+}
+
+impl Deferred {
+    /// Empty, for a task of `walks` walks on an engine with `exits` rough exits.
+    pub(super) fn new(exits: usize, walks: usize) -> Self {
+        Deferred {
+            pending: vec![Vec::new(); exits],
+            sums: vec![[0.0; 3]; walks],
+        }
+    }
+
+    /// Defers the continuation toward exit `x` of lanes `lanes` (a bitmask),
+    /// whose walks are `walk(j)`. `fields`: `wo`, the old and the new direction,
+    /// the depth to the exit's side, the throughput.
+    #[inline(always)]
+    pub(super) fn push<W: Wide>(
+        &mut self,
+        x: usize,
+        lanes: u32,
+        walk: impl Fn(usize) -> u32,
+        (wo, d, dn, dz, beta): (V3<W>, V3<W>, V3<W>, W, Rgb<W>),
+    ) {
+        let z = W::zero();
+        let lo = [wo.x, wo.y, wo.z, d.x, d.y, d.z, dn.x, dn.y];
+        let hi = [dn.z, dz, beta.r, beta.g, beta.b, z, z, z];
+        let mut rows = [[0.0f32; 16]; 16];
+        let ids = &LANE_IDS[..W::LANES];
+        W::store8(lo, &mut rows[..W::LANES], ids, 0);
+        W::store8(hi, &mut rows[..W::LANES], ids, 8);
+        let pending = &mut self.pending[x];
+        for j in Chunk::<W>::set_bits(lanes) {
+            let mut r = rows[j];
+            r[WALK] = f32::from_bits(walk(j));
+            pending.push(r);
+        }
+    }
+
+    /// Whether exit `x` has a full chunk of `lanes` rows pending.
+    #[inline(always)]
+    pub(super) fn full(&self, x: usize, lanes: usize) -> bool {
+        self.pending[x].len() >= lanes
+    }
+
+    /// Adds each walk's sum to its value (`values`, in walk order): the task
+    /// is over, and every row has run.
+    pub(super) fn add_sums<'a>(&self, values: impl Iterator<Item = &'a mut [f32; 3]>) {
+        debug_assert!(self.pending.iter().all(Vec::is_empty));
+        for (v, s) in values.zip(&self.sums) {
+            *v = [v[0] + s[0], v[1] + s[1], v[2] + s[2]];
+        }
+    }
+}
+
+impl<W: Wide> Wavefront<W> {
+    /// Runs the pending continuations toward exit `x`, a chunk of rows at a
+    /// time, oldest first: the full chunks only, or (`all`) every row.
+    pub(super) fn run_deferred(&self, def: &mut Deferred, x: usize, all: bool) {
+        let (e, l, _) = self.exits[x];
+        let (exit, med) = (&self.ifaces[e], &self.media[l]);
+        let rows = std::mem::take(&mut def.pending[x]);
+        let whole = rows.len() / W::LANES * W::LANES;
+        let end = if all { rows.len() } else { whole };
+        for first in (0..end).step_by(W::LANES) {
+            let n = W::LANES.min(end - first);
+            // A partial chunk repeats its last row in the idle lanes.
+            let idx: [u32; 16] = std::array::from_fn(|j| (first + j.min(n - 1)) as u32);
+            let f = load16::<W, 16>(&rows, &idx[..W::LANES], 0);
+            let (wo, d) = (V3::new(f[0], f[1], f[2]), V3::new(f[3], f[4], f[5]));
+            let (dn, dz) = (V3::new(f[6], f[7], f[8]), f[9]);
+            let beta = Rgb::new(f[10], f[11], f[12]);
+            // As in the scalar engine's collision, in the same order.
+            let t = med.transmittance(dz, dn.z.abs());
+            let pv = medium::hg_eval_dirs(med.g, d, dn);
+            let no = W::Mask::splat(false);
+            let add = beta * events::continue_to_exit(exit, wo, dn, pv, no, t, true);
+            let mut out = [[0.0f32; 8]; 16];
+            let z = W::zero();
+            let vals = [add.r, add.g, add.b, z, z, z, z, z];
+            W::store8(vals, &mut out[..W::LANES], &LANE_IDS[..W::LANES], 0);
+            for (j, r) in rows[first..first + n].iter().enumerate() {
+                let s = &mut def.sums[r[WALK].to_bits() as usize];
+                *s = [s[0] + out[j][0], s[1] + out[j][1], s[2] + out[j][2]];
+            }
+        }
+        let mut rows = rows;
+        rows.drain(..end);
+        def.pending[x] = rows;
+    }
+}
