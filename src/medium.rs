@@ -93,8 +93,13 @@ pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
 /// along a direction with `|d.z| = mu > 0`.
 #[inline(always)]
 pub fn transmittance<L: Lane>(sigma_t: Rgb<L>, dz: L, mu: L) -> Rgb<L> {
-    let s = dz / mu.max(L::splat(1e-30));
-    sigma_t.map(|st| (-(st * s)).exp())
+    sigma_t.map(|st| channel_transmittance(st, dz, mu))
+}
+
+/// [`transmittance`] of one channel: a grey medium needs only this one.
+#[inline(always)]
+pub fn channel_transmittance<L: Lane>(sigma_t: L, dz: L, mu: L) -> L {
+    (-(sigma_t * (dz / mu.max(L::splat(1e-30))))).exp()
 }
 
 /// The outcome of a free flight.

@@ -82,6 +82,11 @@ impl<L: Lane> MediumLanes<L> {
     pub fn transmittance(&self, dz: L, mu: L) -> Rgb<L> {
         match self.kind {
             LayerKind::Clear => Rgb::one(),
+            // Grey: one exponential serves all three channels.
+            _ if self.grey => {
+                let t = crate::medium::channel_transmittance(self.sigma_t.r, dz, mu);
+                Rgb::new(t, t, t)
+            }
             _ => crate::medium::transmittance(self.sigma_t, dz, mu),
         }
     }
@@ -192,4 +197,39 @@ pub fn flight_limit<L: Lane>(dz: L, mu: L) -> L {
 #[inline]
 pub fn move_depth<L: Lane>(z: L, dz: L, t: L, h: L) -> L {
     (z - dz * t).clamp(L::zero(), h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lane::F32x8;
+
+    /// A grey medium's one exponential gives, bit for bit, what the three
+    /// channels give computed apart; a chromatic one still computes three.
+    #[test]
+    fn grey_transmittance_is_the_per_channel_one() {
+        for (sigma_t, grey) in [("2.5", true), ("[0.5, 1.0, 4.0]", false)] {
+            let toml = format!(
+                "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = 1.5 }}\n\
+                 medium = {{ thickness = 1.0, sigma_t = {sigma_t}, albedo = 0.5 }}\n\
+                 [[layers]]\ninterface = {{ kind = \"diffuse\", albedo = 0.5 }}\n"
+            );
+            let stack = LayerStack::from_toml_str(&toml).unwrap();
+            let m = MediumLanes::<F32x8>::new(&stack, 0);
+            assert_eq!(m.grey, grey);
+            let dz = F32x8::from_fn(|j| [0.0, 1e-7, 0.1, 0.5, 1.0, 0.3, 0.9, 0.7][j]);
+            let mu = F32x8::from_fn(|j| [1.0, 0.5, 1e-7, 0.0, 0.25, 1.0, 0.01, 0.6][j]);
+            let got = m.transmittance(dz, mu);
+            let want = crate::medium::transmittance(m.sigma_t, dz, mu);
+            for (g, w) in [(got.r, want.r), (got.g, want.g), (got.b, want.b)] {
+                for j in 0..8 {
+                    assert_eq!(
+                        g.lane(j).to_bits(),
+                        w.lane(j).to_bits(),
+                        "{sigma_t} lane {j}"
+                    );
+                }
+            }
+        }
+    }
 }
