@@ -21,7 +21,7 @@ mod simd;
 mod v3;
 
 pub use rgb::Rgb;
-pub use simd::{BitLanes, F32x16, F32x8, Wide, LANE_IDS, M16, M8};
+pub use simd::{BitLanes, F32x16, F32x8, Wide, LANE_IDS, M16, M8, MAX_LANES};
 pub use v3::V3;
 
 use std::fmt::Debug;

@@ -17,13 +17,17 @@ use std::ops::{
     SubAssign,
 };
 
+/// The widest lane type's lane count ([`F32x16`]): per-chunk index arrays
+/// are this long.
+pub const MAX_LANES: usize = 16;
+
 /// `LANE_IDS[j] == j`: the index list under which lane `j` reads or writes
 /// row `j` of a small per-chunk table (with [`Wide::load8`], [`Wide::store8`],
 /// [`Wide::gather_bits`]).
-pub const LANE_IDS: [u32; 64] = {
-    let mut a = [0u32; 64];
+pub const LANE_IDS: [u32; MAX_LANES] = {
+    let mut a = [0u32; MAX_LANES];
     let mut j = 0;
-    while j < 64 {
+    while j < MAX_LANES {
         a[j] = j as u32;
         j += 1;
     }
@@ -513,6 +517,9 @@ wide_lane!(
     M16,
     f32x16, u32x16, i32x16, 16, from_i32x16
 );
+
+// Per-chunk index arrays hold `MAX_LANES` lanes.
+const _: () = assert!(F32x8::LANES <= MAX_LANES && F32x16::LANES <= MAX_LANES);
 
 impl F32x8 {
     #[inline(always)]

@@ -17,7 +17,7 @@
 use super::walks::{load16, Chunk};
 use super::Wavefront;
 use crate::estimator::events;
-use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, V3};
+use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::medium;
 
 /// One pending continuation: the viewer direction `wo` (3), the direction
@@ -46,28 +46,35 @@ impl Deferred {
     }
 
     /// Defers the continuation toward exit `x` of lanes `lanes` (a bitmask),
-    /// whose walks are `walk(j)`. `fields`: `wo`, the old and the new direction,
-    /// the depth to the exit's side, the throughput.
+    /// whose walks (their indices in the task) are `walk`. `fields`: `wo`, the
+    /// old and the new direction, the depth to the exit's side, the throughput.
     #[inline(always)]
     pub(super) fn push<W: Wide>(
         &mut self,
         x: usize,
         lanes: u32,
-        walk: impl Fn(usize) -> u32,
+        walk: W::Bits,
         (wo, d, dn, dz, beta): (V3<W>, V3<W>, V3<W>, W, Rgb<W>),
     ) {
         let z = W::zero();
         let lo = [wo.x, wo.y, wo.z, d.x, d.y, d.z, dn.x, dn.y];
-        let hi = [dn.z, dz, beta.r, beta.g, beta.b, z, z, z];
-        let mut rows = [[0.0f32; 16]; 16];
+        let hi = [
+            dn.z,
+            dz,
+            beta.r,
+            beta.g,
+            beta.b,
+            W::from_bit_lanes(walk),
+            z,
+            z,
+        ];
+        let mut rows = [[0.0f32; 16]; MAX_LANES];
         let ids = &LANE_IDS[..W::LANES];
         W::store8(lo, &mut rows[..W::LANES], ids, 0);
         W::store8(hi, &mut rows[..W::LANES], ids, 8);
         let pending = &mut self.pending[x];
         for j in Chunk::<W>::set_bits(lanes) {
-            let mut r = rows[j];
-            r[WALK] = f32::from_bits(walk(j));
-            pending.push(r);
+            pending.push(rows[j]);
         }
     }
 
@@ -109,7 +116,7 @@ impl<W: Wide> Wavefront<W> {
             let pv = medium::hg_eval_dirs(med.g, d, dn);
             let no = W::Mask::splat(false);
             let add = beta * events::continue_to_exit(exit, wo, dn, pv, no, t, true);
-            let mut out = [[0.0f32; 8]; 16];
+            let mut out = [[0.0f32; 8]; MAX_LANES];
             let z = W::zero();
             let vals = [add.r, add.g, add.b, z, z, z, z, z];
             W::store8(vals, &mut out[..W::LANES], &LANE_IDS[..W::LANES], 0);

@@ -15,7 +15,7 @@ use crate::estimator::layout::{
 use crate::estimator::pdf::{mix_uniform, pdf_walk};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, LANE_IDS, V3};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::medium;
 use crate::rng::{seed_state_from, LaneRng, Stream};
 
@@ -160,7 +160,7 @@ impl<W: Wide> Wavefront<W> {
                             continue;
                         }
                     }
-                    let mut idx = [chunk[0]; 64];
+                    let mut idx = [chunk[0]; MAX_LANES];
                     idx[..chunk.len()].copy_from_slice(chunk);
                     let idx = &idx[..W::LANES];
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
@@ -184,8 +184,8 @@ impl<W: Wide> Wavefront<W> {
     /// events before their records are ever written.
     #[cfg_attr(feature = "profiling", inline(never))]
     fn start_walks(&self, q: &Queries, wave: &mut Wave, chunk: &[(u32, u64)]) {
-        let mut idx = [chunk[0].0; 64];
-        let mut lq = [0u32; 64];
+        let mut idx = [chunk[0].0; MAX_LANES];
+        let mut lq = [0u32; MAX_LANES];
         for (j, &(s, _)) in chunk.iter().enumerate() {
             idx[j] = s;
         }
@@ -669,7 +669,7 @@ impl<W: Wide> Wavefront<W> {
                 let m = W::bitmask(col & e_out.eq(W::splat(e as f64)) & toward(dn, e));
                 if m != 0 {
                     let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
-                    let walk = |j: usize| ws.walk[idx[j] as usize];
+                    let walk = W::gather_bits(&ws.walk, idx);
                     deferred.push::<W>(x, m, walk, (wo, d, dn, dz_e, c.beta));
                     if deferred.full(x, W::LANES) {
                         self.run_deferred(deferred, x, false);
@@ -753,7 +753,8 @@ impl<W: Wide> Wavefront<W> {
         if self.layout.n >= 2 && samples > 0 {
             for chunk_start in (0..qs.len()).step_by(W::LANES) {
                 let chunk = &qs[chunk_start..(chunk_start + W::LANES).min(qs.len())];
-                let lq: [u32; 64] = std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)] as u32);
+                let lq: [u32; MAX_LANES] =
+                    std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)] as u32);
                 let lq = &lq[..W::LANES];
                 let g = |col: &[f32]| W::gather(col, lq);
                 let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
