@@ -58,6 +58,7 @@ impl Wave<'_> {
     }
 
     /// Puts the walk in `slot` in queue `key` for the next round.
+    #[inline(always)]
     fn enqueue(&mut self, slot: u32, key: u16) {
         self.ws.key[slot as usize] = key;
         self.next[key as usize].push(slot);
@@ -160,8 +161,10 @@ impl<W: Wide> Wavefront<W> {
                             continue;
                         }
                     }
-                    let mut idx = [chunk[0]; MAX_LANES];
-                    idx[..chunk.len()].copy_from_slice(chunk);
+                    // Idle lanes repeat the last walk (a fixed-length loop:
+                    // a copy of the chunk's length was a call to memmove).
+                    let idx: [u32; MAX_LANES] =
+                        std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)]);
                     let idx = &idx[..W::LANES];
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
                     self.advance(q, &mut wave, idx, active, key);
