@@ -24,7 +24,7 @@ for m in clear_coat_lambertian coated_copper thick_scattering scattering_slab th
     awk -v stack="$m" '
       /^ +[0-9.]+%/ {
         p = $1; sub("%", "", p); $1 = ""; s = $0
-        if (s ~ /InterfaceLanes<L>::|interface_event|layer_event|connect_links|full_crossing|medium::/) c = "physics"
+        if (s ~ /InterfaceLanes<L>::|interface_event|layer_event|connect_links|full_crossing|run_deferred|MediumLanes|medium::/) c = "physics"
         else if (s ~ /seed_state|start_walks|launch_chain|Walks::claim|Chunk<W>::start/) c = "start"
         else if (s ~ /Chunk<W>::|enqueue|finish_lanes|memmove|memset|FnMut<A> for &F>::call_mut|run_task|Wavefront<W>::run::|advance/) c = "moving"
         else if (s ~ /Map<I,F> as core::iter::traits::iterator::Iterator>::fold|MeanVar|BlockReducer/) c = "reduction"

@@ -25,8 +25,19 @@ struct Outcome {
     going: u32,
     /// Lanes whose walk left the stack.
     exited: u32,
-    /// The queue each going lane joins.
-    keys: [u16; 16],
+    /// The queues the going lanes join: lanes (a bitmask) and their queue,
+    /// at most three groups (a layer's walks stay, or leave by its top or
+    /// its bottom; an interface's go up or down). A lane is in one group.
+    groups: [(u32, u16); 3],
+}
+
+impl Outcome {
+    /// The queue all going lanes join, if they join one.
+    #[inline(always)]
+    fn together(&self) -> Option<u16> {
+        let g = self.groups.iter().find(|g| g.0 & self.going != 0)?;
+        (self.going & !g.0 == 0).then_some(g.1)
+    }
 }
 
 /// A wave during one task: the walks, the task's outputs, the free slots.
@@ -470,17 +481,17 @@ impl<W: Wide> Wavefront<W> {
                 return; // every walk ended: nothing to store
             }
             c.active = W::mask_from_bitmask(o.going);
-            let next = o.keys[o.going.trailing_zeros() as usize];
-            // Branch-free: every lane compared, the going ones must agree.
-            let same = (0..W::LANES).fold(0u32, |m, j| m | ((o.keys[j] == next) as u32) << j);
-            let together = o.going & !same == 0;
-            if together && (wave.draining || o.going.count_ones() as usize == W::LANES) {
-                key = next as usize;
-                continue;
+            if let Some(next) = o.together() {
+                if wave.draining || o.going.count_ones() as usize == W::LANES {
+                    key = next as usize;
+                    continue;
+                }
             }
             c.scatter(wave.ws, idx);
-            for j in Chunk::<W>::set_bits(o.going) {
-                wave.enqueue(idx[j], o.keys[j]);
+            for (lanes, key) in o.groups {
+                for j in Chunk::<W>::set_bits(lanes & o.going) {
+                    wave.enqueue(idx[j], key);
+                }
             }
             return;
         }
@@ -590,7 +601,7 @@ impl<W: Wide> Wavefront<W> {
         Outcome {
             going: W::bitmask(cont & !stuck),
             exited: W::bitmask(exited),
-            keys: std::array::from_fn(|j| keys[if up & (1 << j) != 0 { 0 } else { 1 }]),
+            groups: [(up, keys[0]), (!up, keys[1]), (0, FREE)],
         }
     }
 
@@ -694,16 +705,11 @@ impl<W: Wide> Wavefront<W> {
         Outcome {
             going: scattered | W::bitmask(pass),
             exited: 0,
-            keys: std::array::from_fn(|j| {
-                let bit = 1 << j;
-                if scattered & bit != 0 {
-                    stay
-                } else if up & bit != 0 {
-                    top
-                } else {
-                    bottom
-                }
-            }),
+            groups: [
+                (scattered, stay),
+                (up & !scattered, top),
+                (!up & !scattered, bottom),
+            ],
         }
     }
 
