@@ -20,7 +20,7 @@
 //! * **Determinism.** Lane `j` draws from walk `j`'s own stream, seeded from
 //!   `(seed, query, sample)` exactly as in the scalar engine, and consumes the
 //!   same uniforms in the same order, so a walk gives the same value on either
-//!   engine (up to the rare rounding-induced branch flip; tested). Results are
+//!   engine, bit for bit (tested on every walk). Results are
 //!   reduced per query in the canonical block order
 //!   ([`crate::estimator::BlockReducer`]), so they do not depend on the thread
 //!   count, the batch composition or the wave size.
