@@ -113,11 +113,11 @@ impl Direction {
 }
 
 /// Which engine answers a query. The scalar and the wavefront engine give the
-/// same results for the same seeds (walk by walk, up to rare rounding
-/// differences; tested); `Auto` gives one of theirs.
+/// same results for the same seeds (walk by walk, bit for bit: they run the
+/// same f32 operations; tested); `Auto` gives one of theirs.
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries and a wave, about 0.8–1.9 µs), which its lanes repay many times over
+/// queries and a wave, about 0.6–1.5 µs), which its lanes repay many times over
 /// on a batch, or on an `eval` of many walks, but not on a call of fewer walks
 /// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
 /// the cheaper one (1.5–3× faster on a single `sample`; docs/performance.md).
@@ -203,9 +203,8 @@ impl std::error::Error for BatchError {}
 /// Every query is deterministic: its random streams are seeded from the
 /// BSDF's seed and a query key. The plain methods derive the key from the
 /// directions' bits (so the same `(wi, wo)` always gives the same answer,
-/// alone or in a batch, on either engine; the two engines agree up to rare
-/// rounding differences, and [`Engine::Auto`] picks one by the size of the
-/// call); the `_keyed` variants take the keys explicitly, so that a renderer
+/// alone or in a batch, on either engine; the two engines agree bit for
+/// bit, and [`Engine::Auto`] picks one by the size of the call); the `_keyed` variants take the keys explicitly, so that a renderer
 /// can draw fresh noise per call.
 ///
 /// ```

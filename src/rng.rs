@@ -5,7 +5,7 @@
 //! on those numbers: not on the thread that ran it, the batch it was in, or the
 //! engine (the wavefront's lane generator is tested bit for bit against it).
 
-use crate::lane::{Wide, LANE_IDS};
+use crate::lane::{Wide, LANE_IDS, MAX_LANES};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -129,7 +129,7 @@ impl<W: Wide> LaneRng<W> {
     /// Lane `j` starts from state `state(j)`.
     #[inline]
     pub fn from_states(state: impl Fn(usize) -> [u32; 4]) -> Self {
-        let mut cols = [[0u32; 64]; 4];
+        let mut cols = [[0u32; MAX_LANES]; 4];
         for j in 0..W::LANES {
             for (col, v) in cols.iter_mut().zip(state(j)) {
                 col[j] = v;

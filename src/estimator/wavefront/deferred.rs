@@ -7,14 +7,15 @@
 //! interface, the costliest kernels of a layer event. In a chunk only the
 //! lanes heading for the exit need it (about half of them, in a thick
 //! medium), but run in place it would cost the whole chunk. So those lanes
-//! leave a row here instead, and the kernel runs on full chunks of rows.
+//! leave a row here instead, and the kernel runs on full chunks of rows (the
+//! last few of a task when it ends).
 //!
 //! A walk's continuations are summed in the order they were made, apart from
 //! its other contributions, and added to them when the task ends; the scalar
 //! engine sums them the same way (`Connect::from_collisions`), so walk values
 //! stay bit for bit the scalar engine's.
 
-use super::walks::{load16, Chunk};
+use super::walks::{lane_ids, load16, Chunk};
 use super::Wavefront;
 use crate::estimator::events;
 use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
@@ -32,15 +33,21 @@ const WALK: usize = 13;
 pub(super) struct Deferred {
     /// Rows per exit, in the order of `Wavefront::exits`.
     pending: Vec<Vec<Row>>,
+    /// The lanes of the engine that runs the task: a chunk's worth of rows.
+    /// (The one-lane engine that finishes a task's last walks only adds
+    /// rows; what is left runs when the task ends.)
+    lanes: usize,
     /// Per walk of the task: the sum of its continuations so far.
     sums: Vec<[f32; 3]>,
 }
 
 impl Deferred {
-    /// Empty, for a task of `walks` walks on an engine with `exits` rough exits.
-    pub(super) fn new(exits: usize, walks: usize) -> Self {
+    /// Empty, for a task of `walks` walks on an engine of `lanes` lanes with
+    /// `exits` rough exits.
+    pub(super) fn new(exits: usize, walks: usize, lanes: usize) -> Self {
         Deferred {
             pending: vec![Vec::new(); exits],
+            lanes,
             sums: vec![[0.0; 3]; walks],
         }
     }
@@ -78,10 +85,11 @@ impl Deferred {
         }
     }
 
-    /// Whether exit `x` has a full chunk of `lanes` rows pending.
+    /// Whether exit `x` has a full chunk of rows pending for an engine of
+    /// `lanes` lanes to run (only the task's own engine runs them).
     #[inline(always)]
     pub(super) fn full(&self, x: usize, lanes: usize) -> bool {
-        self.pending[x].len() >= lanes
+        lanes == self.lanes && self.pending[x].len() >= lanes
     }
 
     /// Adds each walk's sum to its value (`values`, in walk order): the task
@@ -89,9 +97,15 @@ impl Deferred {
     pub(super) fn add_sums<'a>(&self, values: impl Iterator<Item = &'a mut [f32; 3]>) {
         debug_assert!(self.pending.iter().all(Vec::is_empty));
         for (v, s) in values.zip(&self.sums) {
-            *v = [v[0] + s[0], v[1] + s[1], v[2] + s[2]];
+            add3(v, s);
         }
     }
+}
+
+/// `v += s`, channel by channel.
+#[inline(always)]
+fn add3(v: &mut [f32; 3], s: &[f32]) {
+    *v = [v[0] + s[0], v[1] + s[1], v[2] + s[2]];
 }
 
 impl<W: Wide> Wavefront<W> {
@@ -106,7 +120,7 @@ impl<W: Wide> Wavefront<W> {
         for first in (0..end).step_by(W::LANES) {
             let n = W::LANES.min(end - first);
             // A partial chunk repeats its last row in the idle lanes.
-            let idx: [u32; 16] = std::array::from_fn(|j| (first + j.min(n - 1)) as u32);
+            let idx = lane_ids(&LANE_IDS[..n], |j| first as u32 + j);
             let f = load16::<W, 16>(&rows, &idx[..W::LANES], 0);
             let (wo, d) = (V3::new(f[0], f[1], f[2]), V3::new(f[3], f[4], f[5]));
             let (dn, dz) = (V3::new(f[6], f[7], f[8]), f[9]);
@@ -121,8 +135,7 @@ impl<W: Wide> Wavefront<W> {
             let vals = [add.r, add.g, add.b, z, z, z, z, z];
             W::store8(vals, &mut out[..W::LANES], &LANE_IDS[..W::LANES], 0);
             for (j, r) in rows[first..first + n].iter().enumerate() {
-                let s = &mut def.sums[r[WALK].to_bits() as usize];
-                *s = [s[0] + out[j][0], s[1] + out[j][1], s[2] + out[j][2]];
+                add3(&mut def.sums[r[WALK].to_bits() as usize], &out[j][..3]);
             }
         }
         let mut rows = rows;

@@ -6,7 +6,7 @@
 //! code returns early.
 
 use super::deferred::Deferred;
-use super::walks::{load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
+use super::walks::{lane_ids, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{
@@ -119,7 +119,7 @@ impl<W: Wide> Wavefront<W> {
             live: 0,
             draining: false,
             next: vec![Vec::with_capacity(slots); nkeys],
-            deferred: Deferred::new(self.exits.len(), if defers { total } else { 0 }),
+            deferred: Deferred::new(self.exits.len(), if defers { total } else { 0 }, W::LANES),
             stats: Stats {
                 walks: total as u64,
                 ..Stats::default()
@@ -172,10 +172,7 @@ impl<W: Wide> Wavefront<W> {
                             continue;
                         }
                     }
-                    // Idle lanes repeat the last walk (a fixed-length loop:
-                    // a copy of the chunk's length was a call to memmove).
-                    let idx: [u32; MAX_LANES] =
-                        std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)]);
+                    let idx = lane_ids(chunk, |s| s);
                     let idx = &idx[..W::LANES];
                     let active = W::mask_from_bitmask(lane_bits(chunk.len()));
                     self.advance(q, &mut wave, idx, active, key);
@@ -198,14 +195,8 @@ impl<W: Wide> Wavefront<W> {
     /// events before their records are ever written.
     #[cfg_attr(feature = "profiling", inline(never))]
     fn start_walks(&self, q: &Queries, wave: &mut Wave, chunk: &[(u32, u64)]) {
-        let mut idx = [chunk[0].0; MAX_LANES];
-        let mut lq = [0u32; MAX_LANES];
-        for (j, &(s, _)) in chunk.iter().enumerate() {
-            idx[j] = s;
-        }
-        for j in 0..W::LANES {
-            lq[j] = wave.ws.query[idx[j] as usize];
-        }
+        let idx = lane_ids(chunk, |(s, _)| s);
+        let lq = lane_ids(&idx[..W::LANES], |s| wave.ws.query[s as usize]);
         let (idx, lq) = (&idx[..W::LANES], &lq[..W::LANES]);
         let active = W::mask_from_bitmask(lane_bits(chunk.len()));
         let rng = LaneRng::<W>::from_states(|j| {
@@ -731,7 +722,7 @@ impl<W: Wide> Wavefront<W> {
         let v = if eval { c.acc } else { c.beta };
         let spec = W::select(c.specular, W::one(), W::zero());
         let (d, z) = (c.d, W::zero());
-        let mut rows = [[0.0f32; 8]; 16]; // one row per lane (at most 16)
+        let mut rows = [[0.0f32; 8]; MAX_LANES]; // one row per lane
         let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
         W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
         for j in Chunk::<W>::set_bits(ended) {
@@ -762,8 +753,7 @@ impl<W: Wide> Wavefront<W> {
         if self.layout.n >= 2 && samples > 0 {
             for chunk_start in (0..qs.len()).step_by(W::LANES) {
                 let chunk = &qs[chunk_start..(chunk_start + W::LANES).min(qs.len())];
-                let lq: [u32; MAX_LANES] =
-                    std::array::from_fn(|j| chunk[j.min(chunk.len() - 1)] as u32);
+                let lq = lane_ids(chunk, |q| q as u32);
                 let lq = &lq[..W::LANES];
                 let g = |col: &[f32]| W::gather(col, lq);
                 let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));

@@ -13,7 +13,7 @@
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
 use crate::estimator::events::Connection;
-use crate::lane::{LaneMask, Rgb, Wide, V3};
+use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::rng::LaneRng;
 
 /// The key of an empty slot.
@@ -135,6 +135,15 @@ impl<W: Wide> LinkLanes<W> {
 pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [W; 16] {
     let (lo, hi) = (W::load8(recs, idx, first), W::load8(recs, idx, first + 8));
     std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] })
+}
+
+/// One index per lane from the items of a chunk (at most
+/// [`MAX_LANES`]): lane `j` takes `f(chunk[j])`, and idle lanes past the
+/// chunk's end repeat its last item, so that they load a real walk's values.
+/// (A fixed-length loop: a copy of the chunk's length was a call to memmove.)
+#[inline(always)]
+pub fn lane_ids<T: Copy>(chunk: &[T], f: impl Fn(T) -> u32) -> [u32; MAX_LANES] {
+    std::array::from_fn(|j| f(chunk[j.min(chunk.len() - 1)]))
 }
 
 /// The walks of one wave.
