@@ -120,7 +120,7 @@ impl Direction {
 /// queries and a wave, about 0.6–1.5 µs), which its lanes repay many times over
 /// on a batch, or on an `eval` of many walks, but not on a call of fewer walks
 /// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
-/// the cheaper one (1.5–3× faster on a single `sample`; docs/performance.md).
+/// the cheaper one (1.7–3.3× faster on a single `sample`; docs/performance.md).
 /// [`Engine::Auto`], the default, picks per call. Calls of at most
 /// [`SERIAL_WALKS`] walks (pdf batches of at most [`PDF_CHUNK`] queries) run
 /// on the calling thread on either engine, with or without
@@ -204,8 +204,9 @@ impl std::error::Error for BatchError {}
 /// BSDF's seed and a query key. The plain methods derive the key from the
 /// directions' bits (so the same `(wi, wo)` always gives the same answer,
 /// alone or in a batch, on either engine; the two engines agree bit for
-/// bit, and [`Engine::Auto`] picks one by the size of the call); the `_keyed` variants take the keys explicitly, so that a renderer
-/// can draw fresh noise per call.
+/// bit, and [`Engine::Auto`] picks one by the size of the call); the
+/// `_keyed` variants take the keys explicitly, so that a renderer can draw
+/// fresh noise per call.
 ///
 /// ```
 /// use strata::{Engine, LayeredBsdf, LayerStack};

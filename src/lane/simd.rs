@@ -744,7 +744,8 @@ mod tests {
     }
 
     /// Where `idx` repeats a record, `store8` leaves the lowest lane's values
-    /// in it (a partial chunk pads its lanes with its first walk's slot).
+    /// in it (a partial chunk pads its idle lanes with its last walk's slot,
+    /// whose own lane is lower).
     fn store_keeps_the_lowest_lane<W: Wide>() {
         let idx: Vec<u32> = (0..W::LANES as u32).map(|j| j / 3).collect();
         let vals: [W; 8] = std::array::from_fn(|k| W::from_fn(|j| (10 * j + k) as f64));

@@ -15,7 +15,7 @@
 //! engine sums them the same way (`Connect::from_collisions`), so walk values
 //! stay bit for bit the scalar engine's.
 
-use super::walks::{lane_ids, load16, Chunk};
+use super::walks::{lane_ids, lane_rows, load16, Chunk};
 use super::Wavefront;
 use crate::estimator::events;
 use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
@@ -75,6 +75,7 @@ impl Deferred {
             z,
             z,
         ];
+        // Whole rows, stored by two transposes (as `lane_rows`, sixteen wide).
         let mut rows = [[0.0f32; 16]; MAX_LANES];
         let ids = &LANE_IDS[..W::LANES];
         W::store8(lo, &mut rows[..W::LANES], ids, 0);
@@ -130,10 +131,8 @@ impl<W: Wide> Wavefront<W> {
             let pv = medium::hg_eval_dirs(med.g, d, dn);
             let no = W::Mask::splat(false);
             let add = beta * events::continue_to_exit(exit, wo, dn, pv, no, t, true);
-            let mut out = [[0.0f32; 8]; MAX_LANES];
             let z = W::zero();
-            let vals = [add.r, add.g, add.b, z, z, z, z, z];
-            W::store8(vals, &mut out[..W::LANES], &LANE_IDS[..W::LANES], 0);
+            let out = lane_rows([add.r, add.g, add.b, z, z, z, z, z]);
             for (j, r) in rows[first..first + n].iter().enumerate() {
                 add3(&mut def.sums[r[WALK].to_bits() as usize], &out[j][..3]);
             }

@@ -6,7 +6,7 @@
 //! code returns early.
 
 use super::deferred::Deferred;
-use super::walks::{lane_ids, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
+use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{
@@ -15,7 +15,7 @@ use crate::estimator::layout::{
 use crate::estimator::pdf::{mix_uniform, pdf_walk};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, V3};
 use crate::medium;
 use crate::rng::{seed_state_from, LaneRng, Stream};
 
@@ -722,9 +722,7 @@ impl<W: Wide> Wavefront<W> {
         let v = if eval { c.acc } else { c.beta };
         let spec = W::select(c.specular, W::one(), W::zero());
         let (d, z) = (c.d, W::zero());
-        let mut rows = [[0.0f32; 8]; MAX_LANES]; // one row per lane
-        let fields = [d.x, d.y, d.z, v.r, v.g, v.b, spec, z];
-        W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
+        let rows = lane_rows([d.x, d.y, d.z, v.r, v.g, v.b, spec, z]);
         for j in Chunk::<W>::set_bits(ended) {
             let r = rows[j];
             let out = if exited & (1 << j) != 0 {

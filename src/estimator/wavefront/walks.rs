@@ -13,7 +13,7 @@
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
 use crate::estimator::events::Connection;
-use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
+use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::rng::LaneRng;
 
 /// The key of an empty slot.
@@ -144,6 +144,16 @@ pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: us
 #[inline(always)]
 pub fn lane_ids<T: Copy>(chunk: &[T], f: impl Fn(T) -> u32) -> [u32; MAX_LANES] {
     std::array::from_fn(|j| f(chunk[j.min(chunk.len() - 1)]))
+}
+
+/// Eight fields of every lane, one row per lane (row `j`: lane `j`'s
+/// fields; rows past `W::LANES` are zero): how a chunk hands values to code
+/// that goes lane by lane.
+#[inline(always)]
+pub fn lane_rows<W: Wide>(fields: [W; 8]) -> [[f32; 8]; MAX_LANES] {
+    let mut rows = [[0.0f32; 8]; MAX_LANES];
+    W::store8(fields, &mut rows[..W::LANES], &LANE_IDS[..W::LANES], 0);
+    rows
 }
 
 /// The walks of one wave.
@@ -285,7 +295,8 @@ impl Stage {
 
 impl<W: Wide> Chunk<W> {
     /// Loads slots `idx` (exactly `W::LANES` entries; lanes beyond `active`
-    /// repeat the first slot and are overwritten by it on the way back).
+    /// repeat an active lane's slot, [`lane_ids`], and are overwritten by it
+    /// on the way back).
     #[cfg_attr(not(feature = "profiling"), inline(always))]
     #[cfg_attr(feature = "profiling", inline(never))]
     pub fn gather(ws: &Walks, idx: &[u32], active: W::Mask, stage: Stage) -> Self {
