@@ -67,7 +67,13 @@ pub struct WalkRng(Xoshiro128PlusPlus);
 impl WalkRng {
     /// The stream `(seed, query, sample, stream)`.
     pub fn new(seed: u64, query: u64, sample: u64, stream: Stream) -> Self {
-        let s = seed_state(seed, query, sample, stream);
+        Self::from_prefix(query_prefix(seed, query), sample, stream)
+    }
+
+    /// The same stream from a [`query_prefix`], which a loop over one
+    /// query's walks computes once.
+    pub fn from_prefix(prefix: u64, sample: u64, stream: Stream) -> Self {
+        let s = seed_state_from(prefix, sample, stream);
         let mut bytes = [0u8; 16];
         for (i, w) in s.iter().enumerate() {
             bytes[4 * i..4 * i + 4].copy_from_slice(&w.to_le_bytes());
@@ -230,6 +236,22 @@ mod tests {
         let mut r = WalkRng::new(3, 4, 5, Stream::Adjoint);
         for _ in 0..1000 {
             assert_eq!(xoshiro_step(&mut s), r.next_u32());
+        }
+    }
+
+    #[test]
+    fn from_prefix_is_new() {
+        let p = query_prefix(9, 4);
+        for (k, stream) in [
+            (0, Stream::Walk),
+            (7, Stream::Adjoint),
+            (1 << 40, Stream::Pdf),
+        ] {
+            let mut a = WalkRng::new(9, 4, k, stream);
+            let mut b = WalkRng::from_prefix(p, k, stream);
+            for _ in 0..8 {
+                assert_eq!(a.next_u32(), b.next_u32());
+            }
         }
     }
 

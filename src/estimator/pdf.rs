@@ -27,7 +27,7 @@ use super::scalar::{v3, Scalar, ScalarEngine};
 use crate::fresnel;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, V3};
-use crate::rng::{Stream, WalkRng};
+use crate::rng::{query_prefix, Stream, WalkRng};
 
 /// Weight of the uniform density in the mixture.
 pub const UNIFORM_FRACTION: f64 = 0.1;
@@ -139,8 +139,9 @@ impl<S: Scalar> ScalarEngine<S> {
         }
         if self.layout.n >= 2 && samples > 0 {
             let mut sum = 0.0;
+            let prefix = query_prefix(seed, query);
             for k in 0..samples {
-                let mut rng = WalkRng::new(seed, query, k as u64, Stream::Pdf);
+                let mut rng = WalkRng::from_prefix(prefix, k as u64, Stream::Pdf);
                 let (a, b) = (S::splat(e_in as f64), S::splat(e_out as f64));
                 sum += pdf_walk(&self.ifaces, wi, wo, a, b, || Self::u3(&mut rng)).lane(0);
             }

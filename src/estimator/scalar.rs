@@ -32,7 +32,7 @@ use super::{Albedo, Estimate, Sample, Settings};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::medium;
-use crate::rng::{Stream, WalkRng};
+use crate::rng::{query_prefix, Stream, WalkRng};
 use crate::stack::LayerStack;
 
 /// A one-lane number: `f32` or `f64`.
@@ -330,8 +330,9 @@ impl<S: Scalar> ScalarEngine<S> {
     pub fn albedo(&self, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Albedo {
         let mut r = BlockReducer::new();
         let mut t = BlockReducer::new();
+        let prefix = query_prefix(seed, query);
         for k in 0..n {
-            let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
+            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
             let (mut xr, mut xt) = ([0.0; 3], [0.0; 3]);
             if let Some(s) = self.sample(wi, &mut rng) {
                 let w = s.weight.map(|x| x as f64);
@@ -448,9 +449,10 @@ impl<S: Scalar> ScalarEngine<S> {
         let mut chain = Vec::with_capacity(8);
         // A fixed chain is the same for every walk: the first walk's serves all.
         let fixed = events::chain_is_fixed(&self.stack, &self.layout, e_out);
+        let prefix = query_prefix(seed, query);
         for k in 0..n {
             if k == 0 || !fixed {
-                let mut rng_a = WalkRng::new(seed, query, k, Stream::Adjoint);
+                let mut rng_a = WalkRng::from_prefix(prefix, k, Stream::Adjoint);
                 self.adjoint_chain(wo, e_out, &mut rng_a, &mut chain);
             }
             let mut c = Connect {
@@ -462,7 +464,7 @@ impl<S: Scalar> ScalarEngine<S> {
                 acc: Rgb::zero(),
                 from_collisions: Rgb::zero(),
             };
-            let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
+            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
             self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
             f(rgb_f64(c.acc + c.from_collisions));
         }
