@@ -52,7 +52,7 @@ def shared(s):
         return "kernels"
     if re.search(r"ScalarEngine|interface_event|layer_event|connect_links|full_crossing|run_deferred|launch_chain", s):
         return "logic"
-    if re.search(r"seed_state|WalkRng::new", s):
+    if re.search(r"seed_state|WalkRng::(new|from_prefix)", s):
         return "seeding"
     return "wavefront only"
 

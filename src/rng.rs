@@ -72,6 +72,7 @@ impl WalkRng {
 
     /// The same stream from a [`query_prefix`], which a loop over one
     /// query's walks computes once.
+    #[cfg_attr(feature = "profiling", inline(never))]
     pub fn from_prefix(prefix: u64, sample: u64, stream: Stream) -> Self {
         let s = seed_state_from(prefix, sample, stream);
         let mut bytes = [0u8; 16];
