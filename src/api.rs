@@ -26,7 +26,7 @@ pub enum QueryError {
         /// The value given.
         value: [f32; 3],
     },
-    /// The vector has zero length (or too small to normalize).
+    /// The vector has zero length.
     ZeroLength {
         /// `"wi"` or `"wo"`.
         argument: &'static str,
@@ -37,6 +37,13 @@ pub enum QueryError {
     NoSamples {
         /// The argument (`"samples"`, `"n"`).
         argument: &'static str,
+    },
+    /// More walks per query than [`MAX_WALKS`].
+    TooManySamples {
+        /// The argument (`"samples"`, `"n"`).
+        argument: &'static str,
+        /// The number given.
+        value: u64,
     },
     /// A batch's per-query argument does not have one entry per query.
     LengthMismatch {
@@ -65,6 +72,10 @@ impl fmt::Display for QueryError {
             QueryError::NoSamples { argument } => {
                 write!(f, "{argument} = 0: at least one walk is needed")
             }
+            QueryError::TooManySamples { argument, value } => write!(
+                f,
+                "{argument} = {value}: at most {MAX_WALKS} walks per query (2^40)"
+            ),
             QueryError::LengthMismatch {
                 argument,
                 len,
@@ -95,11 +106,15 @@ impl Direction {
         if !d.iter().all(|x| x.is_finite()) {
             return Err(QueryError::NonFinite { argument, value });
         }
-        let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if l.is_nan() || l <= 1e-30 || !l.is_finite() {
+        // Scaled by the largest component first, so that no finite nonzero
+        // vector overflows or underflows on the way (1e200 or 1e-200).
+        let m = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        if m == 0.0 {
             return Err(QueryError::ZeroLength { argument, value });
         }
-        Ok(Direction(d.map(|x| x / l)))
+        let s = d.map(|x| x / m);
+        let l = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+        Ok(Direction(s.map(|x| x / l)))
     }
 
     /// As a glam vector (f32).
@@ -181,22 +196,67 @@ impl std::str::FromStr for Engine {
     }
 }
 
-/// A query of a batch that cannot be used: which one, and why.
+/// A batch call that cannot be run: which query, and why.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BatchError {
-    /// Index of the query in the batch.
-    pub index: usize,
-    /// What is wrong with it.
+    /// Index of the query in the batch; `None` when the fault is in an
+    /// argument of the whole call (a walk count, the length of a per-query
+    /// argument).
+    pub index: Option<usize>,
+    /// What is wrong.
     pub error: QueryError,
+}
+
+impl BatchError {
+    /// A fault in an argument of the whole call.
+    fn call(error: QueryError) -> Self {
+        BatchError { index: None, error }
+    }
 }
 
 impl fmt::Display for BatchError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "query {}: {}", self.index, self.error)
+        match self.index {
+            Some(i) => write!(f, "query {i}: {}", self.error),
+            None => write!(f, "{}", self.error),
+        }
     }
 }
 
 impl std::error::Error for BatchError {}
+
+/// The most walks one query may ask for, 2^40: beyond it the walk counts of
+/// a batch could overflow, and a query would run for weeks anyway.
+pub const MAX_WALKS: u64 = 1 << 40;
+
+/// The largest thread pool [`LayeredBsdf::threads`] builds: more threads
+/// than cores never helps, and each one reserves a stack.
+pub const MAX_THREADS: usize = 1024;
+
+/// A thread pool that cannot be built.
+#[derive(Debug)]
+pub enum ThreadsError {
+    /// More threads than [`MAX_THREADS`].
+    TooMany(usize),
+    /// The operating system refused (rayon's error).
+    Pool(rayon::ThreadPoolBuildError),
+}
+
+impl fmt::Display for ThreadsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ThreadsError::TooMany(n) => {
+                write!(
+                    f,
+                    "threads = {n}: at most {MAX_THREADS} (0 means one per core)"
+                )
+            }
+            ThreadsError::Pool(e) => write!(f, "cannot build a thread pool: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for ThreadsError {}
 
 /// A layered BSDF ready to query.
 ///
@@ -267,9 +327,9 @@ impl LayeredBsdf {
         self
     }
 
-    /// Sets the number of short walks per `pdf`.
+    /// Sets the number of short walks per `pdf` (at least 1).
     pub fn pdf_samples(mut self, n: u32) -> Self {
-        self.pdf_samples = n;
+        self.pdf_samples = n.max(1);
         self
     }
 
@@ -289,9 +349,15 @@ impl LayeredBsdf {
     /// default, rayon's global pool; `n = 0` also means one thread per
     /// core). Calls of at most [`SERIAL_WALKS`] walks (and pdf batches of at
     /// most [`PDF_CHUNK`] queries) run on the calling thread whatever the
-    /// pool. Results do not depend on it.
-    pub fn threads(mut self, n: usize) -> Result<Self, rayon::ThreadPoolBuildError> {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
+    /// pool. Results do not depend on it. At most [`MAX_THREADS`].
+    pub fn threads(mut self, n: usize) -> Result<Self, ThreadsError> {
+        if n > MAX_THREADS {
+            return Err(ThreadsError::TooMany(n));
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map_err(ThreadsError::Pool)?;
         self.pool = Some(Arc::new(pool));
         Ok(self)
     }
@@ -348,7 +414,7 @@ impl LayeredBsdf {
         query: u64,
     ) -> Result<Estimate, QueryError> {
         let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
-        at_least_one("samples", samples)?;
+        walk_count("samples", samples)?;
         Ok(match self.engine.resolve(1, samples) {
             Engine::Scalar => self
                 .scalar
@@ -399,7 +465,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Estimate>, BatchError> {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
-        at_least_one("samples", samples).map_err(|error| BatchError { index: 0, error })?;
+        walk_count("samples", samples).map_err(BatchError::call)?;
         Ok(match self.engine.resolve(dirs.len(), samples) {
             Engine::Scalar => dirs
                 .iter()
@@ -484,7 +550,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Albedo>, BatchError> {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
-        at_least_one("n", n).map_err(|error| BatchError { index: 0, error })?;
+        walk_count("n", n).map_err(BatchError::call)?;
         Ok(match self.engine.resolve(dirs.len(), n) {
             Engine::Scalar => dirs
                 .iter()
@@ -498,29 +564,27 @@ impl LayeredBsdf {
     }
 }
 
-/// A walk count of at least 1.
-fn at_least_one(argument: &'static str, n: u64) -> Result<(), QueryError> {
+/// A walk count from 1 to [`MAX_WALKS`].
+fn walk_count(argument: &'static str, n: u64) -> Result<(), QueryError> {
     if n == 0 {
         Err(QueryError::NoSamples { argument })
+    } else if n > MAX_WALKS {
+        Err(QueryError::TooManySamples { argument, value: n })
     } else {
         Ok(())
     }
 }
 
-/// One entry of a per-query argument for every query; the error names the
-/// first query left without one.
+/// One entry of a per-query argument for every query.
 fn one_each(argument: &'static str, len: usize, queries: usize) -> Result<(), BatchError> {
     if len == queries {
         Ok(())
     } else {
-        Err(BatchError {
-            index: len.min(queries),
-            error: QueryError::LengthMismatch {
-                argument,
-                len,
-                queries,
-            },
-        })
+        Err(BatchError::call(QueryError::LengthMismatch {
+            argument,
+            len,
+            queries,
+        }))
     }
 }
 
@@ -530,7 +594,10 @@ fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
         .map(|(index, &w)| {
             Direction::new("wi", w)
                 .map(|d| d.get())
-                .map_err(|error| BatchError { index, error })
+                .map_err(|error| BatchError {
+                    index: Some(index),
+                    error,
+                })
         })
         .collect()
 }
@@ -543,7 +610,10 @@ fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
         .iter()
         .enumerate()
         .map(|(index, &(a, b))| {
-            let e = |error| BatchError { index, error };
+            let e = |error| BatchError {
+                index: Some(index),
+                error,
+            };
             Ok((
                 Direction::new("wi", a).map_err(e)?.get(),
                 Direction::new("wo", b).map_err(e)?.get(),

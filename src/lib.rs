@@ -62,6 +62,8 @@ pub mod rng;
 pub mod stack;
 pub mod stress;
 
-pub use api::{BatchError, Direction, Engine, LayeredBsdf, QueryError};
+pub use api::{
+    BatchError, Direction, Engine, LayeredBsdf, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
+};
 pub use estimator::{Albedo, Estimate, Sample, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, StackError};

@@ -311,7 +311,7 @@ proptest! {
                 let first_bad_wi = wis.iter().position(|a| expected_validity(*a) == Some(false));
                 match (b.eval_batch(&pairs), first_bad) {
                     (Err(e), Some(k)) => {
-                        prop_assert_eq!(e.index, k);
+                        prop_assert_eq!(e.index, Some(k));
                         // Debug text: the error's value may hold a NaN, which is never == itself.
                         let single = b.eval(pairs[k].0, pairs[k].1).map(|_| ());
                         prop_assert_eq!(format!("{:?}", Err::<(), QueryError>(e.error)), format!("{single:?}"));
@@ -324,7 +324,7 @@ proptest! {
                     (r, k) => panic!("{}: eval_batch: first bad {k:?}, got {r:?}", s.name),
                 }
                 match (b.pdf_batch(&pairs), first_bad) {
-                    (Err(e), Some(k)) => prop_assert_eq!(e.index, k),
+                    (Err(e), Some(k)) => prop_assert_eq!(e.index, Some(k)),
                     (Ok(v), None) => {
                         for (k, (a, c)) in pairs.iter().enumerate() {
                             prop_assert_eq!(v[k], b.pdf(*a, *c).unwrap());
@@ -333,7 +333,7 @@ proptest! {
                     (r, k) => panic!("{}: pdf_batch: first bad {k:?}, got {r:?}", s.name),
                 }
                 match (b.sample_batch(&wis, &idx), first_bad_wi) {
-                    (Err(e), Some(k)) => prop_assert_eq!(e.index, k),
+                    (Err(e), Some(k)) => prop_assert_eq!(e.index, Some(k)),
                     (Ok(v), None) => {
                         for (k, a) in wis.iter().enumerate() {
                             prop_assert_eq!(v[k], b.sample(*a, idx[k]).unwrap());
@@ -342,7 +342,7 @@ proptest! {
                     (r, k) => panic!("{}: sample_batch: first bad {k:?}, got {r:?}", s.name),
                 }
                 match (b.albedo_batch(&wis, 8), first_bad_wi) {
-                    (Err(e), Some(k)) => prop_assert_eq!(e.index, k),
+                    (Err(e), Some(k)) => prop_assert_eq!(e.index, Some(k)),
                     (Ok(v), None) => {
                         for (k, a) in wis.iter().enumerate() {
                             prop_assert_eq!(v[k], b.albedo(*a, 8).unwrap());
@@ -460,7 +460,7 @@ fn conductor() -> impl Strategy<Value = InterfaceDesc> {
 
 fn any_medium() -> impl Strategy<Value = Option<MediumDesc>> {
     let phase = prop_oneof![
-        Just(PhaseDesc::Isotropic),
+        Just(PhaseDesc::Isotropic {}),
         field(-1.0, 1.0).prop_map(|g| PhaseDesc::Hg { g }),
         prop::sample::select(vec![0.999, -0.999, 0.999_999, -0.999_999_99, 1.0])
             .prop_map(|g| PhaseDesc::Hg { g }),
@@ -588,8 +588,9 @@ proptest! {
 }
 
 /// Per-query arguments of a keyed batch must have one entry per query, and a
-/// walk count must be at least 1: errors naming the argument on both engines
-/// (never a panic, never a silently shorter answer).
+/// walk count must be from 1 to `MAX_WALKS`: errors naming the argument on
+/// both engines, pointing at no query (never a panic, never a silently
+/// shorter or wrapped-around answer).
 #[test]
 fn keyed_batches_check_their_lengths_and_counts() {
     let stack = strata::materials::builtin("coated_copper").expect("built-in");
@@ -603,10 +604,10 @@ fn keyed_batches_check_their_lengths_and_counts() {
         let e = b
             .eval_batch_keyed(&pairs, 16, &[1])
             .expect_err("one key for two");
-        assert_eq!(e.index, 1, "{engine:?}");
-        assert!(
-            e.to_string().contains("keys has 1 entries for 2 queries"),
-            "{e}"
+        assert_eq!(e.index, None, "{engine:?}");
+        assert_eq!(
+            e.to_string(),
+            "keys has 1 entries for 2 queries: give one per query"
         );
         let e = b
             .sample_batch_keyed(&wis, &[1, 2], &[0])
@@ -615,11 +616,41 @@ fn keyed_batches_check_their_lengths_and_counts() {
         let e = b
             .albedo_batch_keyed(&wis, 16, &[1, 2, 3])
             .expect_err("long keys");
-        assert_eq!(e.index, 2, "{engine:?}");
+        assert_eq!(e.index, None, "{engine:?}");
         assert!(matches!(
             b.eval_with(Vec3::Z, Vec3::Z, 0, 0),
             Err(QueryError::NoSamples { .. })
         ));
+        // Too many walks: the wavefront's unit count once wrapped around to
+        // zero here (256 queries × u64::MAX walks) and answered from no walk.
+        let many = vec![pairs[0]; 256];
+        let keys: Vec<u64> = (0..256).collect();
+        for n in [strata::MAX_WALKS + 1, u64::MAX] {
+            let e = b.eval_batch_keyed(&many, n, &keys).expect_err("too many");
+            assert_eq!(e.index, None);
+            assert_eq!(
+                e.error,
+                QueryError::TooManySamples {
+                    argument: "samples",
+                    value: n
+                }
+            );
+            assert!(e.to_string().contains(&format!("samples = {n}")), "{e}");
+            let e = b
+                .albedo_batch_keyed(&wis, n, &[1, 2])
+                .expect_err("too many");
+            assert!(e.to_string().starts_with(&format!("n = {n}")), "{e}");
+            assert!(matches!(
+                b.eval_with(Vec3::Z, Vec3::Z, n, 0),
+                Err(QueryError::TooManySamples { .. })
+            ));
+        }
+        // An empty batch with a bad count names the count, not a query.
+        let e = b.eval_batch_keyed(&[], 0, &[]).expect_err("no walks");
+        assert_eq!(
+            (e.index, e.to_string()),
+            (None, "samples = 0: at least one walk is needed".into())
+        );
         assert!(matches!(
             b.albedo(Vec3::Z, 0),
             Err(QueryError::NoSamples { .. })
@@ -758,5 +789,61 @@ fn batches_past_the_calling_thread_limit_answer_as_smaller_ones() {
         let mut parts = b.pdf_batch(&pairs[..m - 1]).expect("valid");
         parts.extend(b.pdf_batch(&pairs[m - 1..m]).expect("valid"));
         assert_eq!(big, parts, "pdf, {threads} threads");
+    }
+}
+
+/// A thread pool larger than `MAX_THREADS` is an error naming the count
+/// (100 000 threads once took minutes to spawn); up to it, a pool is built.
+#[test]
+fn thread_pools_are_bounded() {
+    let stack = strata::materials::builtin("coated_copper").expect("built-in");
+    let e = LayeredBsdf::new(stack.clone())
+        .threads(strata::MAX_THREADS + 1)
+        .expect_err("too many");
+    assert_eq!(
+        e.to_string(),
+        "threads = 1025: at most 1024 (0 means one per core)"
+    );
+    assert!(LayeredBsdf::new(stack.clone()).threads(0).is_ok());
+    assert!(LayeredBsdf::new(stack).threads(2).is_ok());
+}
+
+/// Any finite nonzero vector is a direction, however large or small its
+/// components (1e200 squared overflowed f64 and was called zero length).
+#[test]
+fn directions_normalize_without_overflow() {
+    use strata::Direction;
+    for (v, want) in [
+        ([0.0, 0.0, 1e200], [0.0, 0.0, 1.0]),
+        ([1e-200, 0.0, 1e-200], [0.5f64.sqrt(), 0.0, 0.5f64.sqrt()]),
+        ([3e307, 4e307, 0.0], [0.6, 0.8, 0.0]),
+        ([-5e-324, 0.0, 0.0], [-1.0, 0.0, 0.0]),
+    ] {
+        let d = Direction::from_f64("wi", v).expect("a direction").get();
+        for c in 0..3 {
+            assert!((d[c] - want[c]).abs() < 1e-15, "{v:?} -> {d:?}");
+        }
+    }
+    assert!(matches!(
+        Direction::from_f64("wo", [0.0, -0.0, 0.0]),
+        Err(QueryError::ZeroLength { argument: "wo", .. })
+    ));
+    assert!(matches!(
+        Direction::from_f64("wi", [1e308, f64::INFINITY, 0.0]),
+        Err(QueryError::NonFinite { argument: "wi", .. })
+    ));
+}
+
+/// `pdf_samples(0)` means one walk, as `samples(0)` does: a pdf is never
+/// silently the top interface's term alone.
+#[test]
+fn pdf_samples_are_at_least_one() {
+    let stack = strata::materials::builtin("coated_copper").expect("built-in");
+    let (wi, wo) = (Vec3::new(0.3, 0.0, 0.95), Vec3::new(-0.2, 0.1, 0.97));
+    for engine in [Engine::Scalar, Engine::Wavefront] {
+        let b = LayeredBsdf::new(stack.clone()).engine(engine);
+        let zero = b.clone().pdf_samples(0).pdf(wi, wo).expect("pdf");
+        let one = b.pdf_samples(1).pdf(wi, wo).expect("pdf");
+        assert_eq!(zero, one, "{engine:?}");
     }
 }

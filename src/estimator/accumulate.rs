@@ -15,6 +15,14 @@ impl MeanVar {
     pub fn new() -> Self {
         Self::default()
     }
+    /// `n` samples of zero: what pushing them one by one gives, bit for bit
+    /// (every update adds an exact zero), in constant time.
+    pub fn zeros(n: u64) -> Self {
+        MeanVar {
+            n,
+            ..Self::default()
+        }
+    }
     /// Adds one sample.
     #[inline]
     pub fn push(&mut self, x: [f64; 3]) {
@@ -115,5 +123,21 @@ impl BlockReducer {
     pub fn finish(mut self) -> MeanVar {
         self.total.merge(&self.block);
         self.total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zeros_is_pushing_zeros() {
+        for n in [0, 1, 2, 255, 256, 257, 1000] {
+            let mut r = BlockReducer::new();
+            (0..n).for_each(|_| r.push([0.0; 3]));
+            let pushed = r.finish();
+            assert_eq!(pushed, MeanVar::zeros(n), "n = {n}");
+            assert_eq!(pushed.estimate(), MeanVar::zeros(n).estimate());
+        }
     }
 }

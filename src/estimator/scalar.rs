@@ -23,7 +23,7 @@
 //! (`events::chain_is_fixed`) uses none of its draws, so it is computed once
 //! per query, from the stream of the query's first walk.
 
-use super::accumulate::BlockReducer;
+use super::accumulate::{BlockReducer, MeanVar};
 use super::events::{self, Connection};
 use super::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
@@ -407,6 +407,10 @@ impl<S: Scalar> ScalarEngine<S> {
     /// The unidirectional estimator (method.md §4): mean of `n` walks plus the
     /// exact first-order term, with its standard error.
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
+        if super::orient(&self.stack, wi, Some(wo)).is_none() {
+            // No walk can contribute: the reduction of n zeros, in constant time.
+            return MeanVar::zeros(n).estimate();
+        }
         let mut red = BlockReducer::new();
         let direct = self.eval_walks(wi, wo, n, seed, query, |x| red.push(x));
         red.finish().estimate_plus(direct)

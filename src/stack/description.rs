@@ -4,10 +4,12 @@
 //! single number (grey) or three; roughness accepts one number (isotropic) or
 //! `[alpha_x, alpha_y]`.
 
+use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// A value that may be given once for all channels or per RGB channel.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum RgbParam {
     /// The same value in every channel.
@@ -26,8 +28,24 @@ impl RgbParam {
     }
 }
 
+impl<'de> Deserialize<'de> for RgbParam {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        rgb_named(d, "the value")
+    }
+}
+
+/// An [`RgbParam`] whose errors name `field`.
+fn rgb_named<'de, D: Deserializer<'de>>(d: D, field: &'static str) -> Result<RgbParam, D::Error> {
+    Ok(
+        match d.deserialize_any(OneOrN::<3>(field, "a number or [r, g, b]"))? {
+            Ok(x) => RgbParam::Grey(x),
+            Err(a) => RgbParam::Rgb(a),
+        },
+    )
+}
+
 /// GGX alpha: one value (isotropic) or `[alpha_x, alpha_y]`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Roughness {
     /// Isotropic alpha.
@@ -39,6 +57,52 @@ pub enum Roughness {
 impl Default for Roughness {
     fn default() -> Self {
         Roughness::Isotropic(0.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for Roughness {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let shape = "a number or [alpha_x, alpha_y]";
+        Ok(match d.deserialize_any(OneOrN::<2>("roughness", shape))? {
+            Ok(x) => Roughness::Isotropic(x),
+            Err(a) => Roughness::Anisotropic(a),
+        })
+    }
+}
+
+/// Reads one number (`Ok`) or exactly `N` (`Err`), and says which field
+/// wanted what when the value is neither: a derived untagged enum would only
+/// say that "data did not match any variant" (and an interface's fields are
+/// reported at the interface's table, not at the value, so the message is
+/// all the reader has).
+struct OneOrN<const N: usize>(&'static str, &'static str);
+
+impl<'de, const N: usize> Visitor<'de> for OneOrN<N> {
+    type Value = Result<f64, [f64; N]>;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "`{}` to be {}", self.0, self.1)
+    }
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<Self::Value, E> {
+        Ok(Ok(v))
+    }
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<Self::Value, E> {
+        Ok(Ok(v as f64))
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Self::Value, E> {
+        Ok(Ok(v as f64))
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+        let mut a = [0.0; N];
+        for (i, x) in a.iter_mut().enumerate() {
+            *x = seq
+                .next_element()?
+                .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+        }
+        if seq.next_element::<IgnoredAny>()?.is_some() {
+            return Err(de::Error::invalid_length(N + 1, &self));
+        }
+        Ok(Err(a))
     }
 }
 
@@ -98,10 +162,10 @@ pub enum InterfaceDesc {
         #[serde(default)]
         preset: Option<String>,
         /// Real part of the IOR per channel.
-        #[serde(default)]
+        #[serde(default, deserialize_with = "field::eta")]
         eta: Option<RgbParam>,
         /// Imaginary part of the IOR per channel.
-        #[serde(default)]
+        #[serde(default, deserialize_with = "field::k")]
         k: Option<RgbParam>,
         /// GGX alpha; 0 is smooth.
         #[serde(default)]
@@ -116,22 +180,29 @@ pub enum InterfaceDesc {
     /// An opaque Lambertian reflector.
     Diffuse {
         /// Reflectance per channel.
+        #[serde(deserialize_with = "field::albedo")]
         albedo: RgbParam,
     },
 }
 
 /// Phase function of a medium.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum PhaseDesc {
-    /// Isotropic scattering.
-    #[default]
-    Isotropic,
+    /// Isotropic scattering. (A struct variant, so that a stray field such
+    /// as `g` is an error rather than silently ignored.)
+    Isotropic {},
     /// Henyey–Greenstein with asymmetry `g` in (-1, 1).
     Hg {
         /// Mean cosine of the scattering angle.
         g: f64,
     },
+}
+
+impl Default for PhaseDesc {
+    fn default() -> Self {
+        PhaseDesc::Isotropic {}
+    }
 }
 
 /// A homogeneous medium below an interface.
@@ -141,9 +212,10 @@ pub struct MediumDesc {
     /// Geometric thickness (any unit; `sigma_t` is per that unit).
     pub thickness: f64,
     /// Extinction coefficient per channel.
+    #[serde(deserialize_with = "field::sigma_t")]
     pub sigma_t: RgbParam,
     /// Single-scattering albedo per channel; 0 is a pure absorber.
-    #[serde(default = "white")]
+    #[serde(default = "white", deserialize_with = "field::albedo")]
     pub albedo: RgbParam,
     /// Phase function.
     #[serde(default)]
@@ -152,6 +224,44 @@ pub struct MediumDesc {
 
 fn white() -> RgbParam {
     RgbParam::Grey(1.0)
+}
+
+/// RGB fields whose errors name them.
+mod field {
+    use super::{rgb_named, RgbParam};
+    use serde::Deserializer;
+
+    pub fn albedo<'de, D: Deserializer<'de>>(d: D) -> Result<RgbParam, D::Error> {
+        rgb_named(d, "albedo")
+    }
+    pub fn sigma_t<'de, D: Deserializer<'de>>(d: D) -> Result<RgbParam, D::Error> {
+        rgb_named(d, "sigma_t")
+    }
+    pub fn eta<'de, D: Deserializer<'de>>(d: D) -> Result<Option<RgbParam>, D::Error> {
+        d.deserialize_option(Optional("eta"))
+    }
+    pub fn k<'de, D: Deserializer<'de>>(d: D) -> Result<Option<RgbParam>, D::Error> {
+        d.deserialize_option(Optional("k"))
+    }
+
+    /// An optional field (JSON writes an absent one as `null`).
+    struct Optional(&'static str);
+
+    impl<'de> serde::de::Visitor<'de> for Optional {
+        type Value = Option<RgbParam>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "`{}` to be a number or [r, g, b]", self.0)
+        }
+        fn visit_none<E: serde::de::Error>(self) -> Result<Self::Value, E> {
+            Ok(None)
+        }
+        fn visit_unit<E: serde::de::Error>(self) -> Result<Self::Value, E> {
+            Ok(None)
+        }
+        fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+            rgb_named(d, self.0).map(Some)
+        }
+    }
 }
 
 /// One entry of the stack: an interface and the medium below it, if any.
@@ -185,4 +295,86 @@ pub struct MaterialDesc {
 
 fn one() -> f64 {
     1.0
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::LayerStack;
+
+    fn error(toml: &str) -> String {
+        LayerStack::from_toml_str(toml)
+            .expect_err("invalid material")
+            .to_string()
+    }
+
+    /// A field the isotropic phase does not have is an error, not silently
+    /// dropped (`g` with the wrong kind once gave isotropic scattering).
+    #[test]
+    fn isotropic_phase_rejects_fields() {
+        let m = |phase: &str| {
+            format!(
+                "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = 1.5 }}\n\
+                 medium = {{ thickness = 1, sigma_t = 1, phase = {phase} }}\n\
+                 [[layers]]\ninterface = {{ kind = \"diffuse\", albedo = 0.5 }}\n"
+            )
+        };
+        let e = error(&m(r#"{ kind = "isotropic", g = 0.9 }"#));
+        assert!(e.contains("unknown field `g`"), "{e}");
+        let e = error(&m(r#"{ kind = "isotropic", bogus = "x" }"#));
+        assert!(e.contains("unknown field `bogus`"), "{e}");
+        let json = r#"{"layers":[{"interface":{"kind":"dielectric","ior":1.5},
+            "medium":{"thickness":1,"sigma_t":1,"phase":{"kind":"isotropic","g":0.5}}},
+            {"interface":{"kind":"diffuse","albedo":0.5}}]}"#;
+        let e = LayerStack::from_json_str(json).expect_err("g on isotropic");
+        assert!(e.to_string().contains("unknown field `g`"), "{e}");
+        assert!(LayerStack::from_toml_str(&m(r#"{ kind = "isotropic" }"#)).is_ok());
+        assert!(LayerStack::from_toml_str(&m(r#"{ kind = "hg", g = 0.9 }"#)).is_ok());
+    }
+
+    /// A per-channel or roughness value of the wrong shape names its field
+    /// and the shapes it takes (a derived untagged enum named neither).
+    #[test]
+    fn wrong_shapes_name_the_field() {
+        let cases = [
+            (
+                "interface = { kind = \"diffuse\", albedo = [0.5, 0.5] }",
+                "invalid length 2, expected `albedo` to be a number or [r, g, b]",
+            ),
+            (
+                "interface = { kind = \"diffuse\", albedo = \"x\" }",
+                "invalid type: string \"x\", expected `albedo` to be a number or [r, g, b]",
+            ),
+            (
+                "interface = { kind = \"conductor\", eta = [1, 2, 3, 4], k = 1 }",
+                "invalid length 4, expected `eta` to be a number or [r, g, b]",
+            ),
+            (
+                "interface = { kind = \"conductor\", eta = 1, k = true }",
+                "invalid type: boolean `true`, expected `k` to be a number or [r, g, b]",
+            ),
+            (
+                "interface = { kind = \"dielectric\", ior = 1.5, roughness = [0.1, 0.2, 0.3] }",
+                "invalid length 3, expected `roughness` to be a number or [alpha_x, alpha_y]",
+            ),
+            (
+                "interface = { kind = \"dielectric\", ior = 1.5 }\n\
+                 medium = { thickness = 1, sigma_t = \"1\" }",
+                "invalid type: string \"1\", expected `sigma_t` to be a number or [r, g, b]",
+            ),
+            (
+                "interface = { kind = \"dielectric\", ior = 1.5 }\n\
+                 medium = { thickness = 1, sigma_t = 1, albedo = [] }",
+                "invalid length 0, expected `albedo` to be a number or [r, g, b]",
+            ),
+        ];
+        for (layer, want) in cases {
+            let e = error(&format!("[[layers]]\n{layer}\n"));
+            assert!(e.contains(want), "{layer}: {e}");
+        }
+        // The right shapes still parse, integers included.
+        let ok = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = [0.1, 0.2] }\n\
+                  medium = { thickness = 1, sigma_t = [1, 2, 3], albedo = 1 }\n\
+                  [[layers]]\ninterface = { kind = \"conductor\", eta = [0.2, 0.9, 1.1], k = 3 }\n";
+        LayerStack::from_toml_str(ok).expect("valid");
+    }
 }

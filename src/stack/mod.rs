@@ -433,7 +433,7 @@ impl LayerStack {
             ));
         }
         let g = match m.phase {
-            PhaseDesc::Isotropic => 0.0,
+            PhaseDesc::Isotropic {} => 0.0,
             PhaseDesc::Hg { g } => {
                 let g = finite(li, "medium.phase.g", g)?;
                 if g.abs() >= 1.0 {

@@ -114,7 +114,12 @@ fn answer(
         return Ok(());
     }
     // Directions were validated when parsed, so the batch cannot fail on them.
-    let fail = |e: strata::BatchError| Err(format!("stdin line {}: {}", keys[e.index] + 1, e.error));
+    let fail = |e: strata::BatchError| {
+        Err(match e.index {
+            Some(i) => format!("stdin line {}: {}", keys[i] + 1, e.error),
+            None => format!("--{}", e.error),
+        })
+    };
     let f = bsdf
         .eval_batch_keyed(pairs, args.samples, keys)
         .map_err(fail)?;

@@ -221,9 +221,7 @@ pub const PDF_CHUNK: usize = 64;
 
 /// The reduction of `samples` walks that all gave zero.
 fn zero_sum(samples: u64) -> MeanVar {
-    let mut r = BlockReducer::new();
-    (0..samples).for_each(|_| r.push([0.0; 3]));
-    r.finish()
+    MeanVar::zeros(samples)
 }
 
 /// The layered BSDF on SIMD lanes, prepared for one stack.
@@ -493,7 +491,10 @@ impl<W: Wide> Wavefront<W> {
         let count = if samples == 0 {
             0
         } else {
-            valid.len() * per_query
+            // Saturates rather than wraps: an absurd count runs (for ever)
+            // instead of silently running nothing. The API caps walks per
+            // query at `MAX_WALKS`, far below this.
+            valid.len().saturating_mul(per_query)
         };
         (count, move |u: usize| {
             let first = (u % per_query) as u64 * BLOCK;
