@@ -847,3 +847,22 @@ fn pdf_samples_are_at_least_one() {
         assert_eq!(zero, one, "{engine:?}");
     }
 }
+
+/// A query no light can answer (from below a one-sided opaque stack) is
+/// zeros with the requested walk count, on both engines, without running
+/// the walks: 2^40 of them answer at once (they took O(n) before).
+#[test]
+fn trivially_zero_queries_cost_nothing() {
+    let stack = strata::materials::builtin("coated_copper").expect("built-in");
+    let (below, up) = (Vec3::new(0.1, 0.0, -0.9), Vec3::new(0.0, 0.2, 0.9));
+    let n = strata::MAX_WALKS;
+    for engine in [Engine::Scalar, Engine::Wavefront] {
+        let b = LayeredBsdf::new(stack.clone()).engine(engine);
+        let e = b.eval_with(below, up, n, 7).expect("valid");
+        assert_eq!((e.value, e.stderr, e.samples), ([0.0; 3], [0.0; 3], n));
+        let a = b.albedo(below, n).expect("valid");
+        for x in [a.reflected, a.transmitted] {
+            assert_eq!((x.value, x.stderr, x.samples), ([0.0; 3], [0.0; 3], n));
+        }
+    }
+}

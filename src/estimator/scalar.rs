@@ -328,6 +328,14 @@ impl<S: Scalar> ScalarEngine<S> {
     /// Directional albedo from `n` walks of [`ScalarEngine::sample`]:
     /// reflected and transmitted fractions with standard errors.
     pub fn albedo(&self, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Albedo {
+        if super::orient(&self.stack, wi, None).is_none() {
+            // No light enters: every walk gives zero (in constant time).
+            let zero = MeanVar::zeros(n).estimate();
+            return Albedo {
+                reflected: zero,
+                transmitted: zero,
+            };
+        }
         let mut r = BlockReducer::new();
         let mut t = BlockReducer::new();
         let prefix = query_prefix(seed, query);
