@@ -796,7 +796,8 @@ fn demo_with_an_impossible_output_path_fails_and_leaves_nothing() {
     assert_eq!(std::fs::read(&blocker).unwrap(), b"a file, not a directory");
 
     // A figure that cannot be written (a directory stands in its place) fails
-    // after rendering, with no temporary or partial file left behind.
+    // before the work (no table printed), with no temporary or partial file
+    // left behind.
     let out_dir = dir.join("figures");
     std::fs::create_dir_all(out_dir.join("clear_coat_lambertian.png")).unwrap();
     let out = run(
@@ -804,6 +805,7 @@ fn demo_with_an_impossible_output_path_fails_and_leaves_nothing() {
         "",
     );
     assert_fails_with(&out, &["--out", "clear_coat_lambertian.png"]);
+    assert!(out.stdout.is_empty(), "{}", text(&out.stdout));
     let left: Vec<String> = std::fs::read_dir(&out_dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())

@@ -11,7 +11,9 @@
 //! by the wavefront engine and used for the scalar rows too; the general
 //! (unspecialized) walk counts its own, since it runs more stages.
 
+use crate::common::{load_material, print_out};
 use rayon::ThreadPoolBuilder;
+use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use strata::estimator::scalar::ScalarEngine;
@@ -25,19 +27,19 @@ pub struct Args {
     /// Print one JSON object per stack × engine × threads instead of a table.
     #[arg(long)]
     json: bool,
-    /// Queries per batch.
-    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Queries per batch (at most 1000000).
+    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u64).range(1..=MAX_QUERIES))]
     queries: u64,
     /// Walks per query.
     #[arg(long, default_value_t = 512, value_parser = crate::common::positive)]
     samples: u64,
     /// Minimum time each engine runs, in turns with the others (its fastest
-    /// batch counts).
+    /// batch counts). At most a day.
     #[arg(long, default_value_t = 1.0)]
     min_seconds: f64,
-    /// Threads of the "all threads" rows (default: every core).
-    #[arg(long)]
-    threads: Option<usize>,
+    /// Threads of the "all threads" rows (default: every core; at most 1024).
+    #[arg(long, value_parser = crate::common::threads)]
+    threads: Option<u64>,
     /// Benchmark this material instead of the built-in representative stacks.
     #[arg(long)]
     material: Option<PathBuf>,
@@ -45,6 +47,10 @@ pub struct Args {
     #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16"])]
     only: Option<String>,
 }
+
+/// The largest `--queries`: the batch and the engines' per-query state stay
+/// small (tens of megabytes).
+const MAX_QUERIES: u64 = 1_000_000;
 
 /// One row of the table.
 struct Row {
@@ -201,19 +207,13 @@ fn bench_stack(
 }
 
 pub fn run(args: Args) -> Result<(), String> {
-    if !(args.min_seconds.is_finite() && args.min_seconds >= 0.0) {
-        return Err(format!("--min-seconds {} must be >= 0", args.min_seconds));
-    }
+    crate::common::check_seconds("--min-seconds", args.min_seconds, true)?;
     let all = match args.threads {
-        Some(0) => return Err("--threads 0: need at least one thread".into()),
-        Some(n) => n,
+        Some(n) => n as usize,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
     let stacks: Vec<(String, LayerStack)> = match &args.material {
-        Some(p) => vec![(
-            p.display().to_string(),
-            LayerStack::from_path(p).map_err(|e| e.to_string())?,
-        )],
+        Some(p) => vec![(p.display().to_string(), load_material(p)?)],
         None => strata::materials::REPRESENTATIVE
             .iter()
             .map(|&name| {
@@ -225,33 +225,35 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut rows = Vec::new();
     for (name, st) in &stacks {
         if !args.json {
-            eprintln!("benchmarking {name} ...");
+            crate::common::note(&format!("benchmarking {name} ..."));
         }
         rows.extend(bench_stack(name, st, &args, all)?);
     }
+    let mut text = String::new();
     if args.json {
         for r in &rows {
-            println!(
-                "{}",
-                serde_json::json!({
-                    "stack": r.stack, "engine": r.engine, "threads": r.threads,
-                    "queries_per_s": r.queries_per_s, "segments_per_s": r.segments_per_s,
-                    "occupancy": r.occupancy,
-                })
-            );
+            let line = serde_json::json!({
+                "stack": r.stack, "engine": r.engine, "threads": r.threads,
+                "queries_per_s": r.queries_per_s, "segments_per_s": r.segments_per_s,
+                "occupancy": r.occupancy,
+            });
+            let _ = writeln!(text, "{line}");
         }
-        return Ok(());
+    } else {
+        table(&mut text, &rows, &args);
     }
-    print_table(&rows, &args);
-    Ok(())
+    print_out(&text)
 }
 
-fn print_table(rows: &[Row], args: &Args) {
-    println!(
+/// The table of `rows`, appended to `o`.
+fn table(o: &mut String, rows: &[Row], args: &Args) {
+    let _ = writeln!(
+        o,
         "eval batches: {} queries x {} walks; engines in turns, fastest run of each (>= {} s each)\n",
         args.queries, args.samples, args.min_seconds
     );
-    println!(
+    let _ = writeln!(
+        o,
         "{:<24} {:<18} {:>7} {:>11} {:>12} {:>9} {:>9}",
         "stack", "engine", "threads", "queries/s", "Msegments/s", "occupancy", "x scalar"
     );
@@ -268,7 +270,8 @@ fn print_table(rows: &[Row], args: &Args) {
             scalar = Some(r.queries_per_s);
         }
         let dash = |x: Option<f64>, f: fn(f64) -> String| x.map_or("-".into(), f);
-        println!(
+        let _ = writeln!(
+            o,
             "{:<24} {:<18} {:>7} {:>11.1} {:>12} {:>9} {:>9}",
             name,
             r.engine,

@@ -1,10 +1,17 @@
 //! `strata converge`: error against run time for every estimator, with a
 //! reference, as CSV, markdown and a log-log plot (see `strata::converge`).
+//!
+//! `--out` is checked before any work (created if missing, a probe file
+//! written and removed, no directory in place of an output). The outputs of
+//! every stack are written to temporary files as each stack is done and
+//! renamed together at the end: a failed or interrupted run leaves none of
+//! them (only the cached references of the stacks it finished).
 
-use crate::output::write_atomic;
+use crate::common::{check_seconds, note, print_out};
+use crate::output::{check_target, commit, prepare_dir, stage, write_atomic};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plotters::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Instant;
 use strata::converge::{
@@ -19,11 +26,12 @@ pub struct Args {
     #[arg(long, required_unless_present = "suite")]
     material: Option<PathBuf>,
     /// Queries as JSON lines: {"wi":[..],"wo":[..]} for f, {"wi":[..]} for the
-    /// albedo. Default: a built-in set in and off the plane of incidence.
+    /// albedo. Default: a built-in set in and off the plane of incidence. An
+    /// opaque stack takes no direction from below (z < 0).
     #[arg(long)]
     queries: Option<PathBuf>,
     /// Seconds of doubling budgets per estimator (one thread) [default: 2,
-    /// or 0.5 per stack with --suite docs].
+    /// or 0.5 per stack with --suite docs]; at most a day.
     #[arg(long)]
     budget_seconds: Option<f64>,
     /// Output directory (default: out/converge, or docs/results with --suite docs).
@@ -43,7 +51,8 @@ pub struct Args {
     /// Neither read nor write cached references.
     #[arg(long)]
     no_cache: bool,
-    /// Upper limit on the wall time of a long-run reference, seconds.
+    /// Upper limit on the wall time of a long-run reference, seconds (at
+    /// most a day).
     #[arg(long, default_value_t = 300.0)]
     reference_seconds: f64,
     /// Seed of the measured runs.
@@ -159,17 +168,8 @@ pub fn run(args: Args) -> Result<(), String> {
     let budget = args
         .budget_seconds
         .unwrap_or(if args.suite.is_some() { 0.5 } else { 2.0 });
-    if !(budget > 0.0 && budget.is_finite()) {
-        return Err(format!(
-            "--budget-seconds {budget} must be a positive number"
-        ));
-    }
-    if args.reference_seconds.is_nan() || args.reference_seconds <= 0.0 {
-        return Err(format!(
-            "--reference-seconds {} must be a positive number",
-            args.reference_seconds
-        ));
-    }
+    check_seconds("--budget-seconds", budget, false)?;
+    check_seconds("--reference-seconds", args.reference_seconds, false)?;
     let mut cfg = Config::default();
     if let Some(list) = &args.estimators {
         cfg.estimators = list
@@ -208,18 +208,42 @@ pub fn run(args: Args) -> Result<(), String> {
         }
     };
     let queries = match &args.queries {
-        Some(p) => Some(
-            QuerySet::parse_json_lines(
-                &std::fs::read_to_string(p)
-                    .map_err(|e| format!("cannot read {}: {e}", p.display()))?,
-            )
-            .map_err(|e| format!("{}: {e}", p.display()))?,
-        ),
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .map_err(|e| format!("--queries {}: cannot read: {e}", p.display()))?;
+            let qs = QuerySet::parse_json_lines(&text)
+                .map_err(|e| format!("--queries {}: {e}", p.display()))?;
+            for (name, _, st) in &jobs {
+                check_queries_see(&text, name, st)
+                    .map_err(|e| format!("--queries {}: {e}", p.display()))?;
+            }
+            Some(qs)
+        }
         None => None,
     };
 
+    // Every output location is checked before the work.
+    prepare_dir("--out", &out)?;
+    let mut targets: Vec<PathBuf> = Vec::new();
+    for (name, _, _) in &jobs {
+        for suffix in [".csv", "-reference.csv", ".md", ".png"] {
+            targets.push(out.join(format!("{name}{suffix}")));
+        }
+    }
+    if args.suite.is_some() {
+        targets.push(out.join("summary.md"));
+    }
+    for t in &targets {
+        check_target(t).map_err(|e| format!("--out {}: {e}", out.display()))?;
+    }
+    if !args.no_cache {
+        prepare_dir("--cache", &args.cache)?;
+    }
+
+    let out_err = |e: String| format!("--out {}: {e}", out.display());
     let bars = Bars::new();
     let mut summaries = Vec::new();
+    let mut staged = Vec::new();
     for (name, what, st) in &jobs {
         let qs = queries.clone().unwrap_or_else(|| QuerySet::default_for(st));
         let bins = cfg.bin_half_angles(st);
@@ -240,25 +264,31 @@ pub fn run(args: Args) -> Result<(), String> {
                 .ok()
                 .and_then(|t| serde_json::from_str(&t).ok())
         };
-        eprintln!("{name}: {what}");
+        note(&format!("{name}: {what}"));
         let t0 = Instant::now();
         let report = converge::converge(name, st, &qs, &cfg, cached, &bars);
         if !args.no_cache && report.reference.kind != converge::ReferenceKind::Analytic {
             let text = serde_json::to_string(&report.reference)
                 .map_err(|e| format!("cannot encode the reference: {e}"))?;
-            write_atomic(&cache_path, text.as_bytes())?;
+            write_atomic(&cache_path, text.as_bytes())
+                .map_err(|e| format!("--cache {}: {e}", args.cache.display()))?;
         }
-        write_atomic(&out.join(format!("{name}.csv")), report.csv().as_bytes())?;
-        write_atomic(
-            &out.join(format!("{name}-reference.csv")),
-            report.targets_csv().as_bytes(),
-        )?;
         let md = format!("### {name}\n\n{what}.\n\n{}", report.markdown());
-        write_atomic(&out.join(format!("{name}.md")), md.as_bytes())?;
-        plot(&report, &out.join(format!("{name}.png")))?;
-        let s = report.summary();
-        print!("{s}");
-        println!("  ({:.1} s)", t0.elapsed().as_secs_f64());
+        let png = plot(&report).map_err(|e| format!("plot of {name}: {e}"))?;
+        for (suffix, bytes) in [
+            (".csv", report.csv().into_bytes()),
+            ("-reference.csv", report.targets_csv().into_bytes()),
+            (".md", md.into_bytes()),
+            (".png", png),
+        ] {
+            staged.push(stage(&out.join(format!("{name}{suffix}")), &bytes).map_err(out_err)?);
+        }
+        // A closed pipe only stops the printing: the files are still written.
+        print_out(&format!(
+            "{}  ({:.1} s)\n",
+            report.summary(),
+            t0.elapsed().as_secs_f64()
+        ))?;
         summaries.push(summary_rows(&report));
     }
     if args.suite.is_some() {
@@ -275,9 +305,45 @@ pub fn run(args: Args) -> Result<(), String> {
         for rows in &summaries {
             md.push_str(rows);
         }
-        write_atomic(&out.join("summary.md"), md.as_bytes())?;
+        staged.push(stage(&out.join("summary.md"), md.as_bytes()).map_err(out_err)?);
     }
-    eprintln!("wrote {}", out.display());
+    commit(staged).map_err(out_err)?;
+    note(&format!("wrote {}", out.display()));
+    Ok(())
+}
+
+/// Fails, naming the line, on a query of `text` (the query file, already
+/// parsed) that the stack `name` cannot answer: light from below, or a view
+/// from below, of an opaque stack (it sees nothing there; the reference would
+/// have no walks and its error would be infinite).
+fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), String> {
+    if st.transmissive() {
+        return Ok(());
+    }
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let q = QuerySet::parse_json_lines(t).map_err(|e| format!("line {}: {e}", i + 1))?;
+        let dirs = q
+            .f
+            .iter()
+            .flat_map(|f| [("wi", f.wi), ("wo", f.wo)])
+            .chain(q.albedo.iter().map(|&wi| ("wi", wi)));
+        for (what, d) in dirs {
+            if d[2] < 0.0 {
+                return Err(format!(
+                    "line {}: {what} = [{}, {}, {}] points below the surface, but stack {name} is \
+                     opaque (it neither takes nor sends light below); give directions with z > 0",
+                    i + 1,
+                    d[0],
+                    d[1],
+                    d[2]
+                ));
+            }
+        }
+    }
     Ok(())
 }
 
@@ -333,26 +399,20 @@ const COLOURS: [RGBColor; 6] = [
 
 /// The log-log plot: RMS relative error against time, f solid, albedo
 /// dashed; the reference's error bar (grey), binning floors (dotted), and a
-/// 1/sqrt(time) guide. Rendered to a temporary PNG beside `path`, then
-/// written atomically.
-fn plot(report: &Report, path: &Path) -> Result<(), String> {
+/// 1/sqrt(time) guide. Rendered in memory, returned as PNG.
+fn plot(report: &Report) -> Result<Vec<u8>, String> {
     plotters::style::register_font("sans-serif", FontStyle::Normal, FONT)
         .map_err(|_| "cannot load the bundled font".to_string())?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let tmp = dir.join(format!(".render-{}.png", std::process::id()));
-    let drawn = (|| -> Result<(), Box<dyn std::error::Error>> {
-        let root = BitMapBackend::new(&tmp, (960, 640)).into_drawing_area();
+    let (w, h) = (960, 640);
+    let mut rgb = vec![0u8; (w * h * 3) as usize];
+    (|| -> Result<(), Box<dyn std::error::Error>> {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         draw(report, &root)?;
         root.present()?;
         Ok(())
-    })();
-    let bytes = drawn
-        .map_err(|e| e.to_string())
-        .and_then(|_| std::fs::read(&tmp).map_err(|e| e.to_string()));
-    let _ = std::fs::remove_file(&tmp);
-    let bytes = bytes.map_err(|e| format!("plot {}: {e}", path.display()))?;
-    write_atomic(path, &bytes)
+    })()
+    .map_err(|e| format!("cannot draw: {e}"))?;
+    crate::plot::encode_png(&rgb, w, h)
 }
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;

@@ -6,10 +6,13 @@
 //! wo) with standard errors, and writes a PNG per material into `--out`: a
 //! polar plot of f·|cos θo| and a log plot of f in the plane of incidence for a
 //! few incidence angles. Every estimate runs in parallel (rayon); the figures
-//! are rendered in memory and written atomically, and the output directory is
-//! created before any work so that a bad `--out` fails at once.
+//! are rendered in memory and written together at the end (temporary files,
+//! renamed when all are written). The output directory is checked before any
+//! work (created if missing, a probe file written and removed, no directory in
+//! place of a figure) so that a bad `--out` fails at once; a failed or
+//! interrupted run leaves no figure, temporary file or directory it created.
 
-use crate::output::write_atomic;
+use crate::output::{check_target, commit, prepare_dir, stage};
 use crate::plot::{luminance, luminance_stderr, render_png, Lobe, LobeFigure, LobePoint};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -105,23 +108,20 @@ macro_rules! outln {
 /// Writes the buffer to stdout and empties it. A closed pipe only stops the
 /// printing: the figures are still written.
 fn emit(o: &mut String) -> Result<(), String> {
-    use std::io::Write as _;
-    let mut out = std::io::stdout().lock();
-    let r = out.write_all(o.as_bytes()).and_then(|()| out.flush());
+    let r = crate::common::print_out(o);
     o.clear();
-    r.or_else(crate::common::stdout_failure)
+    r
 }
 
 /// Runs `strata demo`.
 pub fn run(args: Args) -> Result<(), String> {
     let start = Instant::now();
     crate::plot::register_font()?;
-    std::fs::create_dir_all(&args.out).map_err(|e| {
-        format!(
-            "--out {}: cannot create the output directory: {e}",
-            args.out.display()
-        )
-    })?;
+    prepare_dir("--out", &args.out)?;
+    let png_path = |name: &str| args.out.join(format!("{name}.png"));
+    for name in MATERIALS {
+        check_target(&png_path(name)).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
+    }
 
     let bsdfs: Vec<(String, LayeredBsdf)> = MATERIALS
         .iter()
@@ -224,13 +224,18 @@ pub fn run(args: Args) -> Result<(), String> {
         .par_iter()
         .map(|(name, fig)| render_png(fig).map(|png| (name.clone(), png)))
         .collect::<Result<_, _>>()?;
+    let out_err = |e: String| format!("--out {}: {e}", args.out.display());
+    let staged = pngs
+        .iter()
+        .map(|(name, png)| stage(&png_path(name), png))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(out_err)?;
+    commit(staged).map_err(out_err)?;
     outln!(o);
-    for (name, png) in &pngs {
-        let path = args.out.join(format!("{name}.png"));
-        write_atomic(&path, png).map_err(|e| format!("--out {}: {e}", args.out.display()))?;
-        outln!(o, "wrote {}", path.display());
-        emit(o)?;
+    for (name, _) in &pngs {
+        outln!(o, "wrote {}", png_path(name).display());
     }
+    emit(o)?;
     outln!(
         o,
         "estimates took {:.1} s, all done in {:.1} s on {} threads",

@@ -22,8 +22,8 @@ pub struct Args {
     /// normalized on input). Write `--wi=-0.5,0,1` or `--wi -0.5,0,1`.
     #[arg(long, allow_hyphen_values = true)]
     wi: String,
-    /// Number of walks (one output line each).
-    #[arg(long)]
+    /// Number of walks (one output line each), at least 1.
+    #[arg(long, value_parser = crate::common::positive)]
     count: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]

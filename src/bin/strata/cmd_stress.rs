@@ -1,6 +1,7 @@
 //! `strata stress`: the stiff and extreme suite (see `strata::stress`), one
 //! table row per case, every engine against the f64 oracle.
 
+use crate::common::{note, print_out};
 use std::time::Instant;
 use strata::stress::{cases, format_table, Budget, Runner};
 
@@ -38,20 +39,21 @@ pub fn run(args: Args) -> Result<(), String> {
     for c in &selected {
         let t = Instant::now();
         let row = runner.run(c).map_err(|e| format!("case {}: {e}", c.name))?;
-        eprintln!("{:<24} {:>7.1} s", c.name, t.elapsed().as_secs_f64());
+        note(&format!("{:<24} {:>7.1} s", c.name, t.elapsed().as_secs_f64()));
         rows.push(row);
     }
-    println!("{}", format_table(&rows));
     let failed: Vec<_> = rows.iter().filter(|r| !r.failures().is_empty()).collect();
-    println!(
-        "{} cases, {} failed, {:.0} s ({:?} budget: {} eval walks, {} albedo walks per engine, divided by each case's cost)",
+    // A closed pipe only stops the printing: failed cases still fail the run.
+    print_out(&format!(
+        "{}\n{} cases, {} failed, {:.0} s ({:?} budget: {} eval walks, {} albedo walks per engine, divided by each case's cost)\n",
+        format_table(&rows),
         rows.len(),
         failed.len(),
         start.elapsed().as_secs_f64(),
         if args.quick { "quick" } else { "full" },
         budget.eval_walks,
         budget.albedo_walks,
-    );
+    ))?;
     if failed.is_empty() {
         Ok(())
     } else {

@@ -36,8 +36,58 @@ pub fn positive(text: &str) -> Result<u64, String> {
     match text.parse::<u64>() {
         Ok(0) => Err("must be at least 1".into()),
         Ok(n) => Ok(n),
+        Err(_) if text.trim_start().starts_with('-') => Err("must be at least 1".into()),
         Err(e) => Err(format!("not a whole number: {e}")),
     }
+}
+
+/// The most threads any `--threads` may ask for (a thread pool of more is
+/// a typo, and starting it would take the machine down first).
+pub const MAX_THREADS: u64 = 1024;
+
+/// Parses `--threads`: a whole number in 1..=MAX_THREADS.
+pub fn threads(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
+        Ok(_) => Err(format!("must be between 1 and {MAX_THREADS}")),
+        Err(_) if text.trim_start().starts_with('-') => {
+            Err(format!("must be between 1 and {MAX_THREADS}"))
+        }
+        Err(e) => Err(format!("not a whole number: {e}")),
+    }
+}
+
+/// The longest time any `--...-seconds` option may ask for: a day.
+pub const MAX_SECONDS: f64 = 86_400.0;
+
+/// Checks a time in seconds given for `flag`: finite, at most
+/// `MAX_SECONDS`, and positive (or, if `zero_ok`, non-negative).
+pub fn check_seconds(flag: &str, s: f64, zero_ok: bool) -> Result<(), String> {
+    let low_ok = if zero_ok { s >= 0.0 } else { s > 0.0 };
+    if !(low_ok && s <= MAX_SECONDS) {
+        let low = if zero_ok { ">= 0" } else { "> 0" };
+        return Err(format!(
+            "{flag} {s}: must be a number of seconds {low} and at most {MAX_SECONDS} (a day)"
+        ));
+    }
+    Ok(())
+}
+
+/// Prints `text` to stdout and flushes it; a closed pipe is not an error
+/// (see `stdout_failure`).
+pub fn print_out(text: &str) -> Result<(), String> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .or_else(stdout_failure)
+}
+
+/// Prints a progress note to stderr (never fails: a closed stderr only
+/// silences it).
+pub fn note(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{text}");
 }
 
 /// What a failed write to stdout means: a closed pipe (`strata ... | head`)
@@ -60,8 +110,8 @@ pub struct EngineArgs {
     #[arg(long, default_value = "wavefront")]
     pub engine: strata::Engine,
     /// Threads for the wavefront engine (default: every core). Results do not
-    /// depend on it.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    /// depend on it. At most 1024.
+    #[arg(long, value_parser = threads)]
     pub threads: Option<u64>,
 }
 

@@ -4,12 +4,13 @@
 //! `pub fn run(Args) -> Result<(), String>`. Adding one is one line in the
 //! `commands!` list below (plus its help text as a doc comment). Every error
 //! is printed to stderr as `strata: MESSAGE` with a non-zero exit status.
+//! A failed or interrupted run removes its temporary files (see `output`).
 
 mod common;
 mod output;
 mod plot;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Declares the subcommand modules, the `Command` enum and its dispatch from
@@ -60,10 +61,19 @@ struct Cli {
 }
 
 fn main() -> ExitCode {
-    match Cli::parse().command.run() {
+    // Negative numbers are values, not flags: `--count -1` reaches the
+    // option's own check (and its message) instead of "unexpected argument".
+    let matches = Cli::command()
+        .mut_subcommands(|c| c.allow_negative_numbers(true))
+        .get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let result = output::on_interrupt_clean_up().and_then(|()| cli.command.run());
+    output::clean_up();
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("strata: {e}");
+            use std::io::Write as _;
+            let _ = writeln!(std::io::stderr(), "strata: {e}");
             ExitCode::FAILURE
         }
     }

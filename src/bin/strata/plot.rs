@@ -104,7 +104,8 @@ pub fn render_png(fig: &LobeFigure) -> Result<Vec<u8>, String> {
     encode_png(&rgb, w, h)
 }
 
-fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>, String> {
+/// Encodes 8-bit RGB pixels (`w` × `h`) as PNG.
+pub fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>, String> {
     let mut out = Vec::new();
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(png::ColorType::Rgb);
