@@ -647,9 +647,18 @@ pub struct RefStream {
 }
 
 impl RefStream {
+    /// Whether the stream has no targets (a query set without queries of
+    /// its kind).
+    pub fn is_empty(&self) -> bool {
+        self.acc.is_empty()
+    }
+
     /// RMS over targets and channels (with a non-zero mean) of the relative
-    /// standard error; infinite before the first chunk.
+    /// standard error; infinite before the first chunk, 0 without targets.
     pub fn rms_rel_stderr(&self) -> f64 {
+        if self.is_empty() {
+            return 0.0;
+        }
         if self.chunks == 0 && self.acc.iter().all(|a| a.n == 0) {
             return f64::INFINITY;
         }
@@ -727,14 +736,24 @@ impl Reference {
             ReferenceKind::Analytic => {
                 "closed form (smooth dielectric over Lambertian, method.md §8), exact".into()
             }
-            ReferenceKind::LongRun { estimator } => format!(
-                "long run of the {estimator} estimator: {} walks per BSDF query, {} per albedo query \
-                 (RMS relative standard error {:.2e} for f, {:.2e} for the albedo)",
-                self.f.chunks * self.f.per_chunk,
-                self.albedo.chunks * self.albedo.per_chunk,
-                self.f.rms_rel_stderr(),
-                self.albedo.rms_rel_stderr()
-            ),
+            ReferenceKind::LongRun { estimator } => {
+                // Only the kinds of query the set has.
+                let (mut walks, mut errors) = (Vec::new(), Vec::new());
+                for (s, query, of) in [
+                    (&self.f, "BSDF query", "f"),
+                    (&self.albedo, "albedo query", "the albedo"),
+                ] {
+                    if !s.is_empty() {
+                        walks.push(format!("{} walks per {query}", s.chunks * s.per_chunk));
+                        errors.push(format!("{:.2e} for {of}", s.rms_rel_stderr()));
+                    }
+                }
+                format!(
+                    "long run of the {estimator} estimator: {} (RMS relative standard error {})",
+                    walks.join(", "),
+                    errors.join(", ")
+                )
+            }
         }
     }
 }
@@ -1528,6 +1547,11 @@ pub fn efficiency(err: f64, time: f64) -> f64 {
 }
 
 impl Report {
+    /// Whether the query set has BSDF queries and albedo queries.
+    pub fn has_queries(&self) -> (bool, bool) {
+        (!self.queries.f.is_empty(), !self.queries.albedo.is_empty())
+    }
+
     /// How far below the smallest plotted errors the reference's own RMS
     /// relative standard error lies: `(f, albedo)` ratios (infinite when
     /// exact). With `expected`, each run's error is the larger of its measured
@@ -1580,25 +1604,51 @@ impl Report {
         for s in &self.series {
             let (fl, fln) = self.floor(s).unwrap_or((f64::NAN, f64::NAN));
             for (r, e) in s.runs.iter().zip(&s.errors) {
+                // A kind of query the set does not have leaves its fields empty.
+                let (hf, ha) = self.has_queries();
+                let f = cells(
+                    hf,
+                    "",
+                    [
+                        format!("{:.6e}", r.time_f),
+                        format!("{:.6e}", e.rms_f),
+                        format!("{:.6e}", e.own_f),
+                        format!("{:.6e}", efficiency(e.rms_f, r.time_f)),
+                    ],
+                );
+                let a = cells(
+                    ha,
+                    "",
+                    [
+                        format!("{:.6e}", r.time_albedo),
+                        format!("{:.6e}", e.rms_albedo),
+                        format!("{:.6e}", e.own_albedo),
+                        format!("{:.6e}", efficiency(e.rms_albedo, r.time_albedo)),
+                    ],
+                );
+                let [rf, ra] = [(hf, rf), (ha, ra)]
+                    .map(|(h, x)| cells(h, "", [format!("{x:.3e}")])[0].clone());
                 let _ = writeln!(
                     out,
-                    "{},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},{:.3e},{:.3e},{},{},{:.3e}",
+                    "{},{},{},{},{},{},{},{},{},{},{:.3e}",
                     self.name,
                     s.name,
                     r.samples,
-                    r.time_f,
-                    e.rms_f,
-                    e.own_f,
-                    efficiency(e.rms_f, r.time_f),
-                    r.time_albedo,
-                    e.rms_albedo,
-                    e.own_albedo,
-                    efficiency(e.rms_albedo, r.time_albedo),
+                    f.join(","),
+                    a.join(","),
                     kind,
                     rf,
                     ra,
-                    if fl.is_nan() { String::new() } else { format!("{fl:.4e}") },
-                    if fln.is_nan() { String::new() } else { format!("{fln:.3e}") },
+                    if fl.is_nan() {
+                        String::new()
+                    } else {
+                        format!("{fl:.4e}")
+                    },
+                    if fln.is_nan() {
+                        String::new()
+                    } else {
+                        format!("{fln:.3e}")
+                    },
                     r.lost_weight
                 );
             }
@@ -1670,16 +1720,35 @@ impl Report {
         if self.reference.kind == ReferenceKind::Analytic {
             let _ = writeln!(out, "The reference is exact: it has no error bar.");
         } else {
-            let _ = writeln!(
-                out,
-                "Its RMS relative standard error is {} below the smallest expected error plotted for f and {} for the albedo \
-                 (measured errors: {} and {}){}.",
+            let late = if self.reference_converged {
+                ""
+            } else {
+                "; the reference hit its time limit before its target"
+            };
+            let (mf, ma, nf, na) = (
                 fmt_margin(mf),
                 fmt_margin(ma),
                 fmt_margin(nf),
                 fmt_margin(na),
-                if self.reference_converged { "" } else { "; the reference hit its time limit before its target" }
             );
+            let below = "Its RMS relative standard error is";
+            let _ = match self.has_queries() {
+                (true, true) => writeln!(
+                    out,
+                    "{below} {mf} below the smallest expected error plotted for f and {ma} for the \
+                     albedo (measured errors: {nf} and {na}){late}."
+                ),
+                (true, false) => writeln!(
+                    out,
+                    "{below} {mf} below the smallest expected error plotted for f (measured error: \
+                     {nf}){late}."
+                ),
+                (false, _) => writeln!(
+                    out,
+                    "{below} {ma} below the smallest expected error plotted for the albedo \
+                     (measured error: {na}){late}."
+                ),
+            };
         }
         for s in &self.series {
             if let Some((fl, noise)) = self.floor(s) {
@@ -1698,19 +1767,34 @@ impl Report {
         out.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for s in &self.series {
             for (r, e) in s.runs.iter().zip(&s.errors) {
+                let (hf, ha) = self.has_queries();
+                let f = cells(
+                    hf,
+                    "–",
+                    [
+                        format!("{:.3}", r.time_f),
+                        format!("{:.2e}", e.rms_f),
+                        format!("{:.2e}", e.own_f),
+                        format!("{:.3e}", efficiency(e.rms_f, r.time_f)),
+                    ],
+                );
+                let a = cells(
+                    ha,
+                    "–",
+                    [
+                        format!("{:.3}", r.time_albedo),
+                        format!("{:.2e}", e.rms_albedo),
+                        format!("{:.2e}", e.own_albedo),
+                        format!("{:.3e}", efficiency(e.rms_albedo, r.time_albedo)),
+                    ],
+                );
                 let _ = writeln!(
                     out,
-                    "| {} | {} | {:.3} | {:.2e} | {:.2e} | {:.3e} | {:.3} | {:.2e} | {:.2e} | {:.3e} |",
+                    "| {} | {} | {} | {} |",
                     s.name,
                     r.samples,
-                    r.time_f,
-                    e.rms_f,
-                    e.own_f,
-                    efficiency(e.rms_f, r.time_f),
-                    r.time_albedo,
-                    e.rms_albedo,
-                    e.own_albedo,
-                    efficiency(e.rms_albedo, r.time_albedo)
+                    f.join(" | "),
+                    a.join(" | ")
                 );
             }
         }
@@ -1729,7 +1813,7 @@ impl Report {
         );
         let effs: Vec<(f64, f64)> = self.series.iter().map(Series::efficiency).collect();
         let base = effs.first().copied().unwrap_or((0.0, 0.0));
-        let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
+        let (hf, ha) = self.has_queries();
         let _ = writeln!(
             out,
             "  {:<14} {:>9} {:>8} {:>9} {:>9} {:>10} {:>8} {:>10} {:>10} {:>8}",
@@ -1748,19 +1832,30 @@ impl Report {
             let (Some(r), Some(e)) = (s.runs.last(), s.errors.last()) else {
                 continue;
             };
+            let f = cells(
+                hf,
+                "–",
+                [
+                    format!("{:.3}", r.time_f),
+                    format!("{:.2e}", e.rms_f),
+                    format!("{:.2e}", e.own_f),
+                    format!("{ef:.3e}"),
+                    fmt_ratio(ef, base.0),
+                ],
+            );
+            let a = cells(
+                ha,
+                "–",
+                [
+                    format!("{:.2e}", e.rms_albedo),
+                    format!("{ea:.3e}"),
+                    fmt_ratio(ea, base.1),
+                ],
+            );
             let _ = writeln!(
                 out,
-                "  {:<14} {:>9} {:>8.3} {:>9.2e} {:>9.2e} {:>10.3e} {:>8.3} {:>10.2e} {:>10.3e} {:>8.3}",
-                s.name,
-                r.samples,
-                r.time_f,
-                e.rms_f,
-                e.own_f,
-                ef,
-                ratio(ef, base.0),
-                e.rms_albedo,
-                ea,
-                ratio(ea, base.1)
+                "  {:<14} {:>9} {:>8} {:>9} {:>9} {:>10} {:>8} {:>10} {:>10} {:>8}",
+                s.name, r.samples, f[0], f[1], f[2], f[3], f[4], a[0], a[1], a[2]
             );
         }
         let _ = writeln!(
@@ -1810,6 +1905,26 @@ impl Series {
                     .collect(),
             ),
         )
+    }
+}
+
+/// `values`, or as many `absent` where the query set has no query of their
+/// kind (`present` false): never a number made of no query.
+pub fn cells<const N: usize>(present: bool, absent: &str, values: [String; N]) -> [String; N] {
+    if present {
+        values
+    } else {
+        std::array::from_fn(|_| absent.to_string())
+    }
+}
+
+/// `a / b` to three decimals, or "–" where `b` is not positive (a ratio to
+/// an efficiency of 0 is undefined, not NaN).
+pub fn fmt_ratio(a: f64, b: f64) -> String {
+    if b > 0.0 {
+        format!("{:.3}", a / b)
+    } else {
+        "–".into()
     }
 }
 

@@ -458,3 +458,61 @@ fn cli_writes_the_report_files() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("line 2"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A query set with one kind of query only: the other kind's columns are
+/// empty (CSV) or "–" (markdown, summary), never `inf` or `NaN` made of no
+/// query, and the reference is described by the kind it has.
+#[test]
+fn one_kind_of_query_leaves_the_other_blank() {
+    let st = stack(
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.6 }
+        "#,
+    );
+    let cfg = Config {
+        estimators: vec![EstimatorKind::Scalar],
+        ladder: fixed_ladder(64, 3),
+        ..Config::default()
+    };
+    let all = queries();
+    let only_f = QuerySet {
+        f: all.f.clone(),
+        ..QuerySet::default()
+    };
+    let only_albedo = QuerySet {
+        albedo: all.albedo.clone(),
+        ..QuerySet::default()
+    };
+    for (qs, f_blank) in [(only_f, false), (only_albedo, true)] {
+        let rep = converge("one-kind", &st, &qs, &cfg, None, &Silent);
+        let text = [rep.csv(), rep.markdown(), rep.summary()].concat();
+        for bad in ["inf", "NaN", "NaN×"] {
+            assert!(!text.contains(bad), "{bad} in:\n{text}");
+        }
+        let csv = rep.csv();
+        let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+        // time, error, own error and efficiency of f (3..7), of the albedo
+        // (7..11), the reference's error bars (12, 13).
+        let (blank, full) = if f_blank {
+            (3..7, 7..11)
+        } else {
+            (7..11, 3..7)
+        };
+        assert!(row[blank].iter().all(|c| c.is_empty()), "{row:?}");
+        assert!(
+            row[full].iter().all(|c| c.parse::<f64>().is_ok()),
+            "{row:?}"
+        );
+        assert_eq!(
+            (row[12].is_empty(), row[13].is_empty()),
+            (f_blank, !f_blank),
+            "{row:?}"
+        );
+        let described = rep.reference.describe();
+        assert_eq!(described.contains("albedo"), f_blank, "{described}");
+        assert_eq!(described.contains("BSDF query"), !f_blank, "{described}");
+    }
+}

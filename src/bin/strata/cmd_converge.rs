@@ -349,17 +349,17 @@ fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), Stri
 
 /// The rows of the suite's summary table for one stack.
 fn summary_rows(report: &Report) -> String {
+    let (hf, ha) = report.has_queries();
     let reference = match report.reference.kind {
         converge::ReferenceKind::Analytic => "closed form".to_string(),
-        converge::ReferenceKind::LongRun { ref estimator } => format!(
-            "{estimator}, ±{:.1e} (f), ±{:.1e} (albedo)",
-            report.reference.f.rms_rel_stderr(),
-            report.reference.albedo.rms_rel_stderr()
-        ),
+        converge::ReferenceKind::LongRun { ref estimator } => {
+            let [f, a] = [(hf, &report.reference.f), (ha, &report.reference.albedo)]
+                .map(|(h, s)| converge::cells(h, "–", [format!("±{:.1e}", s.rms_rel_stderr())]));
+            format!("{estimator}, {} (f), {} (albedo)", f[0], a[0])
+        }
     };
     let effs: Vec<(f64, f64)> = report.series.iter().map(|s| s.efficiency()).collect();
     let base = effs.first().copied().unwrap_or((0.0, 0.0));
-    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
     let mut out = String::new();
     for (s, &(ef, ea)) in report.series.iter().zip(&effs) {
         let (Some(r), Some(e)) = (s.runs.last(), s.errors.last()) else {
@@ -368,18 +368,29 @@ fn summary_rows(report: &Report) -> String {
         let floor = report
             .floor(s)
             .map_or("–".to_string(), |f| format!("{:.2e}", f.0));
+        let f = converge::cells(
+            hf,
+            "–",
+            [
+                format!("{:.3}", r.time_f),
+                format!("{:.2e}", e.rms_f),
+                format!("{ef:.3e}"),
+                converge::fmt_ratio(ef, base.0),
+            ],
+        );
+        let a = converge::cells(
+            ha,
+            "–",
+            [format!("{ea:.3e}"), converge::fmt_ratio(ea, base.1)],
+        );
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {:.3} | {:.2e} | {:.3e} | {:.3} | {:.3e} | {:.3} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} |\n",
             report.name,
             reference,
             s.name,
             r.samples,
-            r.time_f,
-            e.rms_f,
-            ef,
-            ratio(ef, base.0),
-            ea,
-            ratio(ea, base.1),
+            f.join(" | "),
+            a.join(" | "),
             floor
         ));
     }
