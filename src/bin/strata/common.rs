@@ -41,9 +41,10 @@ pub fn positive(text: &str) -> Result<u64, String> {
     }
 }
 
-/// The most threads any `--threads` may ask for (a thread pool of more is
-/// a typo, and starting it would take the machine down first).
-pub const MAX_THREADS: u64 = 1024;
+/// The most threads any `--threads` may ask for: the library's bound (a
+/// thread pool of more is a typo, and starting it would take the machine
+/// down first).
+pub const MAX_THREADS: u64 = strata::MAX_THREADS as u64;
 
 /// Parses `--threads`: a whole number in 1..=MAX_THREADS.
 pub fn threads(text: &str) -> Result<u64, String> {
