@@ -1552,6 +1552,35 @@ impl Report {
         (!self.queries.f.is_empty(), !self.queries.albedo.is_empty())
     }
 
+    /// A run's time, RMS relative error, own relative standard error and
+    /// efficiency, for f and then for the albedo, each formatted by
+    /// `fmt(column, value)` (column 0 to 3); `absent` for a kind of query the
+    /// set does not have, never a number made of no query.
+    fn run_cells(
+        &self,
+        r: &Run,
+        e: &RunErrors,
+        absent: &str,
+        fmt: impl Fn(usize, f64) -> String,
+    ) -> [String; 8] {
+        let (hf, ha) = self.has_queries();
+        let f = [r.time_f, e.rms_f, e.own_f, efficiency(e.rms_f, r.time_f)];
+        let a = [
+            r.time_albedo,
+            e.rms_albedo,
+            e.own_albedo,
+            efficiency(e.rms_albedo, r.time_albedo),
+        ];
+        std::array::from_fn(|i| {
+            let (has, v) = if i < 4 { (hf, f[i]) } else { (ha, a[i - 4]) };
+            if has {
+                fmt(i % 4, v)
+            } else {
+                absent.to_string()
+            }
+        })
+    }
+
     /// How far below the smallest plotted errors the reference's own RMS
     /// relative standard error lies: `(f, albedo)` ratios (infinite when
     /// exact). With `expected`, each run's error is the larger of its measured
@@ -1606,36 +1635,16 @@ impl Report {
             for (r, e) in s.runs.iter().zip(&s.errors) {
                 // A kind of query the set does not have leaves its fields empty.
                 let (hf, ha) = self.has_queries();
-                let f = cells(
-                    hf,
-                    "",
-                    [
-                        format!("{:.6e}", r.time_f),
-                        format!("{:.6e}", e.rms_f),
-                        format!("{:.6e}", e.own_f),
-                        format!("{:.6e}", efficiency(e.rms_f, r.time_f)),
-                    ],
-                );
-                let a = cells(
-                    ha,
-                    "",
-                    [
-                        format!("{:.6e}", r.time_albedo),
-                        format!("{:.6e}", e.rms_albedo),
-                        format!("{:.6e}", e.own_albedo),
-                        format!("{:.6e}", efficiency(e.rms_albedo, r.time_albedo)),
-                    ],
-                );
+                let cols = self.run_cells(r, e, "", |_, x| format!("{x:.6e}"));
                 let [rf, ra] = [(hf, rf), (ha, ra)]
                     .map(|(h, x)| cells(h, "", [format!("{x:.3e}")])[0].clone());
                 let _ = writeln!(
                     out,
-                    "{},{},{},{},{},{},{},{},{},{},{:.3e}",
+                    "{},{},{},{},{},{},{},{},{},{:.3e}",
                     self.name,
                     s.name,
                     r.samples,
-                    f.join(","),
-                    a.join(","),
+                    cols.join(","),
                     kind,
                     rf,
                     ra,
@@ -1767,35 +1776,12 @@ impl Report {
         out.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for s in &self.series {
             for (r, e) in s.runs.iter().zip(&s.errors) {
-                let (hf, ha) = self.has_queries();
-                let f = cells(
-                    hf,
-                    "–",
-                    [
-                        format!("{:.3}", r.time_f),
-                        format!("{:.2e}", e.rms_f),
-                        format!("{:.2e}", e.own_f),
-                        format!("{:.3e}", efficiency(e.rms_f, r.time_f)),
-                    ],
-                );
-                let a = cells(
-                    ha,
-                    "–",
-                    [
-                        format!("{:.3}", r.time_albedo),
-                        format!("{:.2e}", e.rms_albedo),
-                        format!("{:.2e}", e.own_albedo),
-                        format!("{:.3e}", efficiency(e.rms_albedo, r.time_albedo)),
-                    ],
-                );
-                let _ = writeln!(
-                    out,
-                    "| {} | {} | {} | {} |",
-                    s.name,
-                    r.samples,
-                    f.join(" | "),
-                    a.join(" | ")
-                );
+                let cols = self.run_cells(r, e, "–", |k, x| match k {
+                    0 => format!("{x:.3}"),
+                    3 => format!("{x:.3e}"),
+                    _ => format!("{x:.2e}"),
+                });
+                let _ = writeln!(out, "| {} | {} | {} |", s.name, r.samples, cols.join(" | "));
             }
         }
         out
