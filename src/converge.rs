@@ -72,9 +72,20 @@ pub fn direction(theta_deg: f64, phi_deg: f64) -> [f64; 3] {
     [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
 }
 
+/// The unit direction along `d`, as the API normalizes it
+/// ([`crate::Direction`]): any finite nonzero vector.
 fn normalize(d: [f64; 3]) -> Option<[f64; 3]> {
-    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    (d.iter().all(|x| x.is_finite()) && l > 1e-30).then(|| d.map(|x| x / l))
+    crate::Direction::from_f64("direction", d)
+        .ok()
+        .map(|d| d.get())
+}
+
+/// Whether light can answer the query `(wi, wo)` (`wo` `None`: an albedo
+/// query) on `stack`, by the engines' own rule: not from behind a one-sided
+/// opaque stack, and not viewed from the other side of an opaque one. (Such
+/// a query is zero for every estimator, so a study of it measures nothing.)
+pub fn answerable(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> bool {
+    crate::estimator::orient(stack, wi, wo).is_some()
 }
 
 impl QuerySet {

@@ -144,6 +144,32 @@ fn absurd_numbers_are_refused_naming_the_option_and_value() {
             vec!["--threads", "100000000000", "1024"],
         ),
         (vec!["bench", "--threads", "0"], vec!["--threads", "'0'"]),
+        // Walks per query: at most the library's 2^40, refused before any
+        // input is read (demo: 2^36, its tables take 16 times as many).
+        (
+            vec!["eval", "--material", &m, "--samples", "1099511627777"],
+            vec!["--samples", "1099511627777", "at most 1099511627776"],
+        ),
+        (
+            vec![
+                "albedo",
+                "--material",
+                &m,
+                "--theta",
+                "0",
+                "--samples",
+                "18446744073709551615",
+            ],
+            vec!["--samples", "18446744073709551615", "at most 1099511627776"],
+        ),
+        (
+            vec!["bench", "--samples", "18446744073709551615"],
+            vec!["--samples", "at most 1099511627776"],
+        ),
+        (
+            vec!["demo", "--samples", "68719476737"],
+            vec!["--samples", "68719476737", "at most 68719476736"],
+        ),
         (
             vec!["eval", "--material", &m, "--threads", "1025"],
             vec!["--threads", "1025", "1024"],
@@ -533,10 +559,13 @@ fn converge_refuses_queries_from_below_an_opaque_stack() {
     let dir = scratch("converge-below");
     let m = example("coated_copper.toml");
     let out = dir.join("out");
-    for (q, bad) in [
-        (r#"{"wi":[0,0,-1],"wo":[0,0,1]}"#, "wi"),
-        (r#"{"wi":[0,0,1],"wo":[0.3,0,-1]}"#, "wo"),
-        (r#"{"wi":[0.2,0,-1]}"#, "wi"),
+    for (q, why) in [
+        (r#"{"wi":[0,0,-1],"wo":[0,0,1]}"#, "light from below"),
+        (
+            r#"{"wi":[0,0,1],"wo":[0.3,0,-1]}"#,
+            "wo is on the other side",
+        ),
+        (r#"{"wi":[0.2,0,-1]}"#, "light from below"),
     ] {
         let file = dir.join("q.jsonl");
         std::fs::write(&file, format!("# a comment\n{{\"wi\":[0,0,1]}}\n{q}\n")).unwrap();
@@ -555,13 +584,72 @@ fn converge_refuses_queries_from_below_an_opaque_stack() {
             ],
             SHORT,
         );
-        let needle = format!("line 3: {bad} = ");
+        // The line is quoted as given, not normalized.
+        let needle = format!("line 3 ({q})");
         assert_fails_with(
             &o,
-            &["--queries", "q.jsonl", &needle, "coated_copper", "opaque"],
+            &[
+                "--queries",
+                "q.jsonl",
+                &needle,
+                "coated_copper",
+                why,
+                "opaque",
+            ],
         );
         assert!(!out.exists(), "nothing written for {q}");
     }
+    // A two-sided opaque stack mirrors light from below: a fine query (the
+    // engines answer it), and so is a view on the same side as the light.
+    let two_sided = dir.join("two_sided.toml");
+    std::fs::write(
+        &two_sided,
+        format!("two_sided = true\n{}", std::fs::read_to_string(&m).unwrap()),
+    )
+    .unwrap();
+    let file = dir.join("q.jsonl");
+    std::fs::write(
+        &file,
+        "{\"wi\":[0.3,0,-0.9],\"wo\":[-0.2,0,-0.9]}\n{\"wi\":[0.1,0,-1]}\n",
+    )
+    .unwrap();
+    let o = run(
+        &[
+            "converge",
+            "--material",
+            two_sided.to_str().unwrap(),
+            "--queries",
+            file.to_str().unwrap(),
+            "--budget-seconds",
+            "0.05",
+            "--estimators",
+            "scalar",
+            "--no-cache",
+            "--reference-seconds",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        SHORT,
+    );
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let _ = std::fs::remove_dir_all(&out);
+    // Viewed from the other side of the light, even two-sided, it is not.
+    std::fs::write(&file, "{\"wi\":[0.3,0,-0.9],\"wo\":[-0.2,0,0.9]}\n").unwrap();
+    let o = run(
+        &[
+            "converge",
+            "--material",
+            two_sided.to_str().unwrap(),
+            "--queries",
+            file.to_str().unwrap(),
+            "--no-cache",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        SHORT,
+    );
+    assert_fails_with(&o, &["line 1", "wo is on the other side"]);
     // From below a transmissive stack is a fine query.
     let file = dir.join("q.jsonl");
     std::fs::write(

@@ -96,7 +96,8 @@ impl<'de, const N: usize> Visitor<'de> for OneOrN<N> {
         let mut a = [0.0; N];
         for (i, x) in a.iter_mut().enumerate() {
             *x = seq
-                .next_element()?
+                .next_element()
+                .map_err(|e| de::Error::custom(format_args!("`{}`: {e}", self.0)))?
                 .ok_or_else(|| de::Error::invalid_length(i, &self))?;
         }
         if seq.next_element::<IgnoredAny>()?.is_some() {
@@ -366,11 +367,24 @@ mod tests {
                  medium = { thickness = 1, sigma_t = 1, albedo = [] }",
                 "invalid length 0, expected `albedo` to be a number or [r, g, b]",
             ),
+            (
+                "interface = { kind = \"diffuse\", albedo = [0.5, \"x\", 0.5] }",
+                "`albedo`: invalid type: string \"x\", expected f64",
+            ),
         ];
         for (layer, want) in cases {
             let e = error(&format!("[[layers]]\n{layer}\n"));
             assert!(e.contains(want), "{layer}: {e}");
         }
+        // JSON writes an absent optional field as null: it reads back as absent.
+        let json =
+            r#"{"layers":[{"interface":{"kind":"conductor","preset":"Cu","eta":null,"k":null}}]}"#;
+        let st = LayerStack::from_json_str(json).expect("null is absent");
+        let cu = LayerStack::from_toml_str(
+            "[[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\" }\n",
+        )
+        .expect("preset");
+        assert_eq!(st, cu);
         // The right shapes still parse, integers included.
         let ok = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = [0.1, 0.2] }\n\
                   medium = { thickness = 1, sigma_t = [1, 2, 3], albedo = 1 }\n\

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     phi: f64,
     /// Walks.
-    #[arg(long, default_value_t = 100_000, value_parser = crate::common::positive)]
+    #[arg(long, default_value_t = 100_000, value_parser = crate::common::walks)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]

@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u64).range(1..=MAX_QUERIES))]
     queries: u64,
     /// Walks per query.
-    #[arg(long, default_value_t = 512, value_parser = crate::common::positive)]
+    #[arg(long, default_value_t = 512, value_parser = crate::common::walks)]
     samples: u64,
     /// Minimum time each engine runs, in turns with the others (its fastest
     /// batch counts). At most a day.

@@ -313,35 +313,33 @@ pub fn run(args: Args) -> Result<(), String> {
 }
 
 /// Fails, naming the line, on a query of `text` (the query file, already
-/// parsed) that the stack `name` cannot answer: light from below, or a view
-/// from below, of an opaque stack (it sees nothing there; the reference would
-/// have no walks and its error would be infinite).
+/// parsed) that the stack `name` cannot answer (`converge::answerable`):
+/// light from behind a one-sided opaque stack, or a view from the other side
+/// of an opaque one. It is zero for every estimator: the reference would
+/// have no error to be measured against, and its error bar would be infinite.
 fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), String> {
-    if st.transmissive() {
-        return Ok(());
-    }
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
         if t.is_empty() || t.starts_with('#') {
             continue;
         }
         let q = QuerySet::parse_json_lines(t).map_err(|e| format!("line {}: {e}", i + 1))?;
-        let dirs = q
-            .f
-            .iter()
-            .flat_map(|f| [("wi", f.wi), ("wo", f.wo)])
-            .chain(q.albedo.iter().map(|&wi| ("wi", wi)));
-        for (what, d) in dirs {
-            if d[2] < 0.0 {
-                return Err(format!(
-                    "line {}: {what} = [{}, {}, {}] points below the surface, but stack {name} is \
-                     opaque (it neither takes nor sends light below); give directions with z > 0",
-                    i + 1,
-                    d[0],
-                    d[1],
-                    d[2]
-                ));
+        let queries = (q.f.iter().map(|f| (f.wi, Some(f.wo))))
+            .chain(q.albedo.iter().map(|&wi| (wi, None)));
+        for (wi, wo) in queries {
+            if converge::answerable(st, wi, wo) {
+                continue;
             }
+            let why = if wi[2] < 0.0 && !st.two_sided() {
+                "light from below, and the stack is opaque and one-sided: it takes no light there"
+            } else {
+                "wo is on the other side of the surface from wi, and the stack is opaque: it \
+                 sends no light there"
+            };
+            return Err(format!(
+                "line {} ({t}): stack {name} cannot answer it: {why}",
+                i + 1
+            ));
         }
     }
     Ok(())

@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Walks per plotted BSDF value; the tables use 16 times as many.
-    #[arg(long, default_value_t = 1024, value_parser = crate::common::positive)]
+    #[arg(long, default_value_t = 1024, value_parser = demo_walks)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
@@ -59,6 +59,12 @@ const TABLE_PAIRS: [(f64, f64); 5] = [
 const TABLE_PAIRS_T: [(f64, f64); 2] = [(30.0, -150.0), (30.0, 180.0)];
 /// Table estimates use this many times `--samples` walks.
 const TABLE_FACTOR: u64 = 16;
+
+/// `--samples` of `demo`: its tables use `TABLE_FACTOR` times as many walks,
+/// which must stay within the library's bound.
+fn demo_walks(text: &str) -> Result<u64, String> {
+    crate::common::walks_at_most(text, strata::MAX_WALKS / TABLE_FACTOR)
+}
 
 /// `wi` at polar angle `theta` (degrees), azimuth 0.
 fn wi_dir(theta_deg: f64) -> glam::Vec3 {

@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(long)]
     material: PathBuf,
     /// Walks per query.
-    #[arg(long, default_value_t = 4096, value_parser = crate::common::positive)]
+    #[arg(long, default_value_t = 4096, value_parser = crate::common::walks)]
     samples: u64,
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]

@@ -41,6 +41,20 @@ pub fn positive(text: &str) -> Result<u64, String> {
     }
 }
 
+/// Parses `--samples`: a walk count per query, from 1 to the library's
+/// `MAX_WALKS` (2^40), checked before any work is done.
+pub fn walks(text: &str) -> Result<u64, String> {
+    walks_at_most(text, strata::MAX_WALKS)
+}
+
+/// A whole number from 1 to `max` walks.
+pub fn walks_at_most(text: &str, max: u64) -> Result<u64, String> {
+    match positive(text)? {
+        n if n <= max => Ok(n),
+        _ => Err(format!("must be at most {max} walks per query")),
+    }
+}
+
 /// The most threads any `--threads` may ask for: the library's bound (a
 /// thread pool of more is a typo, and starting it would take the machine
 /// down first).

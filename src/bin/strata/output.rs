@@ -80,7 +80,10 @@ fn ensure_dir(dir: &Path) -> std::io::Result<()> {
         };
     }
     missing.reverse();
-    debris().dirs.extend(missing);
+    // Registered and created under one lock, so that an interrupt's clean-up
+    // cannot run between the two and leave a directory it did not know of.
+    let mut d = debris();
+    d.dirs.extend(missing);
     fs::create_dir_all(dir)
 }
 
@@ -155,27 +158,50 @@ pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, String> {
     })
 }
 
-/// Renames the staged files to their targets, all or none: if one rename
-/// fails, the targets already renamed by this call are removed again (a
-/// failed run leaves no partial set of outputs) and so are the temporaries.
-/// An interrupt waits until the set is in place.
+/// Renames the staged files to their targets, all or none. The files the
+/// targets replace are first moved aside; if a rename fails, the new targets
+/// are removed, the old files put back and the temporaries removed, so a
+/// failed run leaves the outputs as they were before it. An interrupt waits
+/// until the set is in place (or put back).
 pub fn commit(files: Vec<Staged>) -> Result<(), String> {
     let mut d = debris();
+    let fail = |p: &Path, e: std::io::Error| format!("cannot write {}: {e}", p.display());
     let mut result = Ok(());
-    let mut done: Vec<&Path> = Vec::new();
+    // (old file moved aside, its target)
+    let mut aside: Vec<(PathBuf, &Path)> = Vec::new();
     for s in &files {
-        if let Err(e) = fs::rename(&s.tmp, &s.path) {
-            result = Err(format!("cannot write {}: {e}", s.path.display()));
-            break;
+        if s.path.is_file() {
+            let old = s.tmp.with_extension("old");
+            if let Err(e) = fs::rename(&s.path, &old) {
+                result = Err(fail(&s.path, e));
+                break;
+            }
+            aside.push((old, &s.path));
         }
-        done.push(&s.path);
+    }
+    let mut done: Vec<&Path> = Vec::new();
+    if result.is_ok() {
+        for s in &files {
+            if let Err(e) = fs::rename(&s.tmp, &s.path) {
+                result = Err(fail(&s.path, e));
+                break;
+            }
+            done.push(&s.path);
+        }
     }
     if result.is_err() {
         for p in done {
             let _ = fs::remove_file(p);
         }
+        for (old, target) in &aside {
+            let _ = fs::rename(old, target);
+        }
         for s in &files {
             let _ = fs::remove_file(&s.tmp);
+        }
+    } else {
+        for (old, _) in &aside {
+            let _ = fs::remove_file(old);
         }
     }
     d.temps.retain(|t| !files.iter().any(|s| &s.tmp == t));
@@ -185,4 +211,44 @@ pub fn commit(files: Vec<Staged>) -> Result<(), String> {
 /// Writes `bytes` to `path` atomically (temporary file + rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
     commit(vec![stage(path, bytes)?])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A set whose second rename fails leaves every target as it was: the
+    /// first target's earlier content is back, no temporary or moved-aside
+    /// file is left, and the error names the target that failed.
+    #[test]
+    fn a_failed_commit_puts_the_old_outputs_back() {
+        let dir = std::env::temp_dir().join(format!("strata-commit-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let (a, b) = (dir.join("a.csv"), dir.join("b.md"));
+        fs::write(&a, "old a").unwrap();
+        let staged = vec![stage(&a, b"new a").unwrap(), stage(&b, b"new b").unwrap()];
+        // Something appears in b's way after the checks: a non-empty directory.
+        fs::create_dir_all(b.join("x")).unwrap();
+        let e = commit(staged).expect_err("b cannot be replaced");
+        assert!(e.contains("b.md"), "{e}");
+        assert_eq!(fs::read_to_string(&a).unwrap(), "old a");
+        let mut left: Vec<String> = fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.csv", "b.md"]);
+        // And a set that can be written replaces the old file, leaving nothing else.
+        fs::remove_dir_all(&b).unwrap();
+        commit(vec![
+            stage(&a, b"new a").unwrap(),
+            stage(&b, b"new b").unwrap(),
+        ])
+        .unwrap();
+        assert_eq!(fs::read_to_string(&a).unwrap(), "new a");
+        assert_eq!(fs::read_to_string(&b).unwrap(), "new b");
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 2);
+        fs::remove_dir_all(&dir).unwrap();
+    }
 }
