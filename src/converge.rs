@@ -80,12 +80,26 @@ fn normalize(d: [f64; 3]) -> Option<[f64; 3]> {
         .map(|d| d.get())
 }
 
-/// Whether light can answer the query `(wi, wo)` (`wo` `None`: an albedo
-/// query) on `stack`, by the engines' own rule: not from behind a one-sided
-/// opaque stack, and not viewed from the other side of an opaque one. (Such
-/// a query is zero for every estimator, so a study of it measures nothing.)
-pub fn answerable(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> bool {
-    crate::estimator::orient(stack, wi, wo).is_some()
+/// Why light cannot answer the query `(wi, wo)` (`wo` `None`: an albedo
+/// query) on `stack`, by the engines' own rule, or `None` if it can. Such a
+/// query is zero for every estimator, so a study of it measures nothing.
+pub fn unanswerable(
+    stack: &LayerStack,
+    wi: [f64; 3],
+    wo: Option<[f64; 3]>,
+) -> Option<&'static str> {
+    if crate::estimator::orient(stack, wi, wo).is_some() {
+        return None;
+    }
+    let grazing = |d: [f64; 3]| d[2].abs() < crate::estimator::MIN_COS;
+    Some(if grazing(wi) || wo.is_some_and(grazing) {
+        "a direction within cos 1e-18 of the horizon: no light enters or leaves there"
+    } else if wi[2] < 0.0 && !stack.two_sided() {
+        "light from below, and the stack is opaque and one-sided: it takes no light there"
+    } else {
+        "wo is on the other side of the surface from wi, and the stack is opaque: it sends no \
+         light there"
+    })
 }
 
 impl QuerySet {

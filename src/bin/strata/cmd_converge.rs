@@ -313,9 +313,9 @@ pub fn run(args: Args) -> Result<(), String> {
 }
 
 /// Fails, naming the line, on a query of `text` (the query file, already
-/// parsed) that the stack `name` cannot answer (`converge::answerable`):
-/// light from behind a one-sided opaque stack, or a view from the other side
-/// of an opaque one. It is zero for every estimator: the reference would
+/// parsed) that the stack `name` cannot answer (`converge::unanswerable`):
+/// a grazing direction, light from behind a one-sided opaque stack, or a
+/// view from the other side of an opaque one. It is zero for every estimator: the reference would
 /// have no error to be measured against, and its error bar would be infinite.
 fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), String> {
     for (i, line) in text.lines().enumerate() {
@@ -327,14 +327,8 @@ fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), Stri
         let queries = (q.f.iter().map(|f| (f.wi, Some(f.wo))))
             .chain(q.albedo.iter().map(|&wi| (wi, None)));
         for (wi, wo) in queries {
-            if converge::answerable(st, wi, wo) {
+            let Some(why) = converge::unanswerable(st, wi, wo) else {
                 continue;
-            }
-            let why = if wi[2] < 0.0 && !st.two_sided() {
-                "light from below, and the stack is opaque and one-sided: it takes no light there"
-            } else {
-                "wo is on the other side of the surface from wi, and the stack is opaque: it \
-                 sends no light there"
             };
             return Err(format!(
                 "line {} ({t}): stack {name} cannot answer it: {why}",
