@@ -321,7 +321,8 @@ impl LayeredBsdf {
         }
     }
 
-    /// Sets the number of walks per `eval` (at least 1).
+    /// Sets the number of walks per `eval` (at least 1; a call with more
+    /// than [`MAX_WALKS`] is a [`QueryError::TooManySamples`]).
     pub fn samples(mut self, n: u64) -> Self {
         self.samples = n.max(1);
         self
