@@ -1661,8 +1661,14 @@ impl Report {
                 // A kind of query the set does not have leaves its fields empty.
                 let (hf, ha) = self.has_queries();
                 let cols = self.run_cells(r, e, "", |_, x| format!("{x:.6e}"));
-                let [rf, ra] = [(hf, rf), (ha, ra)]
-                    .map(|(h, x)| cells(h, "", [format!("{x:.3e}")])[0].clone());
+                let bar = |has: bool, x: f64| {
+                    if has {
+                        format!("{x:.3e}")
+                    } else {
+                        String::new()
+                    }
+                };
+                let (rf, ra) = (bar(hf, rf), bar(ha, ra));
                 let _ = writeln!(
                     out,
                     "{},{},{},{},{},{},{},{},{},{:.3e}",

@@ -5,23 +5,13 @@
 #![cfg(feature = "cli")]
 
 mod common;
+use common::cli::*;
 use common::reference::fresnel;
 use serde_json::Value;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use strata::LayerStack;
-
-const EXE: &str = env!("CARGO_BIN_EXE_strata");
-const EXAMPLES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/materials");
-
-/// A fresh, empty scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("cli-{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("scratch directory");
-    d
-}
 
 /// Runs the binary with `args` and `stdin`.
 fn run(args: &[&str], stdin: &str) -> Output {
@@ -44,24 +34,6 @@ fn run(args: &[&str], stdin: &str) -> Output {
         _ => {}
     }
     child.wait_with_output().expect("wait for strata")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-/// Asserts a failed run whose stderr contains every one of `needles`.
-#[track_caller]
-fn assert_fails_with(out: &Output, needles: &[&str]) {
-    let err = text(&out.stderr);
-    assert!(
-        !out.status.success(),
-        "expected failure, got success; stdout: {}",
-        text(&out.stdout)
-    );
-    for n in needles {
-        assert!(err.contains(n), "stderr lacks {n:?}: {err}");
-    }
 }
 
 /// Asserts success and returns stdout.
@@ -314,13 +286,6 @@ fn bad_material_files_name_the_field_and_value() {
 }
 
 // ---------------------------------------------------------------------- eval
-
-fn example(name: &str) -> String {
-    Path::new(EXAMPLES)
-        .join(name)
-        .to_string_lossy()
-        .into_owned()
-}
 
 #[test]
 fn eval_answers_each_line_and_names_the_first_bad_one() {
@@ -740,13 +705,9 @@ fn demo_writes_readable_pngs_and_tables() {
     for needle in ["Directional albedo", "BSDF values", "validation1", "±"] {
         assert!(stdout.contains(needle), "table lacks {needle:?}: {stdout}");
     }
-    let mut names: Vec<String> = std::fs::read_dir(&out_dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let figures = names(&out_dir);
     assert_eq!(
-        names,
+        figures,
         [
             "clear_coat_lambertian.png",
             "coated_copper.png",
@@ -756,7 +717,7 @@ fn demo_writes_readable_pngs_and_tables() {
         ],
         "only the figures, no temporary files"
     );
-    for n in &names {
+    for n in &figures {
         let bytes = std::fs::read(out_dir.join(n)).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{n}: not a PNG");
         let (w, h, px) = decode_png(&bytes);
@@ -791,8 +752,7 @@ fn demo_with_an_impossible_output_path_fails_and_leaves_nothing() {
     );
     assert_fails_with(&out, &["--out", "blocker", "cannot create"]);
     assert!(out.stdout.is_empty(), "{}", text(&out.stdout));
-    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
-    assert_eq!(left.len(), 1, "only the blocker remains");
+    assert_eq!(names(&dir), ["blocker"], "only the blocker remains");
     assert_eq!(std::fs::read(&blocker).unwrap(), b"a file, not a directory");
 
     // A figure that cannot be written (a directory stands in its place) fails
@@ -806,11 +766,11 @@ fn demo_with_an_impossible_output_path_fails_and_leaves_nothing() {
     );
     assert_fails_with(&out, &["--out", "clear_coat_lambertian.png"]);
     assert!(out.stdout.is_empty(), "{}", text(&out.stdout));
-    let left: Vec<String> = std::fs::read_dir(&out_dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    assert_eq!(left, ["clear_coat_lambertian.png"], "left behind: {left:?}");
+    assert_eq!(
+        names(&out_dir),
+        ["clear_coat_lambertian.png"],
+        "left behind"
+    );
     assert!(out_dir.join("clear_coat_lambertian.png").is_dir());
 }
 

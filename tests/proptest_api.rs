@@ -805,6 +805,9 @@ fn thread_pools_are_bounded() {
         "threads = 1025: at most 1024 (0 means one per core)"
     );
     assert!(LayeredBsdf::new(stack.clone()).threads(0).is_ok());
+    assert!(LayeredBsdf::new(stack.clone())
+        .threads(strata::MAX_THREADS)
+        .is_ok());
     assert!(LayeredBsdf::new(stack).threads(2).is_ok());
 }
 
@@ -843,8 +846,11 @@ fn pdf_samples_are_at_least_one() {
     for engine in [Engine::Scalar, Engine::Wavefront] {
         let b = LayeredBsdf::new(stack.clone()).engine(engine);
         let zero = b.clone().pdf_samples(0).pdf(wi, wo).expect("pdf");
-        let one = b.pdf_samples(1).pdf(wi, wo).expect("pdf");
+        let one = b.clone().pdf_samples(1).pdf(wi, wo).expect("pdf");
         assert_eq!(zero, one, "{engine:?}");
+        // The setting is honoured at all: more walks give another estimate.
+        let many = b.pdf_samples(64).pdf(wi, wo).expect("pdf");
+        assert_ne!(one, many, "{engine:?}");
     }
 }
 

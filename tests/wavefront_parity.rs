@@ -179,10 +179,18 @@ fn eval_walk_by_walk_on_every_width_and_setting() {
         let keys: Vec<u64> = (0..qs.len() as u64).map(|k| 300 + k).collect();
         let check = |label: &str, set: Settings, w: Vec<Vec<[f64; 3]>>| {
             let sc = ScalarEngine::<f32>::new(&st, set);
+            let (mut total, mut nonzero) = (0usize, 0usize);
             for (k, &(wi, wo)) in qs.iter().enumerate() {
                 let s = sc.eval_walk_values(wi, wo, n, 5, keys[k]);
                 assert_eq!(s, w[k], "{name}, {label}: query {k}");
+                total += s.len();
+                nonzero += s.iter().filter(|v| v.iter().any(|&x| x != 0.0)).count();
             }
+            // Identical zeros would prove nothing: most walks must contribute.
+            assert!(
+                nonzero * 20 >= total,
+                "{name}, {label}: only {nonzero} of {total} walks contribute"
+            );
         };
         let spec = Plan::Specialized;
         let def = Settings::default();

@@ -300,6 +300,7 @@ fn one() -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::{InterfaceDesc, RgbParam};
     use crate::LayerStack;
 
     fn error(toml: &str) -> String {
@@ -389,6 +390,20 @@ mod tests {
         let ok = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = [0.1, 0.2] }\n\
                   medium = { thickness = 1, sigma_t = [1, 2, 3], albedo = 1 }\n\
                   [[layers]]\ninterface = { kind = \"conductor\", eta = [0.2, 0.9, 1.1], k = 3 }\n";
-        LayerStack::from_toml_str(ok).expect("valid");
+        let st = LayerStack::from_toml_str(ok).expect("valid");
+        let m = st.medium(0).expect("a medium");
+        assert_eq!((m.sigma_t, m.albedo), ([1.0, 2.0, 3.0], [1.0; 3]));
+        // (The stack keeps k relative to the coat above; the description as given.)
+        let InterfaceDesc::Conductor { eta, k, .. } = &st.desc().layers[1].interface else {
+            panic!("a conductor");
+        };
+        assert_eq!(
+            (*eta, *k),
+            (
+                Some(RgbParam::Rgb([0.2, 0.9, 1.1])),
+                Some(RgbParam::Grey(3.0))
+            )
+        );
+        assert_eq!(st.interface(0).alpha, [0.1, 0.2]);
     }
 }

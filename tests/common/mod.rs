@@ -2,6 +2,9 @@
 //! angles, and z-score assertions whose tolerance comes from standard errors.
 #![allow(dead_code)]
 
+#[cfg(feature = "cli")]
+pub mod cli;
+
 use strata::LayerStack;
 
 /// A stack from TOML text (panics with the error: test inputs are valid).

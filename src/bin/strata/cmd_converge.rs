@@ -26,8 +26,10 @@ pub struct Args {
     #[arg(long, required_unless_present = "suite")]
     material: Option<PathBuf>,
     /// Queries as JSON lines: {"wi":[..],"wo":[..]} for f, {"wi":[..]} for the
-    /// albedo. Default: a built-in set in and off the plane of incidence. An
-    /// opaque stack takes no direction from below (z < 0).
+    /// albedo. Default: a built-in set in and off the plane of incidence.
+    /// Queries no light can answer on the stack (light from behind a
+    /// one-sided opaque stack, a view from the other side of an opaque one)
+    /// are refused.
     #[arg(long)]
     queries: Option<PathBuf>,
     /// Seconds of doubling budgets per estimator (one thread) [default: 2,
@@ -315,8 +317,9 @@ pub fn run(args: Args) -> Result<(), String> {
 /// Fails, naming the line, on a query of `text` (the query file, already
 /// parsed) that the stack `name` cannot answer (`converge::unanswerable`):
 /// a grazing direction, light from behind a one-sided opaque stack, or a
-/// view from the other side of an opaque one. It is zero for every estimator: the reference would
-/// have no error to be measured against, and its error bar would be infinite.
+/// view from the other side of an opaque one. It is zero for every
+/// estimator: the reference would have no error to be measured against, and
+/// its error bar would be infinite.
 fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), String> {
     for (i, line) in text.lines().enumerate() {
         let t = line.trim();
@@ -345,9 +348,15 @@ fn summary_rows(report: &Report) -> String {
     let reference = match report.reference.kind {
         converge::ReferenceKind::Analytic => "closed form".to_string(),
         converge::ReferenceKind::LongRun { ref estimator } => {
-            let [f, a] = [(hf, &report.reference.f), (ha, &report.reference.albedo)]
-                .map(|(h, s)| converge::cells(h, "–", [format!("±{:.1e}", s.rms_rel_stderr())]));
-            format!("{estimator}, {} (f), {} (albedo)", f[0], a[0])
+            let bar = |has: bool, s: &converge::RefStream| {
+                if has {
+                    format!("±{:.1e}", s.rms_rel_stderr())
+                } else {
+                    "–".into()
+                }
+            };
+            let (f, a) = (bar(hf, &report.reference.f), bar(ha, &report.reference.albedo));
+            format!("{estimator}, {f} (f), {a} (albedo)")
         }
     };
     let effs: Vec<(f64, f64)> = report.series.iter().map(|s| s.efficiency()).collect();

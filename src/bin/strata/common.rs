@@ -49,9 +49,14 @@ pub fn walks(text: &str) -> Result<u64, String> {
 
 /// A whole number from 1 to `max` walks.
 pub fn walks_at_most(text: &str, max: u64) -> Result<u64, String> {
+    at_most(text, max, " walks per query")
+}
+
+/// A whole number from 1 to `max` (`unit` follows `max` in the message).
+fn at_most(text: &str, max: u64, unit: &str) -> Result<u64, String> {
     match positive(text)? {
         n if n <= max => Ok(n),
-        _ => Err(format!("must be at most {max} walks per query")),
+        _ => Err(format!("must be at most {max}{unit}")),
     }
 }
 
@@ -62,14 +67,7 @@ pub const MAX_THREADS: u64 = strata::MAX_THREADS as u64;
 
 /// Parses `--threads`: a whole number in 1..=MAX_THREADS.
 pub fn threads(text: &str) -> Result<u64, String> {
-    match text.parse::<u64>() {
-        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
-        Ok(_) => Err(format!("must be between 1 and {MAX_THREADS}")),
-        Err(_) if text.trim_start().starts_with('-') => {
-            Err(format!("must be between 1 and {MAX_THREADS}"))
-        }
-        Err(e) => Err(format!("not a whole number: {e}")),
-    }
+    at_most(text, MAX_THREADS, " threads")
 }
 
 /// The longest time any `--...-seconds` option may ask for: a day.
