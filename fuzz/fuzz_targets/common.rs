@@ -1,7 +1,7 @@
 //! What every material target checks once a material has parsed: the stack
 //! answers queries with finite, non-negative numbers on both engines.
 
-use strata::{Engine, LayerStack, LayeredBsdf, Settings};
+use strata_bsdf::{Engine, LayerStack, LayeredBsdf, Settings};
 
 pub fn exercise(st: LayerStack) {
     // A walk-length cap bounds the fuzzer's time on lossless stacks of huge

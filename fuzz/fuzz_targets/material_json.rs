@@ -10,7 +10,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(st) = strata::LayerStack::from_json_str(text) {
+    if let Ok(st) = strata_bsdf::LayerStack::from_json_str(text) {
         common::exercise(st);
     }
 });

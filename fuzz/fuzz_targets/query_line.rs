@@ -8,7 +8,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(line) = std::str::from_utf8(data) else {
         return;
     };
-    match strata::query::parse_query_line(line) {
+    match strata_bsdf::query::parse_query_line(line) {
         Ok((wi, wo)) => {
             for d in [wi.get(), wo.get()] {
                 let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();

@@ -1,0 +1,136 @@
+//! Estimators, scalar reference against the wavefront engine, on the
+//! representative stacks (`strata_bsdf::materials::REPRESENTATIVE`): the same eval
+//! batch (same seeds, so the same walks) on the scalar engine, on the
+//! wavefront on one thread, and on the wavefront's specialized and general
+//! walks. Throughput is in queries per second. Then single `sample` and `pdf`
+//! calls through the public API on each engine (time per call), and small
+//! batches of them (`small`: 4 and 16 queries per call, a BSDF with a pool of
+//! two threads, time per call).
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use glam::Vec3;
+use std::hint::black_box;
+use strata_bsdf::estimator::scalar::ScalarEngine;
+use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
+use strata_bsdf::lane::F32x8;
+use strata_bsdf::{Engine, LayeredBsdf, Settings};
+
+const QUERIES: usize = 16;
+const SAMPLES: u64 = 256;
+
+fn pairs() -> Vec<([f64; 3], [f64; 3])> {
+    let dir = |t: f64, p: f64| {
+        let (t, p) = (t.to_radians(), p.to_radians());
+        [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
+    };
+    (0..QUERIES)
+        .map(|k| {
+            let u = (k as f64 + 0.5) / QUERIES as f64;
+            (dir(80.0 * u, 0.0), dir(80.0 * (1.0 - u), 137.0 * k as f64))
+        })
+        .collect()
+}
+
+fn estimators(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let pairs = pairs();
+    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    for &name in strata_bsdf::materials::REPRESENTATIVE {
+        let stack = strata_bsdf::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("eval/{name}"));
+        g.throughput(Throughput::Elements(QUERIES as u64));
+        let sc = ScalarEngine::<f32>::new(&stack, Settings::default());
+        g.bench_function(BenchmarkId::new("scalar", 1), |b| {
+            b.iter(|| {
+                let s: f64 = pairs
+                    .iter()
+                    .zip(&keys)
+                    .map(|(&(wi, wo), &k)| sc.eval(wi, wo, SAMPLES, 1, k).value[0])
+                    .sum();
+                black_box(s)
+            })
+        });
+        for (label, plan) in [
+            ("wavefront", Plan::Specialized),
+            ("wavefront-general", Plan::General),
+        ] {
+            let wf = Wavefront::<F32x8>::new(&stack, Settings::default(), plan);
+            g.bench_function(BenchmarkId::new(label, 1), |b| {
+                b.iter(|| pool.install(|| black_box(wf.eval_batch(&pairs, SAMPLES, 1, &keys).0)))
+            });
+        }
+        g.finish();
+    }
+}
+
+/// Single queries through the public API, as a renderer makes them: one
+/// `sample` or one `pdf` per call, on each engine, with a one-thread pool
+/// (time per call).
+fn single_queries(c: &mut Criterion) {
+    let wi = Vec3::new(0.3, 0.1, 0.9).normalize();
+    let wo = Vec3::new(-0.2, 0.4, 0.8).normalize();
+    for &name in strata_bsdf::materials::REPRESENTATIVE {
+        let stack = strata_bsdf::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("single/{name}"));
+        for (label, bsdf) in engines(&stack, 1) {
+            let mut k = 0u64;
+            g.bench_function(BenchmarkId::new("sample", label), |b| {
+                b.iter(|| {
+                    k += 1;
+                    black_box(bsdf.sample(wi, k).unwrap())
+                })
+            });
+            g.bench_function(BenchmarkId::new("pdf", label), |b| {
+                b.iter(|| black_box(bsdf.pdf(wi, wo).unwrap()))
+            });
+        }
+        g.finish();
+    }
+}
+
+/// The stack on each engine, with a pool of `threads` threads.
+fn engines(stack: &strata_bsdf::LayerStack, threads: usize) -> [(&'static str, LayeredBsdf); 2] {
+    [("scalar", Engine::Scalar), ("wavefront", Engine::Wavefront)].map(|(label, engine)| {
+        let bsdf = LayeredBsdf::new(stack.clone()).engine(engine);
+        (label, bsdf.threads(threads).unwrap())
+    })
+}
+
+fn small_batches(c: &mut Criterion) {
+    let wo = Vec3::new(-0.2, 0.4, 0.8).normalize();
+    for &name in strata_bsdf::materials::REPRESENTATIVE {
+        let stack = strata_bsdf::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("small/{name}"));
+        for n in [4usize, 16] {
+            let wis: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(0.05 * i as f32, 0.1, 0.9).normalize())
+                .collect();
+            let pairs: Vec<(Vec3, Vec3)> = wis.iter().map(|&w| (w, wo)).collect();
+            let keys: Vec<u64> = (0..n as u64).collect();
+            for (label, bsdf) in engines(&stack, 2) {
+                let mut k = 0u64;
+                g.bench_function(BenchmarkId::new(format!("sample{n}"), label), |b| {
+                    b.iter(|| {
+                        k += 1;
+                        let idx = vec![k; n];
+                        black_box(bsdf.sample_batch_keyed(&wis, &keys, &idx).unwrap())
+                    })
+                });
+                g.bench_function(BenchmarkId::new(format!("pdf{n}"), label), |b| {
+                    b.iter(|| black_box(bsdf.pdf_batch(&pairs).unwrap()))
+                });
+            }
+        }
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
+    targets = estimators, single_queries, small_batches
+}
+criterion_main!(benches);

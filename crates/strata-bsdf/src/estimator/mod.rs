@@ -1,0 +1,86 @@
+//! Estimators of the layered BSDF.
+//!
+//! * [`scalar`]: the reference, one walk at a time, generic over `f32` (the
+//!   reference) and `f64` (the accuracy oracle).
+//! * [`events`]: the event kernels both engines call, written once over lanes.
+//! * [`layout`]: the stack's topology as the walks see it.
+//! * [`pdf`]: the fast approximate pdf of `sample`.
+//!
+//! Both follow `docs/method.md`; the differences from the paper and from the
+//! authors' code are listed in `docs/architecture.md`.
+
+mod accumulate;
+pub mod events;
+pub mod layout;
+mod orient;
+pub mod pdf;
+pub mod scalar;
+pub mod wavefront;
+
+pub use accumulate::{BlockReducer, MeanVar, BLOCK};
+#[doc(hidden)]
+pub use orient::orient;
+pub use orient::MIN_COS;
+
+/// Walk controls shared by the estimators.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Russian roulette starts after this many events (interface or medium).
+    /// It is unbiased: survivors are reweighted.
+    pub rr_start: u32,
+    /// Optional hard cap on events per walk. `None` (the default) means no cap.
+    /// A cap loses the energy of longer paths: it is biased, and only for
+    /// renderers that need bounded cost. Caps above 2^24
+    /// ([`events::MAX_CAP`]) act as 2^24 on every engine.
+    pub max_depth: Option<u32>,
+    /// Keep only paths with at most this many medium scattering events
+    /// (`Some(1)` gives single scattering, the analytic check of method.md §8).
+    pub max_scatter_order: Option<u32>,
+    /// Combine next-event estimation and path continuation with MIS (power
+    /// heuristic); `false` uses next-event estimation alone where it applies.
+    pub mis: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            rr_start: 4,
+            max_depth: None,
+            max_scatter_order: None,
+            mis: true,
+        }
+    }
+}
+
+/// A Monte Carlo estimate per RGB channel with its standard error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// The mean.
+    pub value: [f64; 3],
+    /// The standard error of the mean.
+    pub stderr: [f64; 3],
+    /// Number of independent walks.
+    pub samples: u64,
+}
+
+/// Directional albedo: reflected and transmitted fractions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Albedo {
+    /// Reflected fraction per channel.
+    pub reflected: Estimate,
+    /// Transmitted fraction per channel.
+    pub transmitted: Estimate,
+}
+
+/// One sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// The outgoing direction (unit, pointing away from the surface).
+    pub wo: glam::Vec3,
+    /// `f(wi, wo) |cos θo| / p(wo)`: an unbiased estimate, the walk's throughput.
+    pub weight: [f32; 3],
+    /// The walk left on the side it entered (reflection).
+    pub reflection: bool,
+    /// Every event of the walk was a delta (the direction is a specular one).
+    pub specular: bool,
+}

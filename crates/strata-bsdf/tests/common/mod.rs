@@ -1,0 +1,45 @@
+//! Helpers shared by the integration tests: stacks from TOML, directions from
+//! angles, and z-score assertions whose tolerance comes from standard errors.
+#![allow(dead_code)]
+
+use strata_bsdf::LayerStack;
+
+/// A stack from TOML text (panics with the error: test inputs are valid).
+pub fn stack(toml: &str) -> LayerStack {
+    LayerStack::from_toml_str(toml).unwrap_or_else(|e| panic!("test material: {e}"))
+}
+
+/// The unit direction at polar angle `theta_deg` (from +z) and azimuth `phi_deg`.
+pub fn dir(theta_deg: f64, phi_deg: f64) -> [f64; 3] {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
+}
+
+/// As a glam vector.
+pub fn vec3(d: [f64; 3]) -> glam::Vec3 {
+    glam::Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32)
+}
+
+/// Asserts `|value - expected| <= k * stderr + abs_tol`, with a message that
+/// gives the z-score. `abs_tol` covers the reference's own rounding (f32
+/// arithmetic, quadrature); it must be far below the effect being tested.
+#[track_caller]
+pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_tol: f64) {
+    assert!(
+        value.is_finite() && stderr.is_finite(),
+        "{what}: non-finite estimate {value} ± {stderr}"
+    );
+    let err = (value - expected).abs();
+    let z = if stderr > 0.0 {
+        err / stderr
+    } else {
+        f64::INFINITY
+    };
+    assert!(
+        err <= k * stderr + abs_tol,
+        "{what}: {value} ± {stderr} vs expected {expected} (|z| = {z:.2}, allowed {k} sigma + {abs_tol})"
+    );
+}
+
+pub mod chi2;
+pub mod reference;

@@ -1,0 +1,65 @@
+//! `strata albedo`: reflected and transmitted fractions for one incident direction.
+//!
+//! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`.
+
+use crate::common::EngineArgs;
+use crate::common::{load_material, stdout_failure};
+use std::io::Write;
+use std::path::PathBuf;
+use strata_bsdf::LayeredBsdf;
+
+/// Arguments of `strata albedo`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Material file (TOML, or JSON by extension).
+    #[arg(long)]
+    material: PathBuf,
+    /// Polar angle of incidence in degrees (0 = normal; above 90 = from below).
+    #[arg(long, allow_hyphen_values = true)]
+    theta: f64,
+    /// Azimuth of incidence in degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    phi: f64,
+    /// Walks.
+    #[arg(long, default_value_t = 100_000, value_parser = crate::common::walks)]
+    samples: u64,
+    /// Seed of every random stream.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[command(flatten)]
+    engine: EngineArgs,
+}
+
+/// The unit direction at polar angle `theta_deg` and azimuth `phi_deg`.
+pub fn direction(theta_deg: f64, phi_deg: f64) -> glam::Vec3 {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    glam::Vec3::new(
+        (t.sin() * p.cos()) as f32,
+        (t.sin() * p.sin()) as f32,
+        t.cos() as f32,
+    )
+}
+
+/// Runs `strata albedo`.
+pub fn run(args: Args) -> Result<(), String> {
+    if !args.theta.is_finite() || !(0.0..=180.0).contains(&args.theta) {
+        return Err(format!(
+            "--theta {}: must be in [0, 180] degrees",
+            args.theta
+        ));
+    }
+    if !args.phi.is_finite() {
+        return Err(format!("--phi {}: must be finite", args.phi));
+    }
+    let stack = load_material(&args.material)?;
+    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
+    let wi = direction(args.theta, args.phi);
+    let a = bsdf
+        .albedo(wi, args.samples)
+        .map_err(|e| format!("--theta {} --phi {}: {e}", args.theta, args.phi))?;
+    let line = serde_json::json!({
+        "R": a.reflected.value, "T": a.transmitted.value,
+        "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
+    });
+    writeln!(std::io::stdout(), "{line}").or_else(stdout_failure)
+}

@@ -1,0 +1,286 @@
+//! `strata bench`: throughput of the scalar reference and of the wavefront
+//! engine on the representative stacks, as ratios measured in one run.
+//!
+//! Each engine runs the same eval batch (`--queries` queries over both
+//! hemispheres × `--samples` walks); the engines take turns, one batch each
+//! per round, until each has run for at least `--min-seconds`, and each keeps
+//! its fastest run. Taking turns makes a slow phase of a shared machine hit
+//! every engine alike, so the ratios hold even when single times do not. The
+//! walks are the same on every engine (same seeds), so walk segments (one
+//! walk advancing by one event) are counted once
+//! by the wavefront engine and used for the scalar rows too; the general
+//! (unspecialized) walk counts its own, since it runs more stages.
+
+use crate::common::{load_material, print_out};
+use rayon::ThreadPoolBuilder;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use strata_bsdf::estimator::scalar::ScalarEngine;
+use strata_bsdf::estimator::wavefront::{Plan, Stats, Wavefront};
+use strata_bsdf::lane::{F32x16, F32x8, Wide};
+use strata_bsdf::{LayerStack, Settings};
+
+/// Arguments of `strata bench`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Print one JSON object per stack × engine × threads instead of a table.
+    #[arg(long)]
+    json: bool,
+    /// Queries per batch (at most 1000000).
+    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u64).range(1..=MAX_QUERIES))]
+    queries: u64,
+    /// Walks per query.
+    #[arg(long, default_value_t = 512, value_parser = crate::common::walks)]
+    samples: u64,
+    /// Minimum time each engine runs, in turns with the others (its fastest
+    /// batch counts). At most a day.
+    #[arg(long, default_value_t = 1.0)]
+    min_seconds: f64,
+    /// Threads of the "all threads" rows (default: every core; at most 1024).
+    #[arg(long, value_parser = crate::common::threads)]
+    threads: Option<u64>,
+    /// Benchmark this material instead of the built-in representative stacks.
+    #[arg(long)]
+    material: Option<PathBuf>,
+    /// Run only this engine's one-thread row (to profile it).
+    #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16"])]
+    only: Option<String>,
+}
+
+/// The largest `--queries`: the batch and the engines' per-query state stay
+/// small (tens of megabytes).
+const MAX_QUERIES: u64 = 1_000_000;
+
+/// One row of the table.
+struct Row {
+    stack: String,
+    engine: &'static str,
+    threads: usize,
+    queries_per_s: f64,
+    segments_per_s: Option<f64>,
+    occupancy: Option<f64>,
+}
+
+/// One engine configuration of a stack: runs the batch once per call and
+/// keeps its fastest time.
+struct Measurement<'a> {
+    engine: &'static str,
+    threads: usize,
+    /// Runs the batch; the wavefront engines return their counters.
+    run: Box<dyn FnMut() -> Option<Stats> + 'a>,
+    best: Duration,
+    spent: Duration,
+    reps: u32,
+    stats: Option<Stats>,
+}
+
+impl<'a> Measurement<'a> {
+    fn new(engine: &'static str, threads: usize, run: impl FnMut() -> Option<Stats> + 'a) -> Self {
+        Measurement {
+            engine,
+            threads,
+            run: Box::new(run),
+            best: Duration::MAX,
+            spent: Duration::ZERO,
+            reps: 0,
+            stats: None,
+        }
+    }
+
+    fn once(&mut self) {
+        let t = Instant::now();
+        let st = (self.run)();
+        let e = t.elapsed();
+        self.best = self.best.min(e);
+        self.spent += e;
+        self.reps += 1;
+        self.stats = st.or(self.stats);
+    }
+}
+
+/// Runs the measurements in turn, one batch each per round (after one
+/// warm-up round), until each has run at least three times and for at least
+/// `min`: a slow phase of a shared machine then hits every engine alike, and
+/// each keeps its fastest run.
+fn interleaved(ms: &mut [Measurement], min: Duration) {
+    ms.iter_mut().for_each(|m| {
+        (m.run)();
+    });
+    while ms.iter().any(|m| m.reps < 3 || m.spent < min) {
+        ms.iter_mut().for_each(Measurement::once);
+    }
+}
+
+/// The batch: incidence and exit directions spread over the hemispheres
+/// (transmission too, for a transmissive stack).
+fn batch(stack: &LayerStack, n: usize) -> Vec<([f64; 3], [f64; 3])> {
+    let dir = |t: f64, p: f64| {
+        let (t, p) = (t.to_radians(), p.to_radians());
+        [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
+    };
+    (0..n)
+        .map(|k| {
+            let u = (k as f64 + 0.5) / n as f64;
+            let ti = 85.0 * u;
+            let mut to = 85.0 * ((k * 7 % n) as f64 + 0.5) / n as f64;
+            if stack.transmissive() && k % 3 == 2 {
+                to = 180.0 - to;
+            }
+            (dir(ti, 0.0), dir(to, 360.0 * u * 3.0))
+        })
+        .collect()
+}
+
+/// A wavefront measurement: `W` lanes, `plan`, on a pool of `threads`.
+fn wave<'a, W: Wide>(
+    engine: &'static str,
+    stack: &LayerStack,
+    plan: Plan,
+    pairs: &'a [([f64; 3], [f64; 3])],
+    keys: &'a [u64],
+    samples: u64,
+    threads: usize,
+) -> Result<Measurement<'a>, String> {
+    let wf = Wavefront::<W>::new(stack, Settings::default(), plan);
+    let pool = ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    Ok(Measurement::new(engine, threads, move || {
+        Some(pool.install(|| wf.eval_batch(pairs, samples, 1, keys).1))
+    }))
+}
+
+fn bench_stack(
+    name: &str,
+    stack: &LayerStack,
+    args: &Args,
+    all: usize,
+) -> Result<Vec<Row>, String> {
+    let pairs = batch(stack, args.queries as usize);
+    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+    let q = pairs.len() as f64;
+    let n = args.samples;
+    let sc = ScalarEngine::<f32>::new(stack, Settings::default());
+    let mut ms = vec![
+        Measurement::new("scalar", 1, || {
+            let s: f64 = pairs
+                .iter()
+                .enumerate()
+                .map(|(k, &(wi, wo))| sc.eval(wi, wo, n, 1, k as u64).value[0])
+                .sum();
+            std::hint::black_box(s);
+            None
+        }),
+        wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, 1)?,
+    ];
+    if all > 1 {
+        ms.push(wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, all)?);
+    }
+    ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
+    ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
+    if let Some(only) = &args.only {
+        ms.retain(|m| m.engine == only && m.threads == 1);
+    }
+    interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
+    // The scalar engine runs the same walks as the specialized wavefront: it
+    // takes that row's segment count (unknown if it ran alone).
+    let walks = ms
+        .iter()
+        .find(|m| m.engine == "wavefront")
+        .and_then(|m| m.stats);
+    Ok(ms
+        .iter()
+        .map(|m| {
+            let t = m.best.as_secs_f64();
+            Row {
+                stack: name.to_string(),
+                engine: m.engine,
+                threads: m.threads,
+                queries_per_s: q / t,
+                segments_per_s: m.stats.or(walks).map(|st| st.segments as f64 / t),
+                occupancy: m.stats.map(|s| s.occupancy()),
+            }
+        })
+        .collect())
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    crate::common::check_seconds("--min-seconds", args.min_seconds, true)?;
+    let all = match args.threads {
+        Some(n) => n as usize,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let stacks: Vec<(String, LayerStack)> = match &args.material {
+        Some(p) => vec![(p.display().to_string(), load_material(p)?)],
+        None => strata_bsdf::materials::REPRESENTATIVE
+            .iter()
+            .map(|&name| {
+                let st = strata_bsdf::materials::builtin(name).expect("built-in materials are valid");
+                (name.to_string(), st)
+            })
+            .collect(),
+    };
+    let mut rows = Vec::new();
+    for (name, st) in &stacks {
+        if !args.json {
+            crate::common::note(&format!("benchmarking {name} ..."));
+        }
+        rows.extend(bench_stack(name, st, &args, all)?);
+    }
+    let mut text = String::new();
+    if args.json {
+        for r in &rows {
+            let line = serde_json::json!({
+                "stack": r.stack, "engine": r.engine, "threads": r.threads,
+                "queries_per_s": r.queries_per_s, "segments_per_s": r.segments_per_s,
+                "occupancy": r.occupancy,
+            });
+            let _ = writeln!(text, "{line}");
+        }
+    } else {
+        table(&mut text, &rows, &args);
+    }
+    print_out(&text)
+}
+
+/// The table of `rows`, appended to `o`.
+fn table(o: &mut String, rows: &[Row], args: &Args) {
+    let _ = writeln!(
+        o,
+        "eval batches: {} queries x {} walks; engines in turns, fastest run of each (>= {} s each)\n",
+        args.queries, args.samples, args.min_seconds
+    );
+    let _ = writeln!(
+        o,
+        "{:<24} {:<18} {:>7} {:>11} {:>12} {:>9} {:>9}",
+        "stack", "engine", "threads", "queries/s", "Msegments/s", "occupancy", "x scalar"
+    );
+    let mut last = "";
+    let mut scalar = None;
+    for r in rows {
+        let name = if r.stack != last {
+            scalar = None;
+            r.stack.as_str()
+        } else {
+            ""
+        };
+        if r.engine == "scalar" {
+            scalar = Some(r.queries_per_s);
+        }
+        let dash = |x: Option<f64>, f: fn(f64) -> String| x.map_or("-".into(), f);
+        let _ = writeln!(
+            o,
+            "{:<24} {:<18} {:>7} {:>11.1} {:>12} {:>9} {:>9}",
+            name,
+            r.engine,
+            r.threads,
+            r.queries_per_s,
+            dash(r.segments_per_s, |s| format!("{:.2}", s / 1e6)),
+            dash(r.occupancy, |o| format!("{o:.3}")),
+            dash(scalar.map(|s| r.queries_per_s / s), |x| format!("{x:.2}")),
+        );
+        last = &r.stack;
+    }
+}

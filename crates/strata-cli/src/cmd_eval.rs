@@ -1,0 +1,137 @@
+//! `strata eval`: f(wi, wo) for queries read as JSON lines on stdin.
+//!
+//! Input: one query per line, `{"wi":[x,y,z],"wo":[x,y,z]}` (local frame, z =
+//! normal, both directions pointing away from the surface; normalized on input;
+//! blank lines are skipped). Output: one line per query,
+//! `{"f":[r,g,b],"stderr":[r,g,b],"pdf":p}`, `f` without the cosine. The first
+//! bad line (malformed JSON, a missing or extra field, not three numbers, a zero
+//! or non-finite direction) stops the run with an error naming its line number;
+//! the answers to the lines before it have already been printed.
+
+use crate::common::{load_material, stdout_failure, EngineArgs};
+use serde::Serialize;
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+use strata_bsdf::query::parse_query_line;
+use strata_bsdf::LayeredBsdf;
+
+/// Arguments of `strata eval`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Material file (TOML, or JSON by extension).
+    #[arg(long)]
+    material: PathBuf,
+    /// Walks per query.
+    #[arg(long, default_value_t = 4096, value_parser = crate::common::walks)]
+    samples: u64,
+    /// Seed of every random stream.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[command(flatten)]
+    engine: EngineArgs,
+}
+
+/// Queries evaluated together (the wavefront engine batches them).
+const CHUNK: usize = 1024;
+
+/// One output line (fields in this order).
+#[derive(Serialize)]
+struct Answer {
+    f: [f64; 3],
+    stderr: [f64; 3],
+    pdf: f32,
+}
+
+/// Runs `strata eval`.
+pub fn run(args: Args) -> Result<(), String> {
+    let stack = load_material(&args.material)?;
+    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
+    let stdin = std::io::stdin();
+    let stdout = std::io::stdout();
+    let mut out = std::io::BufWriter::new(stdout.lock());
+    // Queries are read in chunks and evaluated as a batch; the query key is
+    // the line index, so a query's answer depends only on the seed and where
+    // it stands in the input (not on the engine or the chunking).
+    let mut pairs = Vec::with_capacity(CHUNK);
+    let mut keys = Vec::with_capacity(CHUNK);
+    let mut lines = stdin.lock().lines().enumerate();
+    loop {
+        let mut failure = None;
+        for (i, line) in lines.by_ref() {
+            let line_no = i + 1;
+            let parsed = line
+                .map_err(|e| format!("stdin line {line_no}: cannot read: {e}"))
+                .and_then(|l| {
+                    if l.trim().is_empty() {
+                        return Ok(None);
+                    }
+                    parse_query_line(&l)
+                        .map(Some)
+                        .map_err(|e| format!("stdin line {line_no}: {e}"))
+                });
+            match parsed {
+                Ok(None) => continue,
+                Ok(Some((wi, wo))) => {
+                    pairs.push((wi.to_vec3(), wo.to_vec3()));
+                    keys.push(i as u64);
+                }
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
+            }
+            if pairs.len() == CHUNK {
+                break;
+            }
+        }
+        let done = pairs.len() < CHUNK || failure.is_some();
+        if let Err(e) = answer(&bsdf, &args, &pairs, &keys, &mut out) {
+            return e;
+        }
+        pairs.clear();
+        keys.clear();
+        if let Some(e) = failure {
+            // The answers before the bad line are out; then the error.
+            out.flush().or_else(stdout_failure)?;
+            return Err(e);
+        }
+        if done {
+            return out.flush().or_else(stdout_failure);
+        }
+    }
+}
+
+/// Evaluates a chunk and prints one line per query. `Err(result)` ends the
+/// run with `result` (a failure, or a quiet stop on a closed pipe).
+fn answer(
+    bsdf: &LayeredBsdf,
+    args: &Args,
+    pairs: &[(glam::Vec3, glam::Vec3)],
+    keys: &[u64],
+    out: &mut impl Write,
+) -> Result<(), Result<(), String>> {
+    if pairs.is_empty() {
+        return Ok(());
+    }
+    // Directions were validated when parsed, so the batch cannot fail on them.
+    let fail = |e: strata_bsdf::BatchError| {
+        Err(match e.index {
+            Some(i) => format!("stdin line {}: {}", keys[i] + 1, e.error),
+            None => format!("--{}", e.error),
+        })
+    };
+    let f = bsdf
+        .eval_batch_keyed(pairs, args.samples, keys)
+        .map_err(fail)?;
+    let p = bsdf.pdf_batch(pairs).map_err(fail)?;
+    for (e, p) in f.iter().zip(p) {
+        let line = Answer {
+            f: e.value,
+            stderr: e.stderr,
+            pdf: p,
+        };
+        let line = serde_json::to_string(&line).map_err(|e| Err(format!("cannot format: {e}")))?;
+        writeln!(out, "{line}").map_err(stdout_failure)?;
+    }
+    Ok(())
+}

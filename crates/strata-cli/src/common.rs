@@ -1,0 +1,142 @@
+//! Helpers shared by the subcommands: loading materials and parsing vectors,
+//! with errors that name the flag and the value.
+
+use std::path::Path;
+use strata_bsdf::LayerStack;
+
+/// Loads and validates the material file given by `--material`.
+pub fn load_material(path: &Path) -> Result<LayerStack, String> {
+    LayerStack::from_path(path).map_err(|e| format!("--material {}: {e}", path.display()))
+}
+
+/// Parses `x,y,z` (three finite numbers) given for `flag`.
+pub fn parse_vec3(flag: &str, text: &str) -> Result<glam::Vec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!(
+            "{flag} {text}: expected three numbers x,y,z separated by commas, got {}",
+            parts.len()
+        ));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        let x: f32 = p
+            .parse()
+            .map_err(|_| format!("{flag} {text}: {p:?} is not a number"))?;
+        if !x.is_finite() {
+            return Err(format!("{flag} {text}: {p} is not a finite number"));
+        }
+        *slot = x;
+    }
+    Ok(glam::Vec3::from(v))
+}
+
+/// Parses a count that must be at least 1 (clap names the flag and value).
+pub fn positive(text: &str) -> Result<u64, String> {
+    match text.parse::<u64>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(_) if text.trim_start().starts_with('-') => Err("must be at least 1".into()),
+        Err(e) => Err(format!("not a whole number: {e}")),
+    }
+}
+
+/// Parses `--samples`: a walk count per query, from 1 to the library's
+/// `MAX_WALKS` (2^40), checked before any work is done.
+pub fn walks(text: &str) -> Result<u64, String> {
+    walks_at_most(text, strata_bsdf::MAX_WALKS)
+}
+
+/// A whole number from 1 to `max` walks.
+pub fn walks_at_most(text: &str, max: u64) -> Result<u64, String> {
+    at_most(text, max, " walks per query")
+}
+
+/// A whole number from 1 to `max` (`unit` follows `max` in the message).
+fn at_most(text: &str, max: u64, unit: &str) -> Result<u64, String> {
+    match positive(text)? {
+        n if n <= max => Ok(n),
+        _ => Err(format!("must be at most {max}{unit}")),
+    }
+}
+
+/// The most threads any `--threads` may ask for: the library's bound (a
+/// thread pool of more is a typo, and starting it would take the machine
+/// down first).
+pub const MAX_THREADS: u64 = strata_bsdf::MAX_THREADS as u64;
+
+/// Parses `--threads`: a whole number in 1..=MAX_THREADS.
+pub fn threads(text: &str) -> Result<u64, String> {
+    at_most(text, MAX_THREADS, " threads")
+}
+
+/// The longest time any `--...-seconds` option may ask for: a day.
+pub const MAX_SECONDS: f64 = 86_400.0;
+
+/// Checks a time in seconds given for `flag`: finite, at most
+/// `MAX_SECONDS`, and positive (or, if `zero_ok`, non-negative).
+pub fn check_seconds(flag: &str, s: f64, zero_ok: bool) -> Result<(), String> {
+    let low_ok = if zero_ok { s >= 0.0 } else { s > 0.0 };
+    if !(low_ok && s <= MAX_SECONDS) {
+        let low = if zero_ok { ">= 0" } else { "> 0" };
+        return Err(format!(
+            "{flag} {s}: must be a number of seconds {low} and at most {MAX_SECONDS} (a day)"
+        ));
+    }
+    Ok(())
+}
+
+/// Prints `text` to stdout and flushes it; a closed pipe is not an error
+/// (see `stdout_failure`).
+pub fn print_out(text: &str) -> Result<(), String> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .or_else(stdout_failure)
+}
+
+/// Prints a progress note to stderr (never fails: a closed stderr only
+/// silences it).
+pub fn note(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{text}");
+}
+
+/// What a failed write to stdout means: a closed pipe (`strata ... | head`)
+/// means the reader has what it wants, so the command stops quietly
+/// (`Ok(())`); any other failure is an error.
+pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        Ok(())
+    } else {
+        Err(format!("cannot write to stdout: {e}"))
+    }
+}
+
+/// The engine flags shared by `eval`, `albedo` and `sample`.
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct EngineArgs {
+    /// Engine: the SIMD wavefront (default), the scalar reference, or auto
+    /// (the scalar engine for calls of fewer walks than the wavefront has
+    /// lanes). All give the same results for the same seed.
+    #[arg(long, default_value = "wavefront")]
+    pub engine: strata_bsdf::Engine,
+    /// Threads for the wavefront engine (default: every core). Results do not
+    /// depend on it. At most 1024.
+    #[arg(long, value_parser = threads)]
+    pub threads: Option<u64>,
+}
+
+impl EngineArgs {
+    /// Applies the flags to a BSDF.
+    pub fn apply(self, bsdf: strata_bsdf::LayeredBsdf) -> Result<strata_bsdf::LayeredBsdf, String> {
+        let bsdf = bsdf.engine(self.engine);
+        match self.threads {
+            Some(n) => bsdf
+                .threads(n as usize)
+                .map_err(|e| format!("--threads {n}: {e}")),
+            None => Ok(bsdf),
+        }
+    }
+}
