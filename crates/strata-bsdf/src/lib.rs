@@ -74,7 +74,9 @@ pub mod rng;
 pub mod stack;
 
 pub use api::{
-    BatchError, Direction, Engine, LayeredBsdf, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
+    AlbedoRecord, BatchError, Direction, Engine, EvalRecord, LayeredBsdf, QueryError, Sample,
+    SampleFlags, SampleRecord, ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS,
+    MAX_WALKS,
 };
-pub use estimator::{Albedo, Estimate, Sample, Settings};
+pub use estimator::{Albedo, Estimate, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, StackError};

@@ -307,7 +307,7 @@ impl AlbedoAcc {
             bad_dir: 0,
         }
     }
-    fn push(&mut self, wi_up: bool, s: Option<strata_bsdf::Sample>) {
+    fn push(&mut self, wi_up: bool, s: Option<strata_bsdf::estimator::WalkSample>) {
         let (mut xr, mut xt) = ([0.0; 3], [0.0; 3]);
         if let Some(s) = s {
             let w = s.weight.map(|x| x as f64);

@@ -72,9 +72,10 @@ pub struct Albedo {
     pub transmitted: Estimate,
 }
 
-/// One sampled direction.
+/// One walk of the sampler, as the engines return it (the API adds the pdf:
+/// [`crate::Sample`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sample {
+pub struct WalkSample {
     /// The outgoing direction (unit, pointing away from the surface).
     pub wo: glam::Vec3,
     /// `f(wi, wo) |cos θo| / p(wo)`: an unbiased estimate, the walk's throughput.

@@ -28,7 +28,7 @@ use super::events::{self, Connection};
 use super::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
 };
-use super::{Albedo, Estimate, Sample, Settings};
+use super::{Albedo, Estimate, WalkSample, Settings};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::medium;
@@ -300,24 +300,24 @@ impl<S: Scalar> ScalarEngine<S> {
 
     /// The analog random walk from `wi` (method.md §5). `None` if the walk was
     /// absorbed (or `wi` sees nothing). Directions are in the stack's frame.
-    pub fn sample(&self, wi: [f64; 3], rng: &mut WalkRng) -> Option<Sample> {
+    pub fn sample(&self, wi: [f64; 3], rng: &mut WalkRng) -> Option<WalkSample> {
         self.sample_counted(wi, rng).0
     }
 
     /// [`ScalarEngine::sample`], also returning the walk's number of events
     /// (interface events and medium collisions; 0 if no light enters).
-    pub fn sample_counted(&self, wi: [f64; 3], rng: &mut WalkRng) -> (Option<Sample>, u32) {
+    pub fn sample_counted(&self, wi: [f64; 3], rng: &mut WalkRng) -> (Option<WalkSample>, u32) {
         let mut n = Counter::default();
         let s = self.sample_inner(wi, rng, &mut n);
         (s, n.0)
     }
 
-    fn sample_inner(&self, wi: [f64; 3], rng: &mut WalkRng, n: &mut Counter) -> Option<Sample> {
+    fn sample_inner(&self, wi: [f64; 3], rng: &mut WalkRng, n: &mut Counter) -> Option<WalkSample> {
         let o = super::orient(&self.stack, wi, None)?;
         let wi_v = v3::<S>(o.wi);
         let ex = self.walk(wi_v, None, rng, n)?;
         let wo = o.apply([ex.d.x.lane(0), ex.d.y.lane(0), ex.d.z.lane(0)]);
-        Some(Sample {
+        Some(WalkSample {
             wo: glam::Vec3::new(wo[0] as f32, wo[1] as f32, wo[2] as f32),
             weight: rgb_f64(ex.beta).map(|x| x as f32),
             reflection: (ex.d.z > S::zero()) == (wi_v.z > S::zero()),

@@ -43,7 +43,7 @@ pub mod walks;
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
-use super::{Albedo, Estimate, Sample, Settings};
+use super::{Albedo, Estimate, WalkSample, Settings};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
@@ -675,7 +675,7 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
         sample_index: &[u64],
-    ) -> (Vec<Option<Sample>>, Stats) {
+    ) -> (Vec<Option<WalkSample>>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         assert_eq!(wis.len(), sample_index.len(), "one sample index per query");
         let queries = self.sample_queries(wis, seed, keys);
@@ -700,7 +700,7 @@ impl<W: Wide> Wavefront<W> {
                 if queries.flipped[q] {
                     d[2] = -d[2];
                 }
-                res[q] = Some(Sample {
+                res[q] = Some(WalkSample {
                     wo: glam::Vec3::from(d),
                     weight: o.value,
                     reflection: o.reflection,

@@ -5,126 +5,48 @@
 //! are normalized on the way in; a NaN, infinite or zero-length direction is a
 //! [`QueryError`] naming the argument and its value, never a panic and never a
 //! silent NaN.
+//!
+//! * [`error`]: what can be wrong with a query, and which one.
+//! * [`transport`]: radiance or importance, for light that crosses the stack.
+//! * [`slices`]: the batch forms over flat slices a renderer keeps (SoA or
+//!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
+
+mod error;
+pub mod slices;
+mod transport;
+
+pub use error::{BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS};
+pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
+pub use transport::Transport;
 
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS};
-use crate::estimator::{Albedo, Estimate, Sample, Settings};
+use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
 use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::LayerStack;
 use glam::Vec3;
-use std::fmt;
 use std::sync::Arc;
 
-/// A direction argument that cannot be used.
+/// One sampled direction, with the pdf a renderer's MIS needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum QueryError {
-    /// A component is NaN or infinite.
-    NonFinite {
-        /// `"wi"` or `"wo"`.
-        argument: &'static str,
-        /// The value given.
-        value: [f32; 3],
-    },
-    /// The vector has zero length.
-    ZeroLength {
-        /// `"wi"` or `"wo"`.
-        argument: &'static str,
-        /// The value given.
-        value: [f32; 3],
-    },
-    /// A number of walks of 0: there would be no estimate.
-    NoSamples {
-        /// The argument (`"samples"`, `"n"`).
-        argument: &'static str,
-    },
-    /// More walks per query than [`MAX_WALKS`].
-    TooManySamples {
-        /// The argument (`"samples"`, `"n"`).
-        argument: &'static str,
-        /// The number given.
-        value: u64,
-    },
-    /// A batch's per-query argument does not have one entry per query.
-    LengthMismatch {
-        /// The argument (`"keys"`, `"sample_index"`).
-        argument: &'static str,
-        /// Its length.
-        len: usize,
-        /// The number of queries.
-        queries: usize,
-    },
-}
-
-impl fmt::Display for QueryError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            QueryError::NonFinite { argument, value } => write!(
-                f,
-                "{argument} = [{}, {}, {}] is not a direction: components must be finite",
-                value[0], value[1], value[2]
-            ),
-            QueryError::ZeroLength { argument, value } => write!(
-                f,
-                "{argument} = [{}, {}, {}] is not a direction: it has zero length",
-                value[0], value[1], value[2]
-            ),
-            QueryError::NoSamples { argument } => {
-                write!(f, "{argument} = 0: at least one walk is needed")
-            }
-            QueryError::TooManySamples { argument, value } => write!(
-                f,
-                "{argument} = {value}: at most {MAX_WALKS} walks per query (2^40)"
-            ),
-            QueryError::LengthMismatch {
-                argument,
-                len,
-                queries,
-            } => write!(
-                f,
-                "{argument} has {len} entries for {queries} queries: give one per query"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for QueryError {}
-
-/// A validated unit direction.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Direction([f64; 3]);
-
-impl Direction {
-    /// Normalizes `v`, or says why it is not a direction.
-    pub fn new(argument: &'static str, v: Vec3) -> Result<Self, QueryError> {
-        Self::from_f64(argument, [v.x as f64, v.y as f64, v.z as f64])
-    }
-
-    /// Normalizes `d` (f64 components), or says why it is not a direction.
-    pub fn from_f64(argument: &'static str, d: [f64; 3]) -> Result<Self, QueryError> {
-        let value = d.map(|x| x as f32);
-        if !d.iter().all(|x| x.is_finite()) {
-            return Err(QueryError::NonFinite { argument, value });
-        }
-        // Scaled by the largest component first, so that no finite nonzero
-        // vector overflows or underflows on the way (1e200 or 1e-200).
-        let m = d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if m == 0.0 {
-            return Err(QueryError::ZeroLength { argument, value });
-        }
-        let s = d.map(|x| x / m);
-        let l = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
-        Ok(Direction(s.map(|x| x / l)))
-    }
-
-    /// As a glam vector (f32).
-    pub fn to_vec3(self) -> Vec3 {
-        Vec3::new(self.0[0] as f32, self.0[1] as f32, self.0[2] as f32)
-    }
-    /// The unit vector in f64.
-    pub fn get(self) -> [f64; 3] {
-        self.0
-    }
+pub struct Sample {
+    /// The outgoing direction (unit, pointing away from the surface).
+    pub wo: Vec3,
+    /// `f(wi, wo) |cos θo| / p(wo)` (in the BSDF's [`Transport`] mode): an
+    /// unbiased estimate, the walk's throughput.
+    pub weight: [f32; 3],
+    /// The approximate density of `wo` (per solid angle), exactly the number
+    /// [`LayeredBsdf::pdf`] returns for `(wi, wo)`: a function of the two
+    /// directions and the seed, not of the sample's key, so that MIS sees
+    /// the same number from either strategy. For a `specular` sample it is
+    /// the density of the stack's non-delta lobes at `wo` (positive: the
+    /// pdf has a uniform floor); a renderer treats the sample as a delta.
+    pub pdf: f32,
+    /// The walk left on the side it entered (reflection).
+    pub reflection: bool,
+    /// Every event of the walk was a delta (the direction is a specular one).
+    pub specular: bool,
 }
 
 /// Which engine answers a query. The scalar and the wavefront engine give the
@@ -196,68 +118,6 @@ impl std::str::FromStr for Engine {
     }
 }
 
-/// A batch call that cannot be run: which query, and why.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BatchError {
-    /// Index of the query in the batch; `None` when the fault is in an
-    /// argument of the whole call (a walk count, the length of a per-query
-    /// argument).
-    pub index: Option<usize>,
-    /// What is wrong.
-    pub error: QueryError,
-}
-
-impl BatchError {
-    /// A fault in an argument of the whole call.
-    fn call(error: QueryError) -> Self {
-        BatchError { index: None, error }
-    }
-}
-
-impl fmt::Display for BatchError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.index {
-            Some(i) => write!(f, "query {i}: {}", self.error),
-            None => write!(f, "{}", self.error),
-        }
-    }
-}
-
-impl std::error::Error for BatchError {}
-
-/// The most walks one query may ask for, 2^40: beyond it the walk counts of
-/// a batch could overflow, and a query would run for weeks anyway.
-pub const MAX_WALKS: u64 = 1 << 40;
-
-/// The largest thread pool [`LayeredBsdf::threads`] builds: more threads
-/// than cores never helps, and each one reserves a stack.
-pub const MAX_THREADS: usize = 1024;
-
-/// A thread pool that cannot be built.
-#[derive(Debug)]
-pub enum ThreadsError {
-    /// More threads than [`MAX_THREADS`].
-    TooMany(usize),
-    /// The operating system refused (rayon's error).
-    Pool(rayon::ThreadPoolBuildError),
-}
-
-impl fmt::Display for ThreadsError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ThreadsError::TooMany(n) => {
-                write!(
-                    f,
-                    "threads = {n}: at most {MAX_THREADS} (0 means one per core)"
-                )
-            }
-            ThreadsError::Pool(e) => write!(f, "cannot build a thread pool: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for ThreadsError {}
-
 /// A layered BSDF ready to query.
 ///
 /// Every query is deterministic: its random streams are seeded from the
@@ -293,6 +153,7 @@ pub struct LayeredBsdf {
     samples: u64,
     pdf_samples: u32,
     seed: u64,
+    transport: Transport,
     pool: Option<Arc<rayon::ThreadPool>>,
 }
 
@@ -317,6 +178,7 @@ impl LayeredBsdf {
             samples: Self::DEFAULT_SAMPLES,
             pdf_samples: Self::DEFAULT_PDF_SAMPLES,
             seed: 0,
+            transport: Transport::default(),
             pool: None,
         }
     }
@@ -338,6 +200,29 @@ impl LayeredBsdf {
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
+    }
+
+    /// Chooses what flows from `wi` to `wo` (radiance, the default, or
+    /// importance); it changes transmission between exteriors of different
+    /// IOR only (see [`Transport`]).
+    pub fn transport(mut self, transport: Transport) -> Self {
+        self.transport = transport;
+        self
+    }
+
+    /// The transport mode.
+    pub fn transport_mode(&self) -> Transport {
+        self.transport
+    }
+
+    /// The seed.
+    pub fn seed_value(&self) -> u64 {
+        self.seed
+    }
+
+    /// The walks per `eval`.
+    pub fn samples_per_eval(&self) -> u64 {
+        self.samples
     }
 
     /// Chooses the engine.
@@ -414,22 +299,14 @@ impl LayeredBsdf {
         samples: u64,
         query: u64,
     ) -> Result<Estimate, QueryError> {
-        let (a, b) = (Direction::new("wi", wi)?, Direction::new("wo", wo)?);
+        let pair = (Direction::new("wi", wi)?.get(), Direction::new("wo", wo)?.get());
         walk_count("samples", samples)?;
-        Ok(match self.engine.resolve(1, samples) {
-            Engine::Scalar => self
-                .scalar
-                .eval(a.get(), b.get(), samples, self.seed, query),
-            _ => self.install(1, samples, || {
-                self.wave
-                    .eval_batch(&[(a.get(), b.get())], samples, self.seed, &[query])
-                    .0[0]
-            }),
-        })
+        Ok(self.eval_validated(&[pair], samples, &[query])[0])
     }
 
     /// Samples an outgoing direction for light from `wi`; `None` if the walk
-    /// was absorbed. `sample_index` selects the random stream.
+    /// was absorbed. `sample_index` selects the random stream (the key is
+    /// the direction's bits).
     pub fn sample(&self, wi: Vec3, sample_index: u64) -> Result<Option<Sample>, QueryError> {
         Ok(self
             .sample_batch_keyed(&[wi], &[direction_key(wi, wi)], &[sample_index])
@@ -467,16 +344,7 @@ impl LayeredBsdf {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
         walk_count("samples", samples).map_err(BatchError::call)?;
-        Ok(match self.engine.resolve(dirs.len(), samples) {
-            Engine::Scalar => dirs
-                .iter()
-                .zip(keys)
-                .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
-                .collect(),
-            _ => self.install(dirs.len(), samples, || {
-                self.wave.eval_batch(&dirs, samples, self.seed, keys).0
-            }),
-        })
+        Ok(self.eval_validated(&dirs, samples, keys))
     }
 
     /// One sampled direction per incident direction; `sample_index[k]`
@@ -490,7 +358,8 @@ impl LayeredBsdf {
         self.sample_batch_keyed(wis, &keys, sample_index)
     }
 
-    /// [`LayeredBsdf::sample_batch`] with explicit keys.
+    /// [`LayeredBsdf::sample_batch`] with explicit keys: query `k` draws
+    /// from the stream `(seed, keys[k], sample_index[k])`.
     pub fn sample_batch_keyed(
         &self,
         wis: &[Vec3],
@@ -500,39 +369,16 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
-        Ok(match self.engine.resolve(dirs.len(), 1) {
-            Engine::Scalar => dirs
-                .iter()
-                .zip(keys.iter().zip(sample_index))
-                .map(|(&a, (&k, &i))| {
-                    let mut rng = WalkRng::new(self.seed, k, i, Stream::Walk);
-                    self.scalar.sample(a, &mut rng)
-                })
-                .collect(),
-            _ => self.install(dirs.len(), 1, || {
-                self.wave
-                    .sample_batch(&dirs, self.seed, keys, sample_index)
-                    .0
-            }),
-        })
+        Ok(self.sample_validated(wis, &dirs, keys, sample_index))
     }
 
-    /// The approximate pdf for every pair; keys from the directions.
+    /// The approximate pdf for every pair; keys from the directions (a pdf
+    /// takes no caller keys: it is a function of `(wi, wo)`, so the number
+    /// [`Sample::pdf`] carries is the one a later `pdf` call gives).
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
         let dirs = directions2(pairs)?;
         let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
-        let p: Vec<f64> = match self.engine.resolve_pdf(dirs.len()) {
-            Engine::Scalar => dirs
-                .iter()
-                .zip(&keys)
-                .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
-                .collect(),
-            _ => self.install_if(dirs.len() > PDF_CHUNK, || {
-                self.wave
-                    .pdf_batch(&dirs, self.pdf_samples, self.seed, &keys)
-            }),
-        };
-        Ok(p.into_iter().map(|x| x as f32).collect())
+        Ok(self.pdf_validated(&dirs, &keys))
     }
 
     /// Directional albedo of every incident direction, `n` walks each; keys
@@ -552,16 +398,127 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         walk_count("n", n).map_err(BatchError::call)?;
-        Ok(match self.engine.resolve(dirs.len(), n) {
+        Ok(self.albedo_validated(&dirs, n, keys))
+    }
+
+    // ------------------------------------------- the engines, on valid input
+
+    /// Eval of validated pairs on the engine the call resolves to, in the
+    /// BSDF's transport mode.
+    fn eval_validated(&self, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
+        let mut est: Vec<Estimate> = match self.engine.resolve(dirs.len(), samples) {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys)
+                .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
+                .collect(),
+            _ => self.install(dirs.len(), samples, || {
+                self.wave.eval_batch(dirs, samples, self.seed, keys).0
+            }),
+        };
+        for (e, &(a, b)) in est.iter_mut().zip(dirs) {
+            if let Some(s) = self.transport.factor(self.stack(), a[2], b[2]) {
+                e.value = e.value.map(|v| v * s);
+                e.stderr = e.stderr.map(|v| v * s);
+            }
+        }
+        est
+    }
+
+    /// Samples of validated directions, each with its pdf (`raw` are the
+    /// directions as given, whose bits key the pdf as [`LayeredBsdf::pdf`]
+    /// keys it).
+    fn sample_validated(
+        &self,
+        raw: &[Vec3],
+        dirs: &[[f64; 3]],
+        keys: &[u64],
+        sample_index: &[u64],
+    ) -> Vec<Option<Sample>> {
+        let walks: Vec<Option<WalkSample>> = match self.engine.resolve(dirs.len(), 1) {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys.iter().zip(sample_index))
+                .map(|(&a, (&k, &i))| {
+                    let mut rng = WalkRng::new(self.seed, k, i, Stream::Walk);
+                    self.scalar.sample(a, &mut rng)
+                })
+                .collect(),
+            _ => self.install(dirs.len(), 1, || {
+                self.wave
+                    .sample_batch(dirs, self.seed, keys, sample_index)
+                    .0
+            }),
+        };
+        // The pdf of each sampled direction, as `pdf(wi, wo)` computes it.
+        let mut pairs = Vec::with_capacity(walks.len());
+        let mut pdf_keys = Vec::with_capacity(walks.len());
+        for ((w, &a), &raw) in walks.iter().zip(dirs).zip(raw) {
+            if let Some(w) = w {
+                if let Ok(b) = Direction::new("wo", w.wo) {
+                    pairs.push((a, b.get()));
+                    pdf_keys.push(direction_key(raw, w.wo));
+                }
+            }
+        }
+        let mut pdfs = self.pdf_validated(&pairs, &pdf_keys).into_iter();
+        walks
+            .into_iter()
+            .zip(dirs)
+            .map(|(w, a)| {
+                let w = w?;
+                let mut weight = w.weight;
+                let wo = [w.wo.x as f64, w.wo.y as f64, w.wo.z as f64];
+                if let Some(s) = self.transport.factor(self.stack(), a[2], wo[2]) {
+                    weight = weight.map(|v| (v as f64 * s) as f32);
+                }
+                Some(Sample {
+                    wo: w.wo,
+                    weight,
+                    pdf: pdfs.next().unwrap_or(0.0),
+                    reflection: w.reflection,
+                    specular: w.specular,
+                })
+            })
+            .collect()
+    }
+
+    /// The approximate pdf of validated pairs.
+    fn pdf_validated(&self, dirs: &[Pair], keys: &[u64]) -> Vec<f32> {
+        let p: Vec<f64> = match self.engine.resolve_pdf(dirs.len()) {
+            Engine::Scalar => dirs
+                .iter()
+                .zip(keys)
+                .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
+                .collect(),
+            _ => self.install_if(dirs.len() > PDF_CHUNK, || {
+                self.wave.pdf_batch(dirs, self.pdf_samples, self.seed, keys)
+            }),
+        };
+        p.into_iter().map(|x| x as f32).collect()
+    }
+
+    /// Albedos of validated directions; the transmitted fraction follows the
+    /// transport mode.
+    fn albedo_validated(&self, dirs: &[[f64; 3]], n: u64, keys: &[u64]) -> Vec<Albedo> {
+        let mut res: Vec<Albedo> = match self.engine.resolve(dirs.len(), n) {
             Engine::Scalar => dirs
                 .iter()
                 .zip(keys)
                 .map(|(&a, &k)| self.scalar.albedo(a, n, self.seed, k))
                 .collect(),
             _ => self.install(dirs.len(), n, || {
-                self.wave.albedo_batch(&dirs, n, self.seed, keys).0
+                self.wave.albedo_batch(dirs, n, self.seed, keys).0
             }),
-        })
+        };
+        for (r, a) in res.iter_mut().zip(dirs) {
+            if let Some(s) = self.transport.factor(self.stack(), a[2], -a[2]) {
+                let t = &mut r.transmitted;
+                t.value = t.value.map(|v| v * s);
+                t.stderr = t.stderr.map(|v| v * s);
+            }
+        }
+        res
     }
 }
 
@@ -589,17 +546,20 @@ fn one_each(argument: &'static str, len: usize, queries: usize) -> Result<(), Ba
     }
 }
 
+/// A direction of query `index`, validated.
+fn direction_at(argument: &'static str, index: usize, w: Vec3) -> Result<[f64; 3], BatchError> {
+    Direction::new(argument, w)
+        .map(Direction::get)
+        .map_err(|error| BatchError {
+            index: Some(index),
+            error,
+        })
+}
+
 fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
     wis.iter()
         .enumerate()
-        .map(|(index, &w)| {
-            Direction::new("wi", w)
-                .map(|d| d.get())
-                .map_err(|error| BatchError {
-                    index: Some(index),
-                    error,
-                })
-        })
+        .map(|(i, &w)| direction_at("wi", i, w))
         .collect()
 }
 
@@ -610,16 +570,7 @@ fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
     pairs
         .iter()
         .enumerate()
-        .map(|(index, &(a, b))| {
-            let e = |error| BatchError {
-                index: Some(index),
-                error,
-            };
-            Ok((
-                Direction::new("wi", a).map_err(e)?.get(),
-                Direction::new("wo", b).map_err(e)?.get(),
-            ))
-        })
+        .map(|(i, &(a, b))| Ok((direction_at("wi", i, a)?, direction_at("wo", i, b)?)))
         .collect()
 }
 

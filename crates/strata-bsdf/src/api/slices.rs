@@ -1,0 +1,436 @@
+//! Batch calls over the flat buffers a renderer keeps.
+//!
+//! A wavefront renderer holds the hits of one material as arrays: one array
+//! per component (structure of arrays, as Dr.Jit and pbrt-v4's wavefront
+//! integrator do) or one `[x, y, z]` per hit. [`Vectors`] reads either,
+//! [`VectorsMut`] writes either, and the `*_into` / `*_records` methods of
+//! [`LayeredBsdf`] take them, write into the caller's buffers and return
+//! nothing but an error. The records are `#[repr(C)]`, the layout the C ABI
+//! hands out.
+//!
+//! Keys: with `keys = None` a query is keyed by its directions' bits, as the
+//! plain methods key it, so the same pair always gives the same estimate
+//! (and query `k` of an unkeyed sample batch draws sample index `k`, as line
+//! `k` of `strata sample` does). With `Some(keys)` the renderer's sampler
+//! drives the streams: query `k` draws from `(seed, keys[k])`.
+
+use super::{
+    direction_at, direction_key, one_each, walk_count, BatchError, LayeredBsdf, Pair,
+};
+use glam::Vec3;
+
+/// The 3-vectors of a batch (directions), in either layout.
+#[derive(Clone, Copy, Debug)]
+pub enum Vectors<'a> {
+    /// One `[x, y, z]` per query.
+    Aos(&'a [[f32; 3]]),
+    /// One slice per component, `[x, y, z]`, of equal lengths.
+    Soa([&'a [f32]; 3]),
+}
+
+impl<'a> Vectors<'a> {
+    /// From a flat slice of `3 n` floats, `x, y, z` per query (the C layout);
+    /// `None` if its length is not a multiple of 3.
+    pub fn from_flat(v: &'a [f32]) -> Option<Self> {
+        (v.len() % 3 == 0).then(|| Vectors::Aos(as_triples(v)))
+    }
+
+    /// The number of vectors (of the `x` slice, for SoA).
+    pub fn len(&self) -> usize {
+        match self {
+            Vectors::Aos(v) => v.len(),
+            Vectors::Soa(c) => c[0].len(),
+        }
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Vector `i`.
+    pub fn get(&self, i: usize) -> Vec3 {
+        match self {
+            Vectors::Aos(v) => Vec3::from(v[i]),
+            Vectors::Soa(c) => Vec3::new(c[0][i], c[1][i], c[2][i]),
+        }
+    }
+
+    /// The number of queries, checking that the three SoA slices agree.
+    fn count(&self, argument: &'static str) -> Result<usize, BatchError> {
+        if let Vectors::Soa(c) = self {
+            for (axis, s) in [(".y", c[1]), (".z", c[2])] {
+                one_each(component(argument, axis), s.len(), c[0].len())?;
+            }
+        }
+        Ok(self.len())
+    }
+
+    /// Every vector, validated as a direction of query `i`.
+    fn directions(&self, argument: &'static str) -> Result<Vec<[f64; 3]>, BatchError> {
+        (0..self.len())
+            .map(|i| direction_at(argument, i, self.get(i)))
+            .collect()
+    }
+}
+
+/// Output 3-vectors (values per RGB channel, or directions), in either layout.
+#[derive(Debug)]
+pub enum VectorsMut<'a> {
+    /// One `[x, y, z]` (or `[r, g, b]`) per query.
+    Aos(&'a mut [[f32; 3]]),
+    /// One slice per component, of equal lengths.
+    Soa([&'a mut [f32]; 3]),
+}
+
+impl<'a> VectorsMut<'a> {
+    /// From a flat slice of `3 n` floats; `None` if its length is not a
+    /// multiple of 3.
+    pub fn from_flat(v: &'a mut [f32]) -> Option<Self> {
+        (v.len() % 3 == 0).then(|| VectorsMut::Aos(as_triples_mut(v)))
+    }
+
+    /// The number of vectors (of the first slice, for SoA).
+    pub fn len(&self) -> usize {
+        match self {
+            VectorsMut::Aos(v) => v.len(),
+            VectorsMut::Soa(c) => c[0].len(),
+        }
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Writes vector `i`.
+    pub fn set(&mut self, i: usize, v: [f32; 3]) {
+        match self {
+            VectorsMut::Aos(a) => a[i] = v,
+            VectorsMut::Soa(c) => {
+                for (s, x) in c.iter_mut().zip(v) {
+                    s[i] = x;
+                }
+            }
+        }
+    }
+
+    /// Checks that it holds one vector per query (all three slices, for SoA).
+    fn check(&self, argument: &'static str, queries: usize) -> Result<(), BatchError> {
+        match self {
+            VectorsMut::Aos(a) => one_each(argument, a.len(), queries),
+            VectorsMut::Soa(c) => {
+                for (axis, s) in [(".x", &c[0]), (".y", &c[1]), (".z", &c[2])] {
+                    one_each(component(argument, axis), s.len(), queries)?;
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// The name of one component of an argument (`"wi.y"`), for errors.
+fn component(argument: &'static str, axis: &'static str) -> &'static str {
+    const NAMES: &[(&str, &str, &str)] = &[
+        ("wi", ".x", "wi.x"),
+        ("wi", ".y", "wi.y"),
+        ("wi", ".z", "wi.z"),
+        ("wo", ".x", "wo.x"),
+        ("wo", ".y", "wo.y"),
+        ("wo", ".z", "wo.z"),
+        ("f", ".x", "f.r"),
+        ("f", ".y", "f.g"),
+        ("f", ".z", "f.b"),
+        ("stderr", ".x", "stderr.r"),
+        ("stderr", ".y", "stderr.g"),
+        ("stderr", ".z", "stderr.b"),
+        ("weight", ".x", "weight.r"),
+        ("weight", ".y", "weight.g"),
+        ("weight", ".z", "weight.b"),
+    ];
+    NAMES
+        .iter()
+        .find(|(a, x, _)| *a == argument && *x == axis)
+        .map_or(argument, |n| n.2)
+}
+
+fn as_triples(v: &[f32]) -> &[[f32; 3]] {
+    let n = v.len() / 3;
+    // SAFETY: `[f32; 3]` has the size and alignment of three `f32`s, and the
+    // slice holds at least `3 n` of them, so the first `n` triples are in
+    // bounds; the borrow is carried over.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<[f32; 3]>(), n) }
+}
+
+fn as_triples_mut(v: &mut [f32]) -> &mut [[f32; 3]] {
+    let n = v.len() / 3;
+    // SAFETY: as in `as_triples`; the exclusive borrow is carried over.
+    unsafe { std::slice::from_raw_parts_mut(v.as_mut_ptr().cast::<[f32; 3]>(), n) }
+}
+
+/// One eval result, as the C ABI lays it out.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EvalRecord {
+    /// `f(wi, wo)` per channel, without the cosine.
+    pub f: [f32; 3],
+    /// Its standard error per channel.
+    pub stderr: [f32; 3],
+}
+
+/// The lobe a sample came from, as bits: [`SampleFlags::REFLECTION`] or
+/// [`SampleFlags::TRANSMISSION`], and [`SampleFlags::DELTA`] when every
+/// event of its walk was a delta. An absorbed walk has no bit set.
+#[repr(transparent)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SampleFlags(pub u32);
+
+impl SampleFlags {
+    /// The walk left on the side it entered.
+    pub const REFLECTION: u32 = 1;
+    /// The walk left on the other side.
+    pub const TRANSMISSION: u32 = 2;
+    /// Every event of the walk was a delta: a specular direction.
+    pub const DELTA: u32 = 4;
+
+    /// The flags of a sample, or of an absorbed walk (`None`).
+    pub fn of(s: Option<&super::Sample>) -> Self {
+        SampleFlags(s.map_or(0, |s| {
+            let side = if s.reflection {
+                Self::REFLECTION
+            } else {
+                Self::TRANSMISSION
+            };
+            side | if s.specular { Self::DELTA } else { 0 }
+        }))
+    }
+}
+
+/// One sample, as the C ABI lays it out. An absorbed walk is all zeros
+/// (flags 0): count it as a zero-weight sample.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleRecord {
+    /// The sampled direction (unit), or zeros if absorbed.
+    pub wo: [f32; 3],
+    /// `f |cos θo| / p` per channel.
+    pub weight: [f32; 3],
+    /// The pdf [`LayeredBsdf::pdf`] gives for `(wi, wo)`.
+    pub pdf: f32,
+    /// [`SampleFlags`] bits.
+    pub flags: u32,
+}
+
+impl SampleRecord {
+    fn of(s: Option<&super::Sample>) -> Self {
+        match s {
+            Some(s) => SampleRecord {
+                wo: s.wo.to_array(),
+                weight: s.weight,
+                pdf: s.pdf,
+                flags: SampleFlags::of(Some(s)).0,
+            },
+            None => SampleRecord::default(),
+        }
+    }
+}
+
+/// One albedo result, as the C ABI lays it out.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AlbedoRecord {
+    /// Reflected fraction per channel.
+    pub reflected: [f32; 3],
+    /// Transmitted fraction per channel.
+    pub transmitted: [f32; 3],
+    /// Standard error of the reflected fraction.
+    pub reflected_stderr: [f32; 3],
+    /// Standard error of the transmitted fraction.
+    pub transmitted_stderr: [f32; 3],
+}
+
+fn f32x3(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+impl LayeredBsdf {
+    /// `f(wi[k], wo[k])` for every query, `samples()` walks each, written to
+    /// `f[k]` and (if given) `stderr[k]`. Nothing is written on an error.
+    pub fn eval_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut stderr: Option<VectorsMut>,
+    ) -> Result<(), BatchError> {
+        let n = self.pairs_count(&wi, &wo)?;
+        f.check("f", n)?;
+        if let Some(s) = &stderr {
+            s.check("stderr", n)?;
+        }
+        let (pairs, keys) = self.eval_input(&wi, &wo, keys)?;
+        let est = self.eval_validated(&pairs, self.samples, &keys);
+        for (k, e) in est.iter().enumerate() {
+            f.set(k, f32x3(e.value));
+            if let Some(s) = &mut stderr {
+                s.set(k, f32x3(e.stderr));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::eval_into`] into `#[repr(C)]` records.
+    pub fn eval_records(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        out: &mut [EvalRecord],
+    ) -> Result<(), BatchError> {
+        let n = self.pairs_count(&wi, &wo)?;
+        one_each("out", out.len(), n)?;
+        let (pairs, keys) = self.eval_input(&wi, &wo, keys)?;
+        let est = self.eval_validated(&pairs, self.samples, &keys);
+        for (o, e) in out.iter_mut().zip(est) {
+            *o = EvalRecord {
+                f: f32x3(e.value),
+                stderr: f32x3(e.stderr),
+            };
+        }
+        Ok(())
+    }
+
+    /// One sample per query, written to `wo`, `weight`, `pdf` and `flags`
+    /// ([`SampleFlags`] bits; an absorbed walk writes zeros everywhere).
+    pub fn sample_into(
+        &self,
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        mut wo: VectorsMut,
+        mut weight: VectorsMut,
+        pdf: &mut [f32],
+        flags: &mut [u32],
+    ) -> Result<(), BatchError> {
+        let n = wi.count("wi")?;
+        wo.check("wo", n)?;
+        weight.check("weight", n)?;
+        one_each("pdf", pdf.len(), n)?;
+        one_each("flags", flags.len(), n)?;
+        for (k, s) in self.sample_slices(&wi, keys)?.iter().enumerate() {
+            let r = SampleRecord::of(s.as_ref());
+            wo.set(k, r.wo);
+            weight.set(k, r.weight);
+            pdf[k] = r.pdf;
+            flags[k] = r.flags;
+        }
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::sample_into`] into `#[repr(C)]` records.
+    pub fn sample_records(
+        &self,
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        out: &mut [SampleRecord],
+    ) -> Result<(), BatchError> {
+        let n = wi.count("wi")?;
+        one_each("out", out.len(), n)?;
+        for (o, s) in out.iter_mut().zip(self.sample_slices(&wi, keys)?) {
+            *o = SampleRecord::of(s.as_ref());
+        }
+        Ok(())
+    }
+
+    /// The approximate pdf of every pair, written to `pdf` (keyed by the
+    /// directions, as [`LayeredBsdf::pdf`]).
+    pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
+        let n = self.pairs_count(&wi, &wo)?;
+        one_each("pdf", pdf.len(), n)?;
+        let (pairs, keys) = self.eval_input(&wi, &wo, None)?;
+        pdf.copy_from_slice(&self.pdf_validated(&pairs, &keys));
+        Ok(())
+    }
+
+    /// The directional albedo of every incident direction, `n` walks each,
+    /// into records.
+    pub fn albedo_records(
+        &self,
+        wi: Vectors,
+        n: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> Result<(), BatchError> {
+        let m = wi.count("wi")?;
+        one_each("out", out.len(), m)?;
+        walk_count("n", n).map_err(BatchError::call)?;
+        let dirs = wi.directions("wi")?;
+        let keys = match keys {
+            Some(k) => {
+                one_each("keys", k.len(), m)?;
+                k.to_vec()
+            }
+            None => (0..m).map(|i| direction_key(wi.get(i), wi.get(i))).collect(),
+        };
+        for (o, a) in out.iter_mut().zip(self.albedo_validated(&dirs, n, &keys)) {
+            *o = AlbedoRecord {
+                reflected: f32x3(a.reflected.value),
+                transmitted: f32x3(a.transmitted.value),
+                reflected_stderr: f32x3(a.reflected.stderr),
+                transmitted_stderr: f32x3(a.transmitted.stderr),
+            };
+        }
+        Ok(())
+    }
+
+    /// The number of `(wi, wo)` queries, checking that the two agree.
+    fn pairs_count(&self, wi: &Vectors, wo: &Vectors) -> Result<usize, BatchError> {
+        let n = wi.count("wi")?;
+        one_each("wo", wo.count("wo")?, n)?;
+        Ok(n)
+    }
+
+    /// Validated pairs and their keys (from the directions if not given).
+    fn eval_input(
+        &self,
+        wi: &Vectors,
+        wo: &Vectors,
+        keys: Option<&[u64]>,
+    ) -> Result<(Vec<Pair>, Vec<u64>), BatchError> {
+        let n = wi.len();
+        let pairs = (0..n)
+            .map(|i| Ok((direction_at("wi", i, wi.get(i))?, direction_at("wo", i, wo.get(i))?)))
+            .collect::<Result<Vec<Pair>, BatchError>>()?;
+        let keys = match keys {
+            Some(k) => {
+                one_each("keys", k.len(), n)?;
+                k.to_vec()
+            }
+            None => (0..n).map(|i| direction_key(wi.get(i), wo.get(i))).collect(),
+        };
+        Ok((pairs, keys))
+    }
+
+    /// The samples of a slice call: unkeyed queries draw sample index `k`
+    /// of their direction's key, keyed ones sample index 0 of their key.
+    fn sample_slices(
+        &self,
+        wi: &Vectors,
+        keys: Option<&[u64]>,
+    ) -> Result<Vec<Option<super::Sample>>, BatchError> {
+        let n = wi.len();
+        let dirs = wi.directions("wi")?;
+        let raw: Vec<Vec3> = (0..n).map(|i| wi.get(i)).collect();
+        let (keys, index): (Vec<u64>, Vec<u64>) = match keys {
+            Some(k) => {
+                one_each("keys", k.len(), n)?;
+                (k.to_vec(), vec![0; n])
+            }
+            None => (
+                raw.iter().map(|&w| direction_key(w, w)).collect(),
+                (0..n as u64).collect(),
+            ),
+        };
+        Ok(self.sample_validated(&raw, &dirs, &keys, &index))
+    }
+}
