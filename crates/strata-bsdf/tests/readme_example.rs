@@ -28,8 +28,13 @@ fn readme_example() -> Result<(), Box<dyn std::error::Error>> {
     println!("f = {:?} ± {:?}", f.value, f.stderr);
 
     if let Some(s) = bsdf.sample(wi, 0)? {
-        // s.weight = f(wi, s.wo) |cos θo| / pdf, an unbiased estimate
-        println!("sampled {:?} with weight {:?}", s.wo, s.weight);
+        // s.weight = f(wi, s.wo) |cos θo| / pdf, an unbiased estimate; s.pdf is
+        // exactly bsdf.pdf(wi, s.wo), for MIS
+        println!(
+            "sampled {:?} with weight {:?}, pdf {}",
+            s.wo, s.weight, s.pdf
+        );
+        assert_eq!(s.pdf, bsdf.pdf(wi, s.wo)?);
     }
     let pdf = bsdf.pdf(wi, wo)?; // approximate density of sample(), for MIS
     let a = bsdf.albedo(wi, 10_000)?; // reflected and transmitted fractions

@@ -12,7 +12,7 @@ use crate::common::{load_material, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
-use strata_bsdf::query::parse_query_line;
+use strata_bsdf::query::parse_query_vectors;
 use strata_bsdf::LayeredBsdf;
 
 /// Arguments of `strata eval`.
@@ -65,14 +65,14 @@ pub fn run(args: Args) -> Result<(), String> {
                     if l.trim().is_empty() {
                         return Ok(None);
                     }
-                    parse_query_line(&l)
+                    parse_query_vectors(&l)
                         .map(Some)
                         .map_err(|e| format!("stdin line {line_no}: {e}"))
                 });
             match parsed {
                 Ok(None) => continue,
                 Ok(Some((wi, wo))) => {
-                    pairs.push((wi.to_vec3(), wo.to_vec3()));
+                    pairs.push((wi, wo));
                     keys.push(i as u64);
                 }
                 Err(e) => {

@@ -40,6 +40,8 @@ const CHUNK: u64 = 1 << 16;
 struct Line {
     wo: Option<[f32; 3]>,
     weight: [f32; 3],
+    /// The pdf `strata eval` reports for `(wi, wo)`; null if absorbed.
+    pdf: Option<f32>,
     reflection: Option<bool>,
     specular: Option<bool>,
 }
@@ -66,12 +68,14 @@ pub fn run(args: Args) -> Result<(), String> {
             Some(s) => Line {
                 wo: Some(s.wo.to_array()),
                 weight: s.weight,
+                pdf: Some(s.pdf),
                 reflection: Some(s.reflection),
                 specular: Some(s.specular),
             },
             None => Line {
                 wo: None,
                 weight: [0.0; 3],
+                pdf: None,
                 reflection: None,
                 specular: None,
             },

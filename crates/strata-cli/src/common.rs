@@ -126,12 +126,17 @@ pub struct EngineArgs {
     /// depend on it. At most 1024.
     #[arg(long, value_parser = threads)]
     pub threads: Option<u64>,
+    /// What flows from wi to wo: radiance (wi points to the light; the
+    /// default) or importance (wi points to the viewer: the adjoint BSDF).
+    /// They differ only for transmission between exteriors of different IOR.
+    #[arg(long, default_value = "radiance")]
+    pub transport: strata_bsdf::Transport,
 }
 
 impl EngineArgs {
     /// Applies the flags to a BSDF.
     pub fn apply(self, bsdf: strata_bsdf::LayeredBsdf) -> Result<strata_bsdf::LayeredBsdf, String> {
-        let bsdf = bsdf.engine(self.engine);
+        let bsdf = bsdf.engine(self.engine).transport(self.transport);
         match self.threads {
             Some(n) => bsdf
                 .threads(n as usize)

@@ -345,6 +345,7 @@ fn eval_answers_each_line_and_names_the_first_bad_one() {
 struct Line {
     wo: Option<[f64; 3]>,
     weight: [f64; 3],
+    pdf: Option<f64>,
     reflection: Option<bool>,
     specular: Option<bool>,
 }
@@ -354,7 +355,7 @@ fn parse_sample_lines(stdout: &str) -> Vec<Line> {
         .lines()
         .map(|l| {
             let v: Value = serde_json::from_str(l).unwrap_or_else(|e| panic!("{l}: {e}"));
-            assert_eq!(v.as_object().unwrap().len(), 4, "{l}");
+            assert_eq!(v.as_object().unwrap().len(), 5, "{l}");
             let wo = if v["wo"].is_null() {
                 None
             } else {
@@ -363,6 +364,7 @@ fn parse_sample_lines(stdout: &str) -> Vec<Line> {
             Line {
                 wo,
                 weight: rgb(&v, "weight"),
+                pdf: v["pdf"].as_f64(),
                 reflection: v["reflection"].as_bool(),
                 specular: v["specular"].as_bool(),
             }
@@ -413,7 +415,7 @@ fn sample_prints_valid_lines_with_consistent_flags() {
         match l.wo {
             None => {
                 assert_eq!(l.weight, [0.0; 3]);
-                assert_eq!((l.reflection, l.specular), (None, None));
+                assert_eq!((l.reflection, l.specular, l.pdf), (None, None, None));
             }
             Some(wo) => {
                 let len = (wo[0] * wo[0] + wo[1] * wo[1] + wo[2] * wo[2]).sqrt();
@@ -504,9 +506,77 @@ fn sample_prints_absorbed_walks_as_null_with_zero_weight() {
     for l in &lines {
         if l.wo.is_none() {
             assert_eq!(l.weight, [0.0; 3]);
-            assert_eq!((l.reflection, l.specular), (None, None));
+            assert_eq!((l.reflection, l.specular, l.pdf), (None, None, None));
         }
     }
+}
+
+#[test]
+fn sample_lines_carry_the_pdf_eval_reports() {
+    // The pdf of a sampled direction is a function of the two directions:
+    // `strata eval` prints the same number for that pair.
+    for name in ["coated_copper.toml", "scattering_slab.toml"] {
+        let m = example(name);
+        let wi = "0.5,0,0.8660254";
+        let lines = sample(&m, wi, 64, 3);
+        let exited: Vec<&Line> = lines.iter().filter(|l| l.wo.is_some()).collect();
+        assert!(exited.len() > 20, "{name}: {} walks left", exited.len());
+        let queries: String = exited
+            .iter()
+            .map(|l| {
+                let wo = l.wo.unwrap();
+                format!(
+                    "{{\"wi\":[0.5,0,0.8660254],\"wo\":[{},{},{}]}}\n",
+                    wo[0] as f32, wo[1] as f32, wo[2] as f32
+                )
+            })
+            .collect();
+        let out = assert_ok(&run(
+            &["eval", "--material", &m, "--samples", "1", "--seed", "3"],
+            &queries,
+        ));
+        for (l, e) in exited.iter().zip(out.lines()) {
+            let v: Value = serde_json::from_str(e).unwrap();
+            let p = v["pdf"].as_f64().unwrap();
+            assert_eq!(l.pdf, Some(p), "{name}: sample line {:?} vs eval {e}", l.wo);
+            assert!(p > 0.0);
+        }
+    }
+}
+
+#[test]
+fn importance_transport_is_the_adjoint_across_different_exteriors() {
+    // Glass below, air above: importance eval is radiance eval times
+    // (n_i / n_o)^2 for transmission, and the same for reflection.
+    let dir = scratch("transport");
+    let p = dir.join("glass.toml");
+    std::fs::write(
+        &p,
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.3 }\n",
+    )
+    .unwrap();
+    let m = p.to_str().unwrap();
+    let q = "{\"wi\":[0.5,0,0.8660254],\"wo\":[-0.3,0.1,-0.9486833]}\n\
+             {\"wi\":[0.3,0,-0.9539392],\"wo\":[-0.5,0,0.8660254]}\n\
+             {\"wi\":[0.5,0,0.8660254],\"wo\":[-0.4,0,0.9165151]}\n";
+    let eval = |mode: &str| -> Vec<f64> {
+        let out = assert_ok(&run(&["eval", "--material", m, "--transport", mode], q));
+        out.lines()
+            .map(|l| rgb(&serde_json::from_str(l).unwrap(), "f")[0])
+            .collect()
+    };
+    let (r, i) = (eval("radiance"), eval("importance"));
+    for (k, s) in [1.0 / 2.25, 2.25, 1.0].into_iter().enumerate() {
+        assert!(r[k] > 0.0);
+        assert!(
+            (i[k] - r[k] * s).abs() <= 1e-12 * i[k],
+            "line {k}: {} vs {} x {s}",
+            i[k],
+            r[k]
+        );
+    }
+    let out = run(&["eval", "--material", m, "--transport", "light"], q);
+    assert_fails_with(&out, &["--transport", "light"]);
 }
 
 #[test]

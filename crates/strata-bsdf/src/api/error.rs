@@ -175,4 +175,3 @@ impl fmt::Display for ThreadsError {
 }
 
 impl std::error::Error for ThreadsError {}
-

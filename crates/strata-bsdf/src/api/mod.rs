@@ -299,7 +299,10 @@ impl LayeredBsdf {
         samples: u64,
         query: u64,
     ) -> Result<Estimate, QueryError> {
-        let pair = (Direction::new("wi", wi)?.get(), Direction::new("wo", wo)?.get());
+        let pair = (
+            Direction::new("wi", wi)?.get(),
+            Direction::new("wo", wo)?.get(),
+        );
         walk_count("samples", samples)?;
         Ok(self.eval_validated(&[pair], samples, &[query])[0])
     }
@@ -369,16 +372,15 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
-        Ok(self.sample_validated(wis, &dirs, keys, sample_index))
+        Ok(self.sample_validated(&dirs, keys, sample_index))
     }
 
-    /// The approximate pdf for every pair; keys from the directions (a pdf
-    /// takes no caller keys: it is a function of `(wi, wo)`, so the number
-    /// [`Sample::pdf`] carries is the one a later `pdf` call gives).
+    /// The approximate pdf for every pair. A pdf takes no caller keys: it
+    /// is keyed by the normalized directions, so it is a function of the two
+    /// directions (and the seed), and the number [`Sample::pdf`] carries is
+    /// the one a later `pdf` call gives, whatever the length of the vectors.
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
-        let dirs = directions2(pairs)?;
-        let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
-        Ok(self.pdf_validated(&dirs, &keys))
+        Ok(self.pdf_validated(&directions2(pairs)?))
     }
 
     /// Directional albedo of every incident direction, `n` walks each; keys
@@ -425,12 +427,10 @@ impl LayeredBsdf {
         est
     }
 
-    /// Samples of validated directions, each with its pdf (`raw` are the
-    /// directions as given, whose bits key the pdf as [`LayeredBsdf::pdf`]
-    /// keys it).
+    /// Samples of validated directions, each with the pdf
+    /// [`LayeredBsdf::pdf`] gives for its direction.
     fn sample_validated(
         &self,
-        raw: &[Vec3],
         dirs: &[[f64; 3]],
         keys: &[u64],
         sample_index: &[u64],
@@ -451,17 +451,12 @@ impl LayeredBsdf {
             }),
         };
         // The pdf of each sampled direction, as `pdf(wi, wo)` computes it.
-        let mut pairs = Vec::with_capacity(walks.len());
-        let mut pdf_keys = Vec::with_capacity(walks.len());
-        for ((w, &a), &raw) in walks.iter().zip(dirs).zip(raw) {
-            if let Some(w) = w {
-                if let Ok(b) = Direction::new("wo", w.wo) {
-                    pairs.push((a, b.get()));
-                    pdf_keys.push(direction_key(raw, w.wo));
-                }
-            }
-        }
-        let mut pdfs = self.pdf_validated(&pairs, &pdf_keys).into_iter();
+        let pairs: Vec<Pair> = walks
+            .iter()
+            .zip(dirs)
+            .filter_map(|(w, &a)| Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get())))
+            .collect();
+        let mut pdfs = self.pdf_validated(&pairs).into_iter();
         walks
             .into_iter()
             .zip(dirs)
@@ -483,8 +478,14 @@ impl LayeredBsdf {
             .collect()
     }
 
-    /// The approximate pdf of validated pairs.
-    fn pdf_validated(&self, dirs: &[Pair], keys: &[u64]) -> Vec<f32> {
+    /// The approximate pdf of validated pairs, keyed by the directions.
+    fn pdf_validated(&self, dirs: &[Pair]) -> Vec<f32> {
+        let f32s = |d: [f64; 3]| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+        let keys: Vec<u64> = dirs
+            .iter()
+            .map(|&(a, b)| direction_key(f32s(a), f32s(b)))
+            .collect();
+        let keys = &keys[..];
         let p: Vec<f64> = match self.engine.resolve_pdf(dirs.len()) {
             Engine::Scalar => dirs
                 .iter()

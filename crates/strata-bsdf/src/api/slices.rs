@@ -14,9 +14,7 @@
 //! `k` of `strata sample` does). With `Some(keys)` the renderer's sampler
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
-use super::{
-    direction_at, direction_key, one_each, walk_count, BatchError, LayeredBsdf, Pair,
-};
+use super::{direction_at, direction_key, one_each, walk_count, BatchError, LayeredBsdf, Pair};
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -347,8 +345,8 @@ impl LayeredBsdf {
     pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
-        let (pairs, keys) = self.eval_input(&wi, &wo, None)?;
-        pdf.copy_from_slice(&self.pdf_validated(&pairs, &keys));
+        let (pairs, _) = self.eval_input(&wi, &wo, None)?;
+        pdf.copy_from_slice(&self.pdf_validated(&pairs));
         Ok(())
     }
 
@@ -370,7 +368,9 @@ impl LayeredBsdf {
                 one_each("keys", k.len(), m)?;
                 k.to_vec()
             }
-            None => (0..m).map(|i| direction_key(wi.get(i), wi.get(i))).collect(),
+            None => (0..m)
+                .map(|i| direction_key(wi.get(i), wi.get(i)))
+                .collect(),
         };
         for (o, a) in out.iter_mut().zip(self.albedo_validated(&dirs, n, &keys)) {
             *o = AlbedoRecord {
@@ -399,14 +399,21 @@ impl LayeredBsdf {
     ) -> Result<(Vec<Pair>, Vec<u64>), BatchError> {
         let n = wi.len();
         let pairs = (0..n)
-            .map(|i| Ok((direction_at("wi", i, wi.get(i))?, direction_at("wo", i, wo.get(i))?)))
+            .map(|i| {
+                Ok((
+                    direction_at("wi", i, wi.get(i))?,
+                    direction_at("wo", i, wo.get(i))?,
+                ))
+            })
             .collect::<Result<Vec<Pair>, BatchError>>()?;
         let keys = match keys {
             Some(k) => {
                 one_each("keys", k.len(), n)?;
                 k.to_vec()
             }
-            None => (0..n).map(|i| direction_key(wi.get(i), wo.get(i))).collect(),
+            None => (0..n)
+                .map(|i| direction_key(wi.get(i), wo.get(i)))
+                .collect(),
         };
         Ok((pairs, keys))
     }
@@ -420,17 +427,18 @@ impl LayeredBsdf {
     ) -> Result<Vec<Option<super::Sample>>, BatchError> {
         let n = wi.len();
         let dirs = wi.directions("wi")?;
-        let raw: Vec<Vec3> = (0..n).map(|i| wi.get(i)).collect();
         let (keys, index): (Vec<u64>, Vec<u64>) = match keys {
             Some(k) => {
                 one_each("keys", k.len(), n)?;
                 (k.to_vec(), vec![0; n])
             }
             None => (
-                raw.iter().map(|&w| direction_key(w, w)).collect(),
+                (0..n)
+                    .map(|i| direction_key(wi.get(i), wi.get(i)))
+                    .collect(),
                 (0..n as u64).collect(),
             ),
         };
-        Ok(self.sample_validated(&raw, &dirs, &keys, &index))
+        Ok(self.sample_validated(&dirs, &keys, &index))
     }
 }

@@ -28,7 +28,7 @@ use super::events::{self, Connection};
 use super::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
 };
-use super::{Albedo, Estimate, WalkSample, Settings};
+use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::medium;

@@ -43,7 +43,7 @@ pub mod walks;
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
-use super::{Albedo, Estimate, WalkSample, Settings};
+use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
