@@ -74,15 +74,16 @@ pub fn hg_eval_dirs<L: Lane>(g: L, d: V3<L>, u: V3<L>) -> L {
 pub fn hg_sample<L: Lane>(g: L, d: V3<L>, u1: L, u2: L) -> V3<L> {
     let one = L::one();
     let two = L::splat(2.0);
-    let iso = g.abs().lt(L::splat(1e-3));
-    let neg = g.lt(L::zero()) & !iso;
-    let ga = L::select(iso, L::splat(0.5), g.abs());
+    // One form for every g: at g = 0 it is exactly the isotropic
+    // `1 - μ = 2 (1 - u)`, and no g is sampled as another (a cut-off to the
+    // isotropic sampler below some |g| would be weighted as HG all the same).
+    let neg = g.lt(L::zero());
+    let ga = g.abs();
     let v = L::select(neg, one - u1, u1);
     let den = one - ga + two * ga * v;
     let s = (one - ga) * (one + ga) / den;
-    let e_hg = (one - ga) * (one - v) * (s + one - ga) / den;
-    // e = 1 - μ for the mirrored (g >= 0) lobe; isotropic: μ = 2u - 1.
-    let e = L::select(iso, two * (one - v), e_hg).clamp(L::zero(), two);
+    // e = 1 - μ for the mirrored (g >= 0) lobe.
+    let e = ((one - ga) * (one - v) * (s + one - ga) / den).clamp(L::zero(), two);
     let mu = L::select(neg, e - one, one - e);
     let sin = (e * (two - e)).safe_sqrt();
     let (sp, cp) = u2.sin_cos_turns();
@@ -240,6 +241,30 @@ mod tests {
             }
             s *= 2.0 * std::f64::consts::PI;
             assert!((s - 1.0).abs() < 1e-3, "g = {g}: {s}");
+        }
+    }
+
+    /// The sampler inverts HG's CDF at every g, however small: against the
+    /// plain inversion `μ = (1 + g² - s²) / 2g` in f64, which is accurate
+    /// at these g (and isotropic, `μ = 2u - 1`, at g = 0).
+    #[test]
+    fn hg_sample_inverts_the_cdf_at_small_g() {
+        for g in [0.0f64, 1e-6, -2e-5, 5e-4, -9e-4, 2e-3, 0.3] {
+            for k in 0..200 {
+                let u = (k as f64 + 0.5) / 200.0;
+                let d = hg_sample(g as f32, V3::new(0.0, 0.0, 1.0), u as f32, 0.25);
+                let want = if g == 0.0 {
+                    2.0 * u - 1.0
+                } else {
+                    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
+                    (1.0 + g * g - s * s) / (2.0 * g)
+                };
+                assert!(
+                    (d.z as f64 - want).abs() < 2e-6,
+                    "g = {g}, u = {u}: mu = {} vs {want}",
+                    d.z
+                );
+            }
         }
     }
 

@@ -20,7 +20,7 @@ mod common;
 use common::reference::fresnel;
 use common::*;
 use strata_bsdf::estimator::scalar::{Scalar, ScalarEngine};
-use strata_bsdf::Settings;
+use strata_bsdf::{Estimator, Settings};
 
 /// Cosine-weighted hemispherical average of the reflectance seen from inside a
 /// medium of relative IOR `eta`: ∫ F(μ) 2μ dμ over μ in (0, 1), midpoint rule.
@@ -127,21 +127,30 @@ fn smooth_coat_over_lambertian_through_the_public_api() {
         "#,
         RHO[0], RHO[1], RHO[2]
     ));
-    let bsdf = strata_bsdf::LayeredBsdf::new(st).samples(60_000).seed(3);
-    let fb = fbar_inside(eta);
-    for &(ti, to, po) in &PAIRS[1..4] {
-        let (wi, wo) = (dir(ti, 0.0), dir(to, po));
-        // Not normalized on purpose: the API normalizes.
-        let e = bsdf
-            .eval(vec3(wi) * 2.5, vec3(wo) * 0.5)
-            .expect("valid directions");
-        for (c, &rho) in RHO.iter().enumerate() {
-            let exact = closed_form(eta, fb, rho, wi[2], wo[2]);
-            let what = format!("api: rho {rho} θi {ti} θo {to}");
-            assert_z(&what, e.value[c], exact, e.stderr[c], 4.0, 1e-4 * exact);
-            if rho > 0.0 {
-                // Informative: the error bar is a small fraction of the value.
-                assert!(e.stderr[c] < 0.02 * exact, "{what}: {e:?} vs {exact}");
+    // The walks, and the library's own closed form (`Estimator::Auto`).
+    for estimator in [Estimator::Unidirectional, Estimator::Auto] {
+        let bsdf = strata_bsdf::LayeredBsdf::new(st.clone())
+            .samples(60_000)
+            .seed(3)
+            .estimator(estimator);
+        let fb = fbar_inside(eta);
+        for &(ti, to, po) in &PAIRS[1..4] {
+            let (wi, wo) = (dir(ti, 0.0), dir(to, po));
+            // Not normalized on purpose: the API normalizes.
+            let e = bsdf
+                .eval(vec3(wi) * 2.5, vec3(wo) * 0.5)
+                .expect("valid directions");
+            for (c, &rho) in RHO.iter().enumerate() {
+                let exact = closed_form(eta, fb, rho, wi[2], wo[2]);
+                let what = format!("api: rho {rho} θi {ti} θo {to}");
+                assert_z(&what, e.value[c], exact, e.stderr[c], 4.0, 1e-4 * exact);
+                if rho > 0.0 {
+                    // Informative: the error bar is a small fraction of the value.
+                    assert!(e.stderr[c] < 0.02 * exact, "{what}: {e:?} vs {exact}");
+                }
+                if estimator == Estimator::Auto {
+                    assert_eq!(e.stderr[c], 0.0, "{what}: the closed form is exact");
+                }
             }
         }
     }

@@ -30,10 +30,8 @@ fn readme_example() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(s) = bsdf.sample(wi, 0)? {
         // s.weight = f(wi, s.wo) |cos θo| / pdf, an unbiased estimate; s.pdf is
         // exactly bsdf.pdf(wi, s.wo), for MIS
-        println!(
-            "sampled {:?} with weight {:?}, pdf {}",
-            s.wo, s.weight, s.pdf
-        );
+        let (wo, w, p) = (s.wo, s.weight, s.pdf);
+        println!("sampled {wo:?} with weight {w:?}, pdf {p}");
         assert_eq!(s.pdf, bsdf.pdf(wi, s.wo)?);
     }
     let pdf = bsdf.pdf(wi, wo)?; // approximate density of sample(), for MIS

@@ -46,6 +46,20 @@ pub struct Args {
     /// Run only this engine's one-thread row (to profile it).
     #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16"])]
     only: Option<String>,
+    /// Compare cost at equal error with another renderer's layered BxDFs, from
+    /// its measured values and times (shipped with strata): `pbrt-v4`.
+    #[arg(long, value_parser = ["pbrt-v4"])]
+    against: Option<String>,
+    /// Walks per direction pair of `--against` (pbrt-v4's data averages 10^6 calls).
+    #[arg(long, default_value_t = 65536, value_parser = crate::common::walks)]
+    walks: u64,
+    /// Where eval starts its walks, for `--against`: from the direction nearer
+    /// the normal (the library's default) or always from wi.
+    #[arg(long, default_value = "normal")]
+    eval_start: strata_bsdf::EvalStart,
+    /// Runs per pair of `--against` (the fastest counts).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    reps: u32,
 }
 
 /// The largest `--queries`: the batch and the engines' per-query state stay
@@ -212,6 +226,10 @@ pub fn run(args: Args) -> Result<(), String> {
         Some(n) => n as usize,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
+    if args.against.is_some() {
+        let text = crate::bench_pbrt::report(args.walks, args.reps, all, args.eval_start, args.json)?;
+        return print_out(&text);
+    }
     let stacks: Vec<(String, LayerStack)> = match &args.material {
         Some(p) => vec![(p.display().to_string(), load_material(p)?)],
         None => strata_bsdf::materials::REPRESENTATIVE

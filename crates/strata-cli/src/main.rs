@@ -6,6 +6,7 @@
 //! is printed to stderr as `strata: MESSAGE` with a non-zero exit status.
 //! A failed or interrupted run removes its temporary files (see `output`).
 
+mod bench_pbrt;
 mod common;
 mod output;
 mod plot;

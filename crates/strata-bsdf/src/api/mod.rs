@@ -8,17 +8,21 @@
 //!
 //! * [`error`]: what can be wrong with a query, and which one.
 //! * [`transport`]: radiance or importance, for light that crosses the stack.
+//! * [`strategy`]: which estimator answers `eval`, and from which side.
 //! * [`slices`]: the batch forms over flat slices a renderer keeps (SoA or
 //!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
 
 mod error;
 pub mod slices;
+mod strategy;
 mod transport;
 
 pub use error::{BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
+pub use strategy::{Estimator, EvalStart};
 pub use transport::Transport;
 
+use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS};
 use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
@@ -154,6 +158,9 @@ pub struct LayeredBsdf {
     pdf_samples: u32,
     seed: u64,
     transport: Transport,
+    eval_start: EvalStart,
+    estimator: Estimator,
+    exact: Option<SmoothCoatLambertian>,
     pool: Option<Arc<rayon::ThreadPool>>,
 }
 
@@ -179,6 +186,9 @@ impl LayeredBsdf {
             pdf_samples: Self::DEFAULT_PDF_SAMPLES,
             seed: 0,
             transport: Transport::default(),
+            eval_start: EvalStart::default(),
+            estimator: Estimator::default(),
+            exact: SmoothCoatLambertian::of(&stack, &settings),
             pool: None,
         }
     }
@@ -207,6 +217,20 @@ impl LayeredBsdf {
     /// IOR only (see [`Transport`]).
     pub fn transport(mut self, transport: Transport) -> Self {
         self.transport = transport;
+        self
+    }
+
+    /// Chooses where `eval` starts its walks (see [`EvalStart`]; by
+    /// default from the direction nearer the normal).
+    pub fn eval_start(mut self, start: EvalStart) -> Self {
+        self.eval_start = start;
+        self
+    }
+
+    /// Chooses the estimator of `eval` (see [`Estimator`]; by default the
+    /// exact value where the stack has a closed form).
+    pub fn estimator(mut self, estimator: Estimator) -> Self {
+        self.estimator = estimator;
         self
     }
 
@@ -408,23 +432,59 @@ impl LayeredBsdf {
     /// Eval of validated pairs on the engine the call resolves to, in the
     /// BSDF's transport mode.
     fn eval_validated(&self, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
+        if let (Estimator::Auto, Some(exact)) = (self.estimator, &self.exact) {
+            return dirs
+                .iter()
+                .map(|&(a, b)| self.exact_eval(exact, a, b, samples))
+                .collect();
+        }
+        // Each query's walks start from the side `eval_start` chooses.
+        let swapped: Vec<bool> = dirs
+            .iter()
+            .map(|(a, b)| self.eval_start.swaps(a[2], b[2]))
+            .collect();
+        let walked: Vec<Pair> = dirs
+            .iter()
+            .zip(&swapped)
+            .map(|(&(a, b), &s)| if s { (b, a) } else { (a, b) })
+            .collect();
         let mut est: Vec<Estimate> = match self.engine.resolve(dirs.len(), samples) {
-            Engine::Scalar => dirs
+            Engine::Scalar => walked
                 .iter()
                 .zip(keys)
                 .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
                 .collect(),
             _ => self.install(dirs.len(), samples, || {
-                self.wave.eval_batch(dirs, samples, self.seed, keys).0
+                self.wave.eval_batch(&walked, samples, self.seed, keys).0
             }),
         };
-        for (e, &(a, b)) in est.iter_mut().zip(dirs) {
-            if let Some(s) = self.transport.factor(self.stack(), a[2], b[2]) {
-                e.value = e.value.map(|v| v * s);
-                e.stderr = e.stderr.map(|v| v * s);
+        for ((e, &(a, b)), &s) in est.iter_mut().zip(dirs).zip(&swapped) {
+            if let Some(x) = self.transport.factor_of(self.stack(), a[2], b[2], s) {
+                e.value = e.value.map(|v| v * x);
+                e.stderr = e.stderr.map(|v| v * x);
             }
         }
         est
+    }
+
+    /// The closed form of a query, as an estimate of standard error 0 (the
+    /// stack is opaque, so reflection only: both transport modes agree).
+    fn exact_eval(
+        &self,
+        exact: &SmoothCoatLambertian,
+        a: [f64; 3],
+        b: [f64; 3],
+        n: u64,
+    ) -> Estimate {
+        let value = match crate::estimator::orient(self.stack(), a, Some(b)) {
+            Some(o) => exact.eval(o.wi, o.apply(b)),
+            None => [0.0; 3],
+        };
+        Estimate {
+            value,
+            stderr: [0.0; 3],
+            samples: n,
+        }
     }
 
     /// Samples of validated directions, each with the pdf

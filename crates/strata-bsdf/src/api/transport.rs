@@ -38,19 +38,44 @@ impl Transport {
     /// the z of each) into this mode's, or `None` where it is 1 (radiance,
     /// reflection, equal exteriors), so that those results are untouched.
     pub(crate) fn factor(self, stack: &LayerStack, wi_z: f64, wo_z: f64) -> Option<f64> {
-        if self == Transport::Radiance || (wi_z > 0.0) == (wo_z > 0.0) {
-            return None;
-        }
-        let side = |z: f64| {
-            if z > 0.0 {
-                stack.exterior_above()
-            } else {
-                stack.exterior_below()
-            }
-        };
-        let (ni, no) = (side(wi_z), side(wo_z));
-        (ni != no).then(|| (ni / no) * (ni / no))
+        self.factor_of(stack, wi_z, wo_z, false)
     }
+
+    /// The factor that turns an estimate of the radiance BSDF from `wo` to
+    /// `wi` (the walks started at `wo`: `swapped`) or from `wi` to `wo` into
+    /// this mode's BSDF from `wi` to `wo`; `None` where it is 1.
+    pub(crate) fn factor_of(
+        self,
+        stack: &LayerStack,
+        wi_z: f64,
+        wo_z: f64,
+        swapped: bool,
+    ) -> Option<f64> {
+        let forward = eta_squared(stack, wi_z, wo_z)?;
+        match (self, swapped) {
+            (Transport::Radiance, false) | (Transport::Importance, true) => None,
+            (Transport::Importance, false) => Some(forward),
+            (Transport::Radiance, true) => eta_squared(stack, wo_z, wi_z),
+        }
+    }
+}
+
+/// `(n_from / n_to)²` for light crossing the stack between exteriors of
+/// different IOR, from the side of `from_z` to that of `to_z`; `None` for
+/// reflection or equal exteriors.
+fn eta_squared(stack: &LayerStack, from_z: f64, to_z: f64) -> Option<f64> {
+    if (from_z > 0.0) == (to_z > 0.0) {
+        return None;
+    }
+    let side = |z: f64| {
+        if z > 0.0 {
+            stack.exterior_above()
+        } else {
+            stack.exterior_below()
+        }
+    };
+    let (a, b) = (side(from_z), side(to_z));
+    (a != b).then(|| (a / b) * (a / b))
 }
 
 impl std::str::FromStr for Transport {

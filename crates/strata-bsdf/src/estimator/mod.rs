@@ -5,11 +5,13 @@
 //! * [`events`]: the event kernels both engines call, written once over lanes.
 //! * [`layout`]: the stack's topology as the walks see it.
 //! * [`pdf`]: the fast approximate pdf of `sample`.
+//! * [`closed_form`]: the stacks whose BSDF has one.
 //!
 //! Both follow `docs/method.md`; the differences from the paper and from the
 //! authors' code are listed in `docs/architecture.md`.
 
 mod accumulate;
+pub mod closed_form;
 pub mod events;
 pub mod layout;
 mod orient;

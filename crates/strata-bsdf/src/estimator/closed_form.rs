@@ -1,0 +1,178 @@
+//! Stacks whose BSDF has a closed form: an evaluation with zero variance.
+//!
+//! A smooth dielectric coat over a non-scattering layer (clear or absorbing,
+//! grey or coloured) over a Lambertian base scatters light only at the base,
+//! and every path between two visits of the base is one deterministic
+//! refraction or reflection: the sum over paths is a geometric series.
+//! With light from `wi` in the exterior of IOR `n0` and the coat of IOR `n1`,
+//!
+//! ```text
+//! f(wi, wo) = (n0/n1)² T(θi) T(θo) e^(−τ/μi′) e^(−τ/μo′) ρ / (π (1 − ρ R̄))
+//! R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ
+//! ```
+//!
+//! where `T = 1 − F` is the coat's Fresnel transmittance, `μ′` the cosine of
+//! the refracted direction, τ the layer's optical depth (per channel) and
+//! `F_in` the coat's reflectance seen from inside (1 beyond the critical
+//! angle). The first factor is radiance leaving the denser coat; `R̄` is the
+//! fraction of the base's diffuse exitance that the layer and the coat send
+//! back to it. The unidirectional estimator converges to this value (tested
+//! against it, and against the test suite's own formula), so
+//! [`crate::Estimator::Auto`] answers such stacks' `eval` with it.
+
+use super::Settings;
+use crate::fresnel;
+use crate::stack::{InterfaceKind, LayerStack};
+use std::f64::consts::PI;
+
+/// The closed form of a smooth coat over an absorbing layer over a
+/// Lambertian base.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SmoothCoatLambertian {
+    /// The coat's `n_below / n_above`.
+    eta: f64,
+    /// Optical depth of the layer per channel (0 if it has none).
+    tau: [f64; 3],
+    /// The base's albedo.
+    rho: [f64; 3],
+    /// `R̄` per channel.
+    r_bar: [f64; 3],
+}
+
+impl SmoothCoatLambertian {
+    /// The closed form of `stack`, if it has one under `settings` (a depth
+    /// cap truncates the series: then it has none).
+    pub fn of(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        if stack.len() != 2 || settings.max_depth.is_some() {
+            return None;
+        }
+        let (coat, base) = (stack.interface(0), stack.interface(1));
+        if coat.kind != InterfaceKind::Dielectric
+            || !coat.smooth
+            || base.kind != InterfaceKind::Diffuse
+        {
+            return None;
+        }
+        let tau = match stack.medium(0) {
+            Some(m) if m.scatters() => return None,
+            Some(m) => m.optical_depth(),
+            None => [0.0; 3],
+        };
+        let eta = coat.n_below / coat.n_above;
+        let r_bar = tau.map(|t| internal_reflectance(eta, t));
+        Some(SmoothCoatLambertian {
+            eta,
+            tau,
+            rho: base.albedo,
+            r_bar,
+        })
+    }
+
+    /// `f(wi, wo)` per channel for directions in the stack's oriented frame
+    /// (both above the coat; the caller mirrors two-sided queries and
+    /// answers 0 where light cannot enter or leave).
+    pub fn eval(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
+        let (ci, co) = (wi[2], wo[2]);
+        if ci <= 0.0 || co <= 0.0 {
+            return [0.0; 3];
+        }
+        let (ti, mi) = self.enter(ci);
+        let (to, mo) = self.enter(co);
+        let scale = ti * to / (PI * self.eta * self.eta);
+        std::array::from_fn(|c| {
+            let att = (-self.tau[c] / mi).exp() * (-self.tau[c] / mo).exp();
+            scale * att * self.rho[c] / (1.0 - self.rho[c] * self.r_bar[c])
+        })
+    }
+
+    /// The coat's transmittance from outside at incidence cosine `c`, and the
+    /// cosine of the refracted direction.
+    fn enter(&self, c: f64) -> (f64, f64) {
+        let t = fresnel::dielectric_rt(c, self.eta).1;
+        let s2 = (1.0 - c * c) / (self.eta * self.eta);
+        (t, (1.0 - s2).max(0.0).sqrt())
+    }
+}
+
+/// `R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ` for a coat of relative IOR `eta`,
+/// by Gauss–Legendre quadrature. Beyond the critical cosine `μc`, `F_in`
+/// falls like `1 − c √(μ − μc)`: the substitution `μ = μc + t²` makes the
+/// integrand smooth there, and the quadrature converges to f64 rounding.
+fn internal_reflectance(eta: f64, tau: f64) -> f64 {
+    // From inside, the cosine is negative in `fresnel`'s convention.
+    let f = |mu: f64| -> f64 {
+        let r = fresnel::dielectric_rt(-mu, eta).0;
+        let att = if tau > 0.0 {
+            (-2.0 * tau / mu).exp()
+        } else {
+            1.0
+        };
+        2.0 * r * att * mu
+    };
+    let critical = if eta > 1.0 {
+        (1.0 - 1.0 / (eta * eta)).sqrt()
+    } else {
+        0.0
+    };
+    let below = gauss_legendre(&f, 0.0, critical, 64);
+    let above = gauss_legendre(
+        &|t: f64| f(critical + t * t) * 2.0 * t,
+        0.0,
+        (1.0 - critical).sqrt(),
+        64,
+    );
+    below + above
+}
+
+/// `∫ₐᵇ f` by 8-point Gauss–Legendre on `panels` equal panels.
+fn gauss_legendre(f: &impl Fn(f64) -> f64, a: f64, b: f64, panels: usize) -> f64 {
+    const X: [f64; 4] = [
+        0.183_434_642_495_649_8,
+        0.525_532_409_916_329,
+        0.796_666_477_413_626_7,
+        0.960_289_856_497_536_3,
+    ];
+    const W: [f64; 4] = [
+        0.362_683_783_378_362,
+        0.313_706_645_877_887_3,
+        0.222_381_034_453_374_5,
+        0.101_228_536_290_376_3,
+    ];
+    let h = (b - a) / panels as f64;
+    (0..panels)
+        .map(|p| {
+            let (m, r) = (a + (p as f64 + 0.5) * h, 0.5 * h);
+            X.iter()
+                .zip(W)
+                .map(|(&x, w)| w * r * (f(m - r * x) + f(m + r * x)))
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quadrature_is_exact_where_it_can_be_checked() {
+        // ∫₀¹ 2μ dμ = 1, and a smooth integrand converges: against the
+        // midpoint rule on a fine grid.
+        assert!((gauss_legendre(&|m| 2.0 * m, 0.0, 1.0, 4) - 1.0).abs() < 1e-15);
+        let n = 2_000_000;
+        for (eta, tau) in [(1.5, 0.0), (1.5, 0.3), (2.2, 0.01), (1.0 / 1.3, 0.5)] {
+            let mid: f64 = (0..n)
+                .map(|k| {
+                    let mu = (k as f64 + 0.5) / n as f64;
+                    let r = fresnel::dielectric_rt(-mu, eta).0;
+                    2.0 * r * (-2.0 * tau / mu).exp() * mu / n as f64
+                })
+                .sum();
+            let gl = internal_reflectance(eta, tau);
+            assert!(
+                (gl - mid).abs() < 1e-7,
+                "eta {eta} tau {tau}: {gl} vs {mid}"
+            );
+        }
+    }
+}
