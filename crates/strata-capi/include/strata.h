@@ -202,6 +202,22 @@ int32_t strata_bsdf_from_path(const char *path,
 int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
 
 /**
+ * Runs the BSDF's large batches on a pool of `threads` threads of its own
+ * (0: one per core; at most 1024). By default they run on a pool shared by
+ * every BSDF of the process, one thread per core. Calls of a few walks
+ * (n = 1 samples, small evals) run on the calling thread whatever the pool;
+ * results never depend on it. A renderer that calls strata from its own
+ * worker threads may want `threads = 1`: each call then runs on its caller.
+ * Configure a BSDF before sharing it: this call must not run while another
+ * thread uses `b`.
+ *
+ * # Safety
+ * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+ * thread uses during the call.
+ */
+int32_t strata_bsdf_set_threads(struct StrataBsdf *b, size_t threads);
+
+/**
  * Frees a BSDF. NULL is a no-op.
  *
  * # Safety

@@ -534,6 +534,36 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
     })
 }
 
+/// Runs the BSDF's large batches on a pool of `threads` threads of its own
+/// (0: one per core; at most 1024). By default they run on a pool shared by
+/// every BSDF of the process, one thread per core. Calls of a few walks
+/// (n = 1 samples, small evals) run on the calling thread whatever the pool;
+/// results never depend on it. A renderer that calls strata from its own
+/// worker threads may want `threads = 1`: each call then runs on its caller.
+/// Configure a BSDF before sharing it: this call must not run while another
+/// thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_threads(b: *mut StrataBsdf, threads: usize) -> i32 {
+    guard("strata_bsdf_set_threads", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread, so this is the only reference to it.
+        let b = match unsafe { b.as_mut() } {
+            Some(b) => b,
+            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+        };
+        b.inner = b
+            .inner
+            .clone()
+            .threads(threads)
+            .map_err(|e| Failure::invalid(e.to_string()))?;
+        Ok(())
+    })
+}
+
 /// Frees a BSDF. NULL is a no-op.
 ///
 /// # Safety

@@ -27,7 +27,7 @@ fn last_error() -> String {
 fn create(text: &[u8], samples: u64) -> (i32, *mut StrataBsdf, String) {
     let c = CString::new(text).unwrap();
     let mut b = std::ptr::dangling_mut::<StrataBsdf>(); // must come back NULL on failure
-                                        // SAFETY: `c` is NUL-terminated; `b` is writable.
+                                                        // SAFETY: `c` is NUL-terminated; `b` is writable.
     let s = unsafe { strata_bsdf_from_toml(c.as_ptr(), samples, 0, &mut b) };
     (s, b, last_error())
 }
@@ -533,4 +533,47 @@ fn the_version_is_the_crates() {
     let v = unsafe { CStr::from_ptr(strata_version()) };
     assert_eq!(v.to_str().unwrap(), env!("CARGO_PKG_VERSION"));
     assert!(!v.to_str().unwrap().is_empty());
+}
+
+#[test]
+fn a_pool_of_its_own_changes_no_result() {
+    let shared = good();
+    let own = good();
+    let wi: Vec<f32> = (0..300)
+        .flat_map(|k| [k as f32 / 300.0 - 0.5, 0.2, 0.9])
+        .collect();
+    let wo: Vec<f32> = (0..300)
+        .flat_map(|k| [0.1, k as f32 / 400.0 - 0.3, 0.8])
+        .collect();
+    // SAFETY: `own.0` is live and used by this thread only; 300 queries.
+    unsafe {
+        assert_eq!(strata_bsdf_set_threads(own.0, 3), STRATA_OK);
+        assert_eq!(
+            strata_bsdf_set_threads(own.0, 2000),
+            STRATA_ERR_INVALID_ARGUMENT
+        );
+        assert_eq!(
+            last_error(),
+            "strata_bsdf_set_threads: threads = 2000: at most 1024 (0 means one per core)"
+        );
+        assert_eq!(strata_bsdf_set_threads(null_mut(), 1), STRATA_ERR_NULL);
+        assert_eq!(last_error(), "strata_bsdf_set_threads: b is NULL");
+        let (mut f, mut g) = (vec![0.0f32; 900], vec![0.0f32; 900]);
+        for (b, out) in [(&shared, &mut f), (&own, &mut g)] {
+            let s = strata_eval_batch(
+                b.0,
+                300,
+                wi.as_ptr(),
+                wo.as_ptr(),
+                out.as_mut_ptr(),
+                null_mut(),
+            );
+            assert_eq!(s, STRATA_OK);
+        }
+        assert!(f.iter().all(|&x| x > 0.0));
+        assert_eq!(
+            f.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            g.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
+    }
 }
