@@ -91,6 +91,33 @@
 typedef struct StrataBsdf StrataBsdf;
 
 /**
+ * What a renderer needs to know of a stack to declare its BSDF: the
+ * exteriors' IORs (for a transmitted sample's relative IOR) and whether light
+ * passes through. Filled by `strata_bsdf_info`.
+ */
+typedef struct StrataStackInfo {
+  /**
+   * IOR of the exterior above the stack (`exterior_ior`, default 1).
+   */
+  float ior_above;
+  /**
+   * IOR of the exterior below (the last dielectric's `ior`) for a
+   * transmissive stack; for an opaque one, the IOR above its base.
+   */
+  float ior_below;
+  /**
+   * 1 if the bottom interface is a dielectric (light passes through, and
+   * samples may have `STRATA_SAMPLE_TRANSMISSION`), else 0.
+   */
+  uint32_t transmissive;
+  /**
+   * 1 if light from below an opaque stack is mirrored to the top (the
+   * material's `two_sided`), else 0.
+   */
+  uint32_t two_sided;
+} StrataStackInfo;
+
+/**
  * One sample of `strata_sample_batch`. An absorbed walk is all zeros
  * (flags 0): count it as a zero-weight sample.
  */
@@ -216,6 +243,15 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
  * thread uses during the call.
  */
 int32_t strata_bsdf_set_threads(struct StrataBsdf *b, size_t threads);
+
+/**
+ * Writes what the stack is to `*out` (see `StrataStackInfo`).
+ *
+ * # Safety
+ * `b` is NULL or live; `out` is NULL or points to a writable
+ * `StrataStackInfo`.
+ */
+int32_t strata_bsdf_info(const struct StrataBsdf *b, struct StrataStackInfo *out);
 
 /**
  * Frees a BSDF. NULL is a no-op.

@@ -146,6 +146,25 @@ const _: () = {
     );
 };
 
+/// What a renderer needs to know of a stack to declare its BSDF: the
+/// exteriors' IORs (for a transmitted sample's relative IOR) and whether light
+/// passes through. Filled by `strata_bsdf_info`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StrataStackInfo {
+    /// IOR of the exterior above the stack (`exterior_ior`, default 1).
+    pub ior_above: f32,
+    /// IOR of the exterior below (the last dielectric's `ior`) for a
+    /// transmissive stack; for an opaque one, the IOR above its base.
+    pub ior_below: f32,
+    /// 1 if the bottom interface is a dielectric (light passes through, and
+    /// samples may have `STRATA_SAMPLE_TRANSMISSION`), else 0.
+    pub transmissive: u32,
+    /// 1 if light from below an opaque stack is mirrored to the top (the
+    /// material's `two_sided`), else 0.
+    pub two_sided: u32,
+}
+
 // ---------------------------------------------------------- errors, guarding
 
 /// A failed call: its status and message.
@@ -560,6 +579,31 @@ pub unsafe extern "C" fn strata_bsdf_set_threads(b: *mut StrataBsdf, threads: us
             .clone()
             .threads(threads)
             .map_err(|e| Failure::invalid(e.to_string()))?;
+        Ok(())
+    })
+}
+
+/// Writes what the stack is to `*out` (see `StrataStackInfo`).
+///
+/// # Safety
+/// `b` is NULL or live; `out` is NULL or points to a writable
+/// `StrataStackInfo`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut StrataStackInfo) -> i32 {
+    guard("strata_bsdf_info", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let stack = unsafe { bsdf_ref(b)? }.stack();
+        if out.is_null() {
+            return Err(Failure::new(STRATA_ERR_NULL, "out is NULL"));
+        }
+        let info = StrataStackInfo {
+            ior_above: stack.exterior_above() as f32,
+            ior_below: stack.exterior_below() as f32,
+            transmissive: stack.transmissive() as u32,
+            two_sided: stack.two_sided() as u32,
+        };
+        // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
+        unsafe { out.write(info) };
         Ok(())
     })
 }

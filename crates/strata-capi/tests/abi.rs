@@ -679,3 +679,31 @@ fn unkeyed_samples_are_what_strata_sample_prints() {
     }
     assert!(seen > 0);
 }
+
+#[test]
+fn info_describes_the_stack() {
+    let mut info = StrataStackInfo::default();
+    let copper = Capi::toml(COATED_COPPER, 1, 0);
+    // SAFETY: live BSDFs and a writable record.
+    unsafe {
+        assert_eq!(strata_bsdf_info(copper.0, &mut info), STRATA_OK);
+        assert_eq!(
+            info,
+            StrataStackInfo {
+                ior_above: 1.0,
+                ior_below: 1.5,
+                transmissive: 0,
+                two_sided: 0
+            }
+        );
+        let glass = Capi::toml(&format!("exterior_ior = 1.33\n{GLASS}"), 1, 0);
+        assert_eq!(strata_bsdf_info(glass.0, &mut info), STRATA_OK);
+        assert_eq!(
+            (info.ior_above, info.ior_below, info.transmissive),
+            (1.33, 1.5, 1)
+        );
+        assert_eq!(strata_bsdf_info(glass.0, null_mut()), STRATA_ERR_NULL);
+        assert_eq!(last_error(), "strata_bsdf_info: out is NULL");
+        assert_eq!(strata_bsdf_info(null(), &mut info), STRATA_ERR_NULL);
+    }
+}
