@@ -673,18 +673,13 @@ pub unsafe extern "C" fn strata_eval_batch_keyed(
     stderr_out: *mut f32,
 ) -> i32 {
     guard("strata_eval_batch_keyed", || {
-        if keys.is_null() && n > 0 {
-            return Err(Failure::new(
-                STRATA_ERR_NULL,
-                format!("keys is NULL (n = {n}): use strata_eval_batch for unkeyed queries"),
-            ));
-        }
         // SAFETY: the caller's guarantees are those of `eval_aos`.
         unsafe { eval_aos(b, n, wi, wo, Some(keys), f_out, stderr_out) }
     })
 }
 
-/// The body of the AoS evals (`keys`: `None` unkeyed, `Some` non-NULL).
+/// The body of the AoS evals (`keys`: `None` unkeyed, `Some` keyed, which
+/// must not be NULL).
 ///
 /// # Safety
 /// As `strata_eval_batch_keyed`.
@@ -701,6 +696,12 @@ unsafe fn eval_aos(
     let bsdf = unsafe { bsdf_ref(b)? };
     if n == 0 {
         return Ok(());
+    }
+    if keys.is_some_and(|k| k.is_null()) {
+        return Err(Failure::new(
+            STRATA_ERR_NULL,
+            format!("keys is NULL (n = {n}): use strata_eval_batch for unkeyed queries"),
+        ));
     }
     disjoint(&[
         span("wi", wi, 3, n, false, false)?,

@@ -66,6 +66,15 @@ int main(void) {
            "b is NULL", NULL);
     expect("NULL b even with n = 0", strata_eval_batch(NULL, 0, NULL, NULL, NULL, NULL),
            STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("keyed, NULL b and keys", strata_eval_batch_keyed(NULL, 4, wi, wo, NULL, f, NULL),
+           STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("threads, NULL b", strata_bsdf_set_threads(NULL, 1), STRATA_ERR_NULL, "b is NULL",
+           NULL);
+    StrataStackInfo info;
+    expect("info, NULL b", strata_bsdf_info(NULL, &info), STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("info, NULL out", strata_bsdf_info(b, NULL), STRATA_ERR_NULL, "out is NULL", NULL);
+    expect("too many threads", strata_bsdf_set_threads(b, 5000), STRATA_ERR_INVALID_ARGUMENT,
+           "threads = 5000", NULL);
     strata_bsdf_free(NULL); /* a no-op */
 
     /* ---- NULL arrays, n > 0: the message names the argument and n */
