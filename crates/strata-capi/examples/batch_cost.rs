@@ -88,11 +88,12 @@ fn main() {
         let mut cells = vec![];
         for threads in [Some(1), None] {
             let b = create(path, samples, threads);
-            // SAFETY (both closures): every array holds N queries; query k's
+            // Both closures: every array holds N queries; query k's
             // arrays start at 3 k.
             if threads.is_some() {
                 cells.push(per_query(budget, || {
                     for k in 0..N {
+                        // SAFETY: N queries (query k at 3 k); a live BSDF.
                         let st = unsafe {
                             strata_eval_batch(
                                 b,
@@ -108,6 +109,7 @@ fn main() {
                 }));
             }
             cells.push(per_query(budget, || {
+                // SAFETY: N queries (query k at 3 k); a live BSDF.
                 let st = unsafe {
                     strata_eval_batch(b, N, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
                 };
@@ -126,10 +128,11 @@ fn main() {
     let mut cells = vec![];
     for threads in [Some(1), None] {
         let b = create(path, 1, threads);
-        // SAFETY (both closures): as above.
+        // Both closures: as above.
         if threads.is_some() {
             cells.push(per_query(budget, || {
                 for k in 0..N {
+                    // SAFETY: N queries (query k at 3 k); a live BSDF.
                     let st = unsafe {
                         strata_sample_batch(b, 1, wi[3 * k..].as_ptr(), null(), &mut s[k])
                     };
@@ -138,6 +141,7 @@ fn main() {
             }));
         }
         cells.push(per_query(budget, || {
+            // SAFETY: N queries (query k at 3 k); a live BSDF.
             let st = unsafe { strata_sample_batch(b, N, wi.as_ptr(), null(), s.as_mut_ptr()) };
             assert_eq!(st, STRATA_OK);
         }));

@@ -316,7 +316,9 @@ unsafe fn output<'a, T>(
     check_array(name, ptr.cast_const(), len, n)?;
     // SAFETY: as in `input`; the caller guarantees the elements are
     // writable, and `disjoint` has checked that no other array of the call
-    // overlaps them, so this is the only reference to them.
+    // overlaps them, so this is the only reference to them. The library
+    // only writes to an output (never reads it), so memory the C caller has
+    // not initialized is fine.
     Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
 }
 

@@ -478,24 +478,55 @@ fn json_and_path_give_the_tomls_bsdf() {
     assert_eq!(results[0], results[2]);
 }
 
-/// The `strata` binary of this build profile and target directory, brought
-/// up to date once per run (a no-op after the workspace's `cargo test`, which
-/// has just built it).
+/// The newest modification time of the files under `dir`.
+fn newest(dir: &std::path::Path) -> std::time::SystemTime {
+    let mut t = std::time::SystemTime::UNIX_EPOCH;
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let m = e.metadata().unwrap();
+        let u = if m.is_dir() {
+            newest(&e.path())
+        } else {
+            m.modified().unwrap()
+        };
+        t = t.max(u);
+    }
+    t
+}
+
+/// The `strata` binary of this build profile and target directory. The
+/// workspace's `cargo test` (as CI runs it) has just built it; if it is
+/// missing or older than the sources it is built from (this crate's tests
+/// run alone), it is built here.
 fn strata_cli() -> std::path::PathBuf {
     static BIN: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
     BIN.get_or_init(|| {
         let exe = std::env::current_exe().unwrap();
         let profile_dir = exe.parent().unwrap().parent().unwrap().to_path_buf();
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let mut cmd = std::process::Command::new(cargo);
-        cmd.args(["build", "--quiet", "-p", "strata-cli", "--bin", "strata"]);
-        if profile_dir.file_name().unwrap() == "release" {
-            cmd.arg("--release");
-        }
-        cmd.env("CARGO_TARGET_DIR", profile_dir.parent().unwrap());
-        let status = cmd.status().unwrap();
-        assert!(status.success(), "cargo build of strata-cli failed");
         let bin = profile_dir.join("strata");
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let sources = [
+            "crates/strata-bsdf",
+            "crates/strata-cli",
+            "crates/strata-reports",
+        ]
+        .iter()
+        .map(|c| newest(&root.join(c)))
+        .max()
+        .unwrap();
+        let fresh = std::fs::metadata(&bin)
+            .and_then(|m| m.modified())
+            .is_ok_and(|t| t >= sources);
+        if !fresh {
+            let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+            let mut cmd = std::process::Command::new(cargo);
+            cmd.args(["build", "--quiet", "-p", "strata-cli", "--bin", "strata"]);
+            if profile_dir.file_name().unwrap() == "release" {
+                cmd.arg("--release");
+            }
+            cmd.env("CARGO_TARGET_DIR", profile_dir.parent().unwrap());
+            let status = cmd.status().unwrap();
+            assert!(status.success(), "cargo build of strata-cli failed");
+        }
         assert!(bin.exists(), "{} missing", bin.display());
         bin
     })
