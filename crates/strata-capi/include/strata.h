@@ -233,10 +233,10 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
  * (0: one per core; at most 1024). By default they run on a pool shared by
  * every BSDF of the process, one thread per core. Calls of a few walks
  * (n = 1 samples, small evals) run on the calling thread whatever the pool;
- * results never depend on it. A renderer that calls strata from its own
- * worker threads may want `threads = 1`: each call then runs on its caller.
- * Configure a BSDF before sharing it: this call must not run while another
- * thread uses `b`.
+ * results never depend on it. A large batch runs on the pool while its
+ * caller waits, so a pool of its own bounds how many cores a BSDF's batches
+ * use; calls from several threads share it. Configure a BSDF before sharing
+ * it: this call must not run while another thread uses `b`.
  *
  * # Safety
  * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
