@@ -559,8 +559,8 @@ fn run_cli(args: &[&str], stdin: &str) -> String {
 }
 
 /// `strata eval` keys query lines by their index: keys 0..n through the C
-/// ABI give its f (printed as f64; the ABI's f32 is its cast), and its pdf
-/// (keyed by the directions, as the ABI's) exactly.
+/// ABI give its f and stderr (printed as f64; the ABI's f32 are their
+/// casts), and its pdf (keyed by the directions, as the ABI's), exactly.
 #[test]
 fn keyed_eval_and_pdf_are_what_strata_eval_prints() {
     let path = concat!(
@@ -568,18 +568,41 @@ fn keyed_eval_and_pdf_are_what_strata_eval_prints() {
         "/../../examples/materials/coated_copper.toml"
     );
     let n = 12;
-    let (wi, wo) = (directions(n, 10, false), directions(n, 11, false));
+    // Unit vectors that normalization leaves as they are, printed exactly
+    // (as f64): the CLI evaluates these very vectors whether it normalizes
+    // the components it reads or takes them as given.
+    let unit = |v: [f32; 3]| {
+        let mut u = Vec3::from(v);
+        for _ in 0..8 {
+            let next = strata_bsdf::Direction::new("v", u).unwrap().to_vec3();
+            if next == u {
+                return Some(u.to_array());
+            }
+            u = next;
+        }
+        None
+    };
+    let fixed = |salt| -> Vec<[f32; 3]> {
+        directions(4 * n, salt, false)
+            .into_iter()
+            .filter_map(unit)
+            .take(n)
+            .collect()
+    };
+    let (wi_cli, wo_cli) = (fixed(10), fixed(11));
+    assert_eq!((wi_cli.len(), wo_cli.len()), (n, n));
     let mut input = String::new();
-    let (mut wi_cli, mut wo_cli) = (vec![], vec![]);
     for k in 0..n {
+        let (a, b) = (wi_cli[k].map(f64::from), wo_cli[k].map(f64::from));
         let line = format!(
             "{{\"wi\":[{},{},{}],\"wo\":[{},{},{}]}}",
-            wi[k][0], wi[k][1], wi[k][2], wo[k][0], wo[k][1], wo[k][2]
+            a[0], a[1], a[2], b[0], b[1], b[2]
         );
-        // The directions the CLI evaluates: the line's, normalized.
-        let (a, b) = strata_bsdf::query::parse_query_line(&line).unwrap();
-        wi_cli.push(a.to_vec3().to_array());
-        wo_cli.push(b.to_vec3().to_array());
+        let (pa, pb) = strata_bsdf::query::parse_query_line(&line).unwrap();
+        assert_eq!(
+            (pa.to_vec3().to_array(), pb.to_vec3().to_array()),
+            (wi_cli[k], wo_cli[k])
+        );
         input.push_str(&line);
         input.push('\n');
     }
@@ -706,6 +729,10 @@ fn unkeyed_samples_are_what_strata_sample_prints() {
                 s.flags & STRATA_SAMPLE_DELTA != 0,
                 line["specular"].as_bool().unwrap()
             );
+            // A CLI that prints the sample's pdf prints the C sample's.
+            if let Some(p) = line.get("pdf") {
+                assert_eq!(s.pdf.to_bits(), (p.as_f64().unwrap() as f32).to_bits());
+            }
         }
     }
     assert!(seen > 0);
