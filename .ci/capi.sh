@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# CI for the C ABI (crates/strata-capi), run from the repository root:
+#  1. the committed header include/strata.h is what cbindgen makes of the
+#     crate now (else: a diff, and a failure);
+#  2. the crate builds in release (libstrata_capi.a and .so);
+#  3. the C example and the C abuse test compile against the static library
+#     with -Wall -Werror and run, exiting 0.
+# The Rust tests of the crate (tests/*.rs) run in the workspace's cargo test.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export CARGO_TERM_COLOR=never
+
+crate=crates/strata-capi
+header=$crate/include/strata.h
+
+if ! command -v cbindgen >/dev/null 2>&1; then
+  echo "== installing cbindgen"
+  apt-get update -qq
+  apt-get install -y -qq cbindgen >/dev/null
+fi
+cbindgen --version
+
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+echo "== $header is up to date"
+cbindgen --quiet --config "$crate/cbindgen.toml" --crate strata-capi \
+  --output "$tmp/strata.h" "$crate"
+if ! diff -u "$header" "$tmp/strata.h"; then
+  echo "$header is stale: regenerate it with" >&2
+  echo "  cbindgen --config $crate/cbindgen.toml --crate strata-capi --output $header $crate" >&2
+  exit 1
+fi
+
+echo "== cargo build --release -p strata-capi"
+cargo build --release -p strata-capi
+target_dir=$(cargo metadata --format-version 1 --no-deps | sed -n 's/.*"target_directory":"\([^"]*\)".*/\1/p')
+lib="$target_dir/release/libstrata_capi.a"
+test -f "$lib"
+
+cc=${CC:-cc}
+cflags=(-std=c99 -O2 -Wall -Wextra -Werror -I"$crate/include")
+libs=(-lpthread -ldl -lm)
+
+run() {
+  local name=$1 src=$2
+  echo "== $name"
+  "$cc" "${cflags[@]}" "$src" "$lib" "${libs[@]}" -o "$tmp/$name"
+  local status=0
+  "$tmp/$name" || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "$name exited with status $status" >&2
+    exit 1
+  fi
+}
+
+run eval_sample "$crate/examples/c/eval_sample.c"
+run abuse "$crate/tests/c/abuse.c"
+
+# The header also compiles as C++ (its extern "C" guard).
+if command -v c++ >/dev/null 2>&1; then
+  echo "== strata.h in C++"
+  printf '#include "strata.h"\nint main() { return strata_version() == nullptr; }\n' >"$tmp/cpp.cc"
+  c++ -std=c++11 -Wall -Werror -I"$crate/include" "$tmp/cpp.cc" "$lib" "${libs[@]}" -o "$tmp/cpp"
+  "$tmp/cpp"
+fi
+echo "capi: ok"

@@ -1,0 +1,157 @@
+//! The cost per query of the C ABI: 4096 calls of n = 1 against one call of
+//! n = 4096 (on one thread, `strata_bsdf_set_threads(b, 1)`, and on the
+//! default pool of one thread per core), for eval (1 and 64 walks) and
+//! sample, on
+//! examples/materials/coated_copper.toml. Calls the extern "C" functions, as
+//! a C program does. Not a test: run it and read the table.
+//!
+//! ```text
+//! cargo run --release -p strata-capi --example batch_cost
+//! ```
+//! Optional argument: the seconds to spend per cell (default 1).
+
+use std::ffi::CString;
+use std::ptr::{null, null_mut};
+use std::time::{Duration, Instant};
+use strata_capi::*;
+
+const N: usize = 4096;
+
+/// Nanoseconds per query of `run` (which answers `N` queries), the best of
+/// repetitions over `budget`.
+fn per_query(budget: Duration, mut run: impl FnMut()) -> f64 {
+    run(); // warm up
+    let start = Instant::now();
+    let mut best = f64::INFINITY;
+    while start.elapsed() < budget {
+        let t = Instant::now();
+        run();
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    best * 1e9 / N as f64
+}
+
+/// A BSDF with `samples` walks per eval; on a pool of `threads` threads of
+/// its own, or the default pool.
+fn create(path: &str, samples: u64, threads: Option<usize>) -> *mut StrataBsdf {
+    let p = CString::new(path).unwrap();
+    let mut b = null_mut();
+    // SAFETY: NUL-terminated path; writable out pointer; `b` is used by this
+    // thread only.
+    unsafe {
+        assert_eq!(
+            strata_bsdf_from_path(p.as_ptr(), samples, 1, &mut b),
+            STRATA_OK
+        );
+        if let Some(t) = threads {
+            assert_eq!(strata_bsdf_set_threads(b, t), STRATA_OK);
+        }
+    }
+    b
+}
+
+fn main() {
+    let budget = Duration::from_secs_f64(
+        std::env::args()
+            .nth(1)
+            .map_or(1.0, |s| s.parse().expect("seconds")),
+    );
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/materials/coated_copper.toml"
+    );
+    // N query pairs over the upper hemisphere.
+    let dir = |k: usize, a: f32| {
+        let t = (k as f32 + 0.5) / N as f32;
+        let phi = a + std::f32::consts::TAU * t * 37.0;
+        let s = (0.95 * t).sqrt();
+        [s * phi.cos(), s * phi.sin(), (1.0 - s * s).sqrt()]
+    };
+    let wi: Vec<f32> = (0..N).flat_map(|k| dir(k, 0.0)).collect();
+    let wo: Vec<f32> = (0..N).flat_map(|k| dir(N - 1 - k, 1.0)).collect();
+    let mut f = vec![0.0f32; 3 * N];
+    let mut s = vec![StrataSample::default(); N];
+
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!(
+        "| call | n = 1 calls | one call of n = {N}, 1 thread | ratio | one call of n = {N}, {cores} threads | ratio |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let row = |name: &str, single: f64, one: f64, pool: f64| {
+        println!(
+            "| {name} | {single:.0} ns | {one:.0} ns | {:.1}× | {pool:.0} ns | {:.1}× |",
+            single / one,
+            single / pool
+        );
+    };
+    for samples in [1u64, 64] {
+        let mut cells = vec![];
+        for threads in [Some(1), None] {
+            let b = create(path, samples, threads);
+            // Both closures: every array holds N queries; query k's
+            // arrays start at 3 k.
+            if threads.is_some() {
+                cells.push(per_query(budget, || {
+                    for k in 0..N {
+                        // SAFETY: N queries (query k at 3 k); a live BSDF.
+                        let st = unsafe {
+                            strata_eval_batch(
+                                b,
+                                1,
+                                wi[3 * k..].as_ptr(),
+                                wo[3 * k..].as_ptr(),
+                                f[3 * k..].as_mut_ptr(),
+                                null_mut(),
+                            )
+                        };
+                        assert_eq!(st, STRATA_OK);
+                    }
+                }));
+            }
+            cells.push(per_query(budget, || {
+                // SAFETY: N queries (query k at 3 k); a live BSDF.
+                let st = unsafe {
+                    strata_eval_batch(b, N, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
+                };
+                assert_eq!(st, STRATA_OK);
+            }));
+            // SAFETY: from `create`, freed once.
+            unsafe { strata_bsdf_free(b) };
+        }
+        row(
+            &format!("`strata_eval_batch`, samples {samples}"),
+            cells[0],
+            cells[1],
+            cells[2],
+        );
+    }
+    let mut cells = vec![];
+    for threads in [Some(1), None] {
+        let b = create(path, 1, threads);
+        // Both closures: as above.
+        if threads.is_some() {
+            cells.push(per_query(budget, || {
+                for k in 0..N {
+                    // SAFETY: N queries (query k at 3 k); a live BSDF.
+                    let st = unsafe {
+                        strata_sample_batch(b, 1, wi[3 * k..].as_ptr(), null(), &mut s[k])
+                    };
+                    assert_eq!(st, STRATA_OK);
+                }
+            }));
+        }
+        cells.push(per_query(budget, || {
+            // SAFETY: N queries (query k at 3 k); a live BSDF.
+            let st = unsafe { strata_sample_batch(b, N, wi.as_ptr(), null(), s.as_mut_ptr()) };
+            assert_eq!(st, STRATA_OK);
+        }));
+        // SAFETY: from `create`, freed once.
+        unsafe { strata_bsdf_free(b) };
+    }
+    row(
+        "`strata_sample_batch` (with its pdf)",
+        cells[0],
+        cells[1],
+        cells[2],
+    );
+}

@@ -1,0 +1,1156 @@
+//! The C ABI of strata: layered BSDFs for C and C++ renderers.
+//!
+//! The header is `include/strata.h`, generated from this file by cbindgen
+//! (`cbindgen.toml`; `.ci/capi.sh` fails if the committed header is stale).
+//! Link `libstrata_capi.a` (with `-lpthread -ldl -lm`) or
+//! `libstrata_capi.so`. docs/embedding.md has the guide.
+//!
+//! Every function returns a status: [`STRATA_OK`] (0) or a negative
+//! `STRATA_ERR_*` code, and then [`strata_last_error`] says what was wrong,
+//! naming the argument and, in a batch, the query index. Nothing unwinds
+//! across the boundary: a panic inside strata is caught and reported as
+//! [`STRATA_ERR_PANIC`].
+//!
+//! A `StrataBsdf` is the library's [`LayeredBsdf`] behind a pointer; the
+//! batch functions are its slice calls (`eval_into`, `sample_records`, ...)
+//! over the caller's flat arrays, so they give the Rust API's numbers bit for
+//! bit (tested in `tests/abi.rs`).
+
+#![warn(missing_docs)]
+#![deny(unsafe_op_in_unsafe_fn)]
+
+use std::cell::RefCell;
+use std::ffi::{c_char, CStr, CString};
+use std::mem::{align_of, offset_of, size_of};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use strata_bsdf::stack::MaterialError;
+use strata_bsdf::{
+    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, QueryError, SampleRecord, Transport,
+    Vectors, VectorsMut, MAX_WALKS,
+};
+
+// ------------------------------------------------------------------ statuses
+
+/// Success.
+pub const STRATA_OK: i32 = 0;
+/// A required pointer argument is NULL (the message names it).
+pub const STRATA_ERR_NULL: i32 = -1;
+/// An argument has a value strata cannot use: a direction that is NaN,
+/// infinite or of zero length (the message names the query index and the
+/// argument), a walk count of 0 or above 2^40, an unknown transport mode, a
+/// batch too large to address, a misaligned or overlapping array, or text
+/// that is not UTF-8.
+pub const STRATA_ERR_INVALID_ARGUMENT: i32 = -2;
+/// The material text is malformed or describes an invalid stack (the
+/// message names the layer, the field and the value).
+pub const STRATA_ERR_MATERIAL: i32 = -3;
+/// A material file could not be read (the message names the path).
+pub const STRATA_ERR_IO: i32 = -4;
+/// strata panicked: a bug. The panic was caught at the boundary; the BSDF is
+/// still usable. Please report the message.
+pub const STRATA_ERR_PANIC: i32 = -99;
+
+/// Transport mode: light flows from `wi` to `wo` (`wi` points to the light).
+/// The default.
+pub const STRATA_TRANSPORT_RADIANCE: u32 = 0;
+/// Transport mode: importance flows from `wi` to `wo` (`wi` points to the
+/// viewer): `eval` is the adjoint `f(wo -> wi)`.
+pub const STRATA_TRANSPORT_IMPORTANCE: u32 = 1;
+
+/// `StrataSample::flags` bit: the walk left on the side it entered.
+pub const STRATA_SAMPLE_REFLECTION: u32 = 1;
+/// `StrataSample::flags` bit: the walk left on the other side.
+pub const STRATA_SAMPLE_TRANSMISSION: u32 = 2;
+/// `StrataSample::flags` bit: every event of the walk was a delta (the
+/// direction is a specular one; treat the sample as a delta).
+pub const STRATA_SAMPLE_DELTA: u32 = 4;
+
+const _: () = {
+    assert!(STRATA_SAMPLE_REFLECTION == strata_bsdf::SampleFlags::REFLECTION);
+    assert!(STRATA_SAMPLE_TRANSMISSION == strata_bsdf::SampleFlags::TRANSMISSION);
+    assert!(STRATA_SAMPLE_DELTA == strata_bsdf::SampleFlags::DELTA);
+    assert!(STRATA_TRANSPORT_RADIANCE == Transport::Radiance as u32);
+    assert!(STRATA_TRANSPORT_IMPORTANCE == Transport::Importance as u32);
+};
+
+// --------------------------------------------------------------------- types
+
+/// A layered BSDF: a material stack with its walk count and seed. Create it
+/// with `strata_bsdf_from_toml`, `_from_json` or `_from_path`, free it with
+/// `strata_bsdf_free`. It is immutable once configured: any number of threads
+/// may call the batch functions on one `StrataBsdf` at the same time
+/// (`strata_bsdf_set_transport` must not run concurrently with them).
+pub struct StrataBsdf {
+    inner: LayeredBsdf,
+}
+
+const _: () = {
+    const fn shareable<T: Send + Sync>() {}
+    shareable::<StrataBsdf>();
+};
+
+/// One sample of `strata_sample_batch`. An absorbed walk is all zeros
+/// (flags 0): count it as a zero-weight sample.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StrataSample {
+    /// The sampled direction (unit, pointing away from the surface), or zeros
+    /// if the walk was absorbed.
+    pub wo: [f32; 3],
+    /// `f(wi, wo) |cos(theta_o)| / p(wo)` per RGB channel (in the BSDF's
+    /// transport mode): an unbiased estimate, the walk's throughput.
+    pub weight: [f32; 3],
+    /// The density of `wo` per solid angle: exactly what `strata_pdf_batch`
+    /// gives for `(wi, wo)`, so MIS sees the same number from either
+    /// strategy. Approximate, so the weight is not `f cos / pdf`.
+    pub pdf: f32,
+    /// `STRATA_SAMPLE_*` bits: REFLECTION or TRANSMISSION, and DELTA; 0 if
+    /// absorbed.
+    pub flags: u32,
+}
+
+/// One result of `strata_albedo_batch`: the fractions of light from `wi`
+/// reflected and transmitted, per RGB channel, with standard errors.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StrataAlbedo {
+    /// Reflected fraction per channel.
+    pub reflected: [f32; 3],
+    /// Transmitted fraction per channel.
+    pub transmitted: [f32; 3],
+    /// Standard error of the reflected fraction.
+    pub reflected_stderr: [f32; 3],
+    /// Standard error of the transmitted fraction.
+    pub transmitted_stderr: [f32; 3],
+}
+
+// The C records are the library's records, field for field, so that the
+// batch calls write straight into the caller's array.
+const _: () = {
+    assert!(size_of::<StrataSample>() == size_of::<SampleRecord>());
+    assert!(align_of::<StrataSample>() == align_of::<SampleRecord>());
+    assert!(offset_of!(StrataSample, wo) == offset_of!(SampleRecord, wo));
+    assert!(offset_of!(StrataSample, weight) == offset_of!(SampleRecord, weight));
+    assert!(offset_of!(StrataSample, pdf) == offset_of!(SampleRecord, pdf));
+    assert!(offset_of!(StrataSample, flags) == offset_of!(SampleRecord, flags));
+    assert!(size_of::<StrataAlbedo>() == size_of::<AlbedoRecord>());
+    assert!(align_of::<StrataAlbedo>() == align_of::<AlbedoRecord>());
+    assert!(offset_of!(StrataAlbedo, reflected) == offset_of!(AlbedoRecord, reflected));
+    assert!(offset_of!(StrataAlbedo, transmitted) == offset_of!(AlbedoRecord, transmitted));
+    assert!(
+        offset_of!(StrataAlbedo, reflected_stderr) == offset_of!(AlbedoRecord, reflected_stderr)
+    );
+    assert!(
+        offset_of!(StrataAlbedo, transmitted_stderr)
+            == offset_of!(AlbedoRecord, transmitted_stderr)
+    );
+};
+
+/// What a renderer needs to know of a stack to declare its BSDF: the
+/// exteriors' IORs (for a transmitted sample's relative IOR) and whether light
+/// passes through. Filled by `strata_bsdf_info`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StrataStackInfo {
+    /// IOR of the exterior above the stack (`exterior_ior`, default 1).
+    pub ior_above: f32,
+    /// IOR of the exterior below (the last dielectric's `ior`) for a
+    /// transmissive stack; for an opaque one, the IOR above its base.
+    pub ior_below: f32,
+    /// 1 if the bottom interface is a dielectric (light passes through, and
+    /// samples may have `STRATA_SAMPLE_TRANSMISSION`), else 0.
+    pub transmissive: u32,
+    /// 1 if light from below an opaque stack is mirrored to the top (the
+    /// material's `two_sided`), else 0.
+    pub two_sided: u32,
+}
+
+// ---------------------------------------------------------- errors, guarding
+
+/// A failed call: its status and message.
+#[derive(Debug)]
+struct Failure {
+    code: i32,
+    message: String,
+}
+
+impl Failure {
+    fn new(code: i32, message: impl Into<String>) -> Self {
+        Failure {
+            code,
+            message: message.into(),
+        }
+    }
+    fn invalid(message: impl Into<String>) -> Self {
+        Self::new(STRATA_ERR_INVALID_ARGUMENT, message)
+    }
+}
+
+impl From<BatchError> for Failure {
+    fn from(e: BatchError) -> Self {
+        Failure::invalid(e.to_string())
+    }
+}
+
+impl From<MaterialError> for Failure {
+    fn from(e: MaterialError) -> Self {
+        let code = match e {
+            MaterialError::Io { .. } => STRATA_ERR_IO,
+            _ => STRATA_ERR_MATERIAL,
+        };
+        Failure::new(code, e.to_string())
+    }
+}
+
+thread_local! {
+    /// The message of this thread's last failed call ("" after a success).
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+fn set_last_error(message: &str) {
+    // A C string cannot hold NUL: show it escaped (it can only come from
+    // material text quoted in a parser's message).
+    let c = CString::new(message.replace('\0', "\\0")).unwrap_or_default();
+    LAST_ERROR.with(|e| *e.borrow_mut() = c);
+}
+
+/// Runs the body of `function`, catching panics: the status, with the last
+/// error set (to "" on success).
+fn guard(function: &str, body: impl FnOnce() -> Result<(), Failure>) -> i32 {
+    match catch_unwind(AssertUnwindSafe(body)) {
+        Ok(Ok(())) => {
+            set_last_error("");
+            STRATA_OK
+        }
+        Ok(Err(f)) => {
+            set_last_error(&format!("{function}: {}", f.message));
+            f.code
+        }
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown payload".into());
+            set_last_error(&format!(
+                "{function}: internal error (strata panicked: {what}); please report it"
+            ));
+            STRATA_ERR_PANIC
+        }
+    }
+}
+
+// ------------------------------------------------------- pointers to slices
+
+/// The BSDF behind `b`, or an error if it is NULL.
+///
+/// # Safety
+/// `b` is NULL or a pointer from `strata_bsdf_from_*` not yet freed.
+unsafe fn bsdf_ref<'a>(b: *const StrataBsdf) -> Result<&'a LayeredBsdf, Failure> {
+    // SAFETY: the caller guarantees that a non-NULL `b` points to a live
+    // `StrataBsdf`, which nothing mutates during a batch call.
+    match unsafe { b.as_ref() } {
+        Some(b) => Ok(&b.inner),
+        None => Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+    }
+}
+
+/// Checks an array argument of `len` elements of `T` (for `n` queries): not
+/// NULL, aligned, and addressable.
+fn check_array<T>(name: &str, ptr: *const T, len: usize, n: usize) -> Result<(), Failure> {
+    if ptr.is_null() {
+        return Err(Failure::new(
+            STRATA_ERR_NULL,
+            format!("{name} is NULL (n = {n})"),
+        ));
+    }
+    if !ptr.is_aligned() {
+        return Err(Failure::invalid(format!(
+            "{name} = {ptr:p} is not aligned to {} bytes",
+            align_of::<T>()
+        )));
+    }
+    if len
+        .checked_mul(size_of::<T>())
+        .is_none_or(|b| b > isize::MAX as usize)
+    {
+        return Err(Failure::invalid(format!(
+            "n = {n} is too large: {name} would not fit in memory"
+        )));
+    }
+    Ok(())
+}
+
+/// A caller's input array of `per * n` elements.
+///
+/// # Safety
+/// A non-NULL `ptr` is valid for reading `per * n` elements of `T`, which
+/// nothing writes during the call.
+unsafe fn input<'a, T>(
+    name: &str,
+    ptr: *const T,
+    per: usize,
+    n: usize,
+) -> Result<&'a [T], Failure> {
+    let len = per.checked_mul(n).ok_or_else(|| too_large(name, n))?;
+    check_array(name, ptr, len, n)?;
+    // SAFETY: `ptr` is non-NULL and aligned, `len` elements fit in isize
+    // (checked above), and the caller guarantees they are readable and not
+    // written during the call.
+    Ok(unsafe { std::slice::from_raw_parts(ptr, len) })
+}
+
+/// A caller's output array of `per * n` elements.
+///
+/// # Safety
+/// A non-NULL `ptr` is valid for writing `per * n` elements of `T`, which no
+/// other argument of the call overlaps (checked by [`disjoint`] for the
+/// arrays of one call).
+unsafe fn output<'a, T>(
+    name: &str,
+    ptr: *mut T,
+    per: usize,
+    n: usize,
+) -> Result<&'a mut [T], Failure> {
+    let len = per.checked_mul(n).ok_or_else(|| too_large(name, n))?;
+    check_array(name, ptr.cast_const(), len, n)?;
+    // SAFETY: as in `input`; the caller guarantees the elements are
+    // writable, and `disjoint` has checked that no other array of the call
+    // overlaps them, so this is the only reference to them. The library
+    // only writes to an output (never reads it), so memory the C caller has
+    // not initialized is fine.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
+}
+
+fn too_large(name: &str, n: usize) -> Failure {
+    Failure::invalid(format!(
+        "n = {n} is too large: {name} would not fit in memory"
+    ))
+}
+
+/// Reads a float array of `3 n` as `n` triples.
+fn triples(v: &[f32]) -> &[[f32; 3]] {
+    // `Vectors::from_flat` returns `None` only for a length that is not a
+    // multiple of 3; ours are `3 n`.
+    match Vectors::from_flat(v) {
+        Some(Vectors::Aos(t)) => t,
+        _ => &[],
+    }
+}
+
+/// One array argument of a call, checked: name, start, bytes, whether the
+/// call writes it.
+type Span = (&'static str, usize, usize, bool);
+
+/// Checks an array of `per * n` elements of `T` for a call of `n` queries:
+/// non-NULL (unless `optional`), aligned and addressable.
+fn span<T>(
+    name: &'static str,
+    ptr: *const T,
+    per: usize,
+    n: usize,
+    written: bool,
+    optional: bool,
+) -> Result<Span, Failure> {
+    if optional && ptr.is_null() {
+        return Ok((name, 0, 0, written));
+    }
+    let len = match per.checked_mul(n) {
+        Some(len) => len,
+        None if ptr.is_null() => usize::MAX,
+        None => return Err(too_large(name, n)),
+    };
+    check_array(name, ptr, len, n)?;
+    Ok((name, ptr as usize, len * size_of::<T>(), written))
+}
+
+/// Checks that no array the call writes overlaps another array of the call
+/// (NULL arrays are skipped). Run before any slice is made of them.
+fn disjoint(spans: &[Span]) -> Result<(), Failure> {
+    for (i, a) in spans.iter().enumerate() {
+        for b in &spans[i + 1..] {
+            if !(a.3 || b.3) || a.1 == 0 || b.1 == 0 {
+                continue;
+            }
+            if a.1 < b.1.saturating_add(b.2) && b.1 < a.1.saturating_add(a.2) {
+                return Err(Failure::invalid(format!(
+                    "{} and {} overlap: an output array must not share memory with another array",
+                    a.0, b.0
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A NUL-terminated UTF-8 argument.
+///
+/// # Safety
+/// A non-NULL `s` points to a NUL-terminated string.
+unsafe fn text<'a>(name: &str, s: *const c_char) -> Result<&'a str, Failure> {
+    if s.is_null() {
+        return Err(Failure::new(STRATA_ERR_NULL, format!("{name} is NULL")));
+    }
+    // SAFETY: `s` is non-NULL and the caller guarantees it is NUL-terminated
+    // and not written during the call.
+    let c = unsafe { CStr::from_ptr(s) };
+    c.to_str().map_err(|e| {
+        Failure::invalid(format!(
+            "{name} is not UTF-8 (invalid byte at offset {})",
+            e.valid_up_to()
+        ))
+    })
+}
+
+// ------------------------------------------------------------ construction
+
+/// Checks a walk count argument: 1 to 2^40 (the library's `MAX_WALKS`).
+fn walk_count(argument: &'static str, n: u64) -> Result<(), Failure> {
+    let e = if n == 0 {
+        QueryError::NoSamples { argument }
+    } else if n > MAX_WALKS {
+        QueryError::TooManySamples { argument, value: n }
+    } else {
+        return Ok(());
+    };
+    Err(Failure::invalid(e.to_string()))
+}
+
+/// Builds a BSDF over `stack` and stores it in `*out`.
+///
+/// # Safety
+/// `out` is non-NULL and writable (checked NULL by the callers).
+unsafe fn create(
+    stack: Result<LayerStack, MaterialError>,
+    samples: u64,
+    seed: u64,
+    out: *mut *mut StrataBsdf,
+) -> Result<(), Failure> {
+    walk_count("samples", samples)?;
+    let inner = LayeredBsdf::new(stack?).samples(samples).seed(seed);
+    let b = Box::into_raw(Box::new(StrataBsdf { inner }));
+    // SAFETY: the caller has checked that `out` is non-NULL, and the C
+    // caller guarantees it points to a writable `StrataBsdf *`.
+    unsafe { out.write(b) };
+    Ok(())
+}
+
+/// Clears `*out` (so that it is NULL on failure), or fails if `out` is NULL.
+///
+/// # Safety
+/// A non-NULL `out` points to a writable `StrataBsdf *`.
+unsafe fn clear_out(out: *mut *mut StrataBsdf) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::new(STRATA_ERR_NULL, "out is NULL"));
+    }
+    // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
+    unsafe { out.write(std::ptr::null_mut()) };
+    Ok(())
+}
+
+/// Creates a BSDF from a material in TOML text (the format of
+/// docs/materials.md), with `samples` walks per eval (1 to 2^40) and the
+/// seed of every random stream. On success `*out` holds the BSDF (free it
+/// with `strata_bsdf_free`); on failure `*out` is NULL and
+/// `strata_last_error()` names the layer, the field and the value
+/// (`STRATA_ERR_MATERIAL`).
+///
+/// # Safety
+/// `toml` is NULL or a NUL-terminated string; `out` is NULL or points to a
+/// writable `StrataBsdf *`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_from_toml(
+    toml: *const c_char,
+    samples: u64,
+    seed: u64,
+    out: *mut *mut StrataBsdf,
+) -> i32 {
+    guard("strata_bsdf_from_toml", || {
+        // SAFETY: the caller's guarantees on `out` and `toml` are those of
+        // `clear_out`, `text` and `create`.
+        unsafe {
+            clear_out(out)?;
+            let s = text("toml", toml)?;
+            create(LayerStack::from_toml_str(s), samples, seed, out)
+        }
+    })
+}
+
+/// Creates a BSDF from a material in JSON text (the same tree as the TOML
+/// form); otherwise as `strata_bsdf_from_toml`.
+///
+/// # Safety
+/// `json` is NULL or a NUL-terminated string; `out` is NULL or points to a
+/// writable `StrataBsdf *`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_from_json(
+    json: *const c_char,
+    samples: u64,
+    seed: u64,
+    out: *mut *mut StrataBsdf,
+) -> i32 {
+    guard("strata_bsdf_from_json", || {
+        // SAFETY: as in `strata_bsdf_from_toml`.
+        unsafe {
+            clear_out(out)?;
+            let s = text("json", json)?;
+            create(LayerStack::from_json_str(s), samples, seed, out)
+        }
+    })
+}
+
+/// Creates a BSDF from a material file: `.json` as JSON, anything else as
+/// TOML. A file that cannot be read is `STRATA_ERR_IO`; otherwise as
+/// `strata_bsdf_from_toml`.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string; `out` is NULL or points to a
+/// writable `StrataBsdf *`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_from_path(
+    path: *const c_char,
+    samples: u64,
+    seed: u64,
+    out: *mut *mut StrataBsdf,
+) -> i32 {
+    guard("strata_bsdf_from_path", || {
+        // SAFETY: as in `strata_bsdf_from_toml`.
+        unsafe {
+            clear_out(out)?;
+            let p = text("path", path)?;
+            create(LayerStack::from_path(p), samples, seed, out)
+        }
+    })
+}
+
+/// Sets what flows from `wi` to `wo`: `STRATA_TRANSPORT_RADIANCE` (0, the
+/// default) or `STRATA_TRANSPORT_IMPORTANCE` (1). It changes transmission
+/// between exteriors of different IOR only. Configure a BSDF before sharing
+/// it: this call must not run while another thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32) -> i32 {
+    guard("strata_bsdf_set_transport", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread, so this is the only reference to it.
+        let b = match unsafe { b.as_mut() } {
+            Some(b) => b,
+            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+        };
+        let t = match mode {
+            STRATA_TRANSPORT_RADIANCE => Transport::Radiance,
+            STRATA_TRANSPORT_IMPORTANCE => Transport::Importance,
+            _ => {
+                return Err(Failure::invalid(format!(
+                    "mode = {mode}: expected 0 (STRATA_TRANSPORT_RADIANCE) or 1 \
+                     (STRATA_TRANSPORT_IMPORTANCE)"
+                )))
+            }
+        };
+        b.inner = b.inner.clone().transport(t);
+        Ok(())
+    })
+}
+
+/// Runs the BSDF's large batches on a pool of `threads` threads of its own
+/// (0: one per core; at most 1024). By default they run on a pool shared by
+/// every BSDF of the process, one thread per core. Calls of a few walks
+/// (n = 1 samples, small evals) run on the calling thread whatever the pool;
+/// results never depend on it. A large batch runs on the pool while its
+/// caller waits, so a pool of its own bounds how many cores a BSDF's batches
+/// use; calls from several threads share it. Configure a BSDF before sharing
+/// it: this call must not run while another thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_threads(b: *mut StrataBsdf, threads: usize) -> i32 {
+    guard("strata_bsdf_set_threads", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread, so this is the only reference to it.
+        let b = match unsafe { b.as_mut() } {
+            Some(b) => b,
+            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+        };
+        b.inner = b
+            .inner
+            .clone()
+            .threads(threads)
+            .map_err(|e| Failure::invalid(e.to_string()))?;
+        Ok(())
+    })
+}
+
+/// Writes what the stack is to `*out` (see `StrataStackInfo`).
+///
+/// # Safety
+/// `b` is NULL or live; `out` is NULL or points to a writable
+/// `StrataStackInfo`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut StrataStackInfo) -> i32 {
+    guard("strata_bsdf_info", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let stack = unsafe { bsdf_ref(b)? }.stack();
+        if out.is_null() {
+            return Err(Failure::new(STRATA_ERR_NULL, "out is NULL"));
+        }
+        let info = StrataStackInfo {
+            ior_above: stack.exterior_above() as f32,
+            ior_below: stack.exterior_below() as f32,
+            transmissive: stack.transmissive() as u32,
+            two_sided: stack.two_sided() as u32,
+        };
+        // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
+        unsafe { out.write(info) };
+        Ok(())
+    })
+}
+
+/// Frees a BSDF. NULL is a no-op.
+///
+/// # Safety
+/// `b` is NULL or a pointer from `strata_bsdf_from_*` not yet freed, that no
+/// other thread uses during or after the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_free(b: *mut StrataBsdf) {
+    if b.is_null() {
+        return;
+    }
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        // SAFETY: `b` came from `Box::into_raw` in `create` and the caller
+        // guarantees it is freed once and not used afterwards.
+        drop(unsafe { Box::from_raw(b) });
+    }));
+}
+
+// ------------------------------------------------------------------- batches
+
+/// Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for `n`
+/// queries with the BSDF's walk count, keyed by the directions' bits (the
+/// same pair always gives the same estimate). `wi`, `wo`: `3 n` floats,
+/// `x, y, z` per query, in the local frame (z = normal), both pointing away
+/// from the surface; normalized on input. Writes `3 n` floats `r, g, b` to
+/// `f_out` and, if `stderr_out` is not NULL, the standard errors to
+/// `stderr_out`. n = 0 does nothing. On an error nothing is written and the
+/// message names the query index and the argument (`"query 3: wi = [NaN, 0,
+/// 1] is not a direction: components must be finite"`).
+///
+/// # Safety
+/// Each non-NULL array holds at least `3 n` floats; output arrays do not
+/// overlap each other or the inputs (checked); `b` is NULL or live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    f_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch", || {
+        // SAFETY: the caller's guarantees are those of `eval_aos`.
+        unsafe { eval_aos(b, n, wi, wo, None, f_out, stderr_out) }
+    })
+}
+
+/// `strata_eval_batch` with a key per query (`keys`: `n` values, not NULL):
+/// query `k` draws its walks from the stream `(seed, keys[k])`, so a renderer
+/// passes fresh keys for fresh noise. Keys `0, 1, ..., n - 1` give exactly
+/// what `strata eval` prints for `n` query lines (its key is the line index).
+///
+/// # Safety
+/// As `strata_eval_batch`; a non-NULL `keys` holds at least `n` values.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch_keyed(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    keys: *const u64,
+    f_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch_keyed", || {
+        // SAFETY: the caller's guarantees are those of `eval_aos`.
+        unsafe { eval_aos(b, n, wi, wo, Some(keys), f_out, stderr_out) }
+    })
+}
+
+/// The body of the AoS evals (`keys`: `None` unkeyed, `Some` keyed, which
+/// must not be NULL).
+///
+/// # Safety
+/// As `strata_eval_batch_keyed`.
+unsafe fn eval_aos(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    keys: Option<*const u64>,
+    f_out: *mut f32,
+    stderr_out: *mut f32,
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    if keys.is_some_and(|k| k.is_null()) {
+        return Err(Failure::new(
+            STRATA_ERR_NULL,
+            format!("keys is NULL (n = {n}): use strata_eval_batch for unkeyed queries"),
+        ));
+    }
+    disjoint(&[
+        span("wi", wi, 3, n, false, false)?,
+        span("wo", wo, 3, n, false, false)?,
+        span("keys", keys.unwrap_or(std::ptr::null()), 1, n, false, true)?,
+        span("f_out", f_out, 3, n, true, false)?,
+        span("stderr_out", stderr_out, 3, n, true, true)?,
+    ])?;
+    // SAFETY: the caller guarantees each non-NULL array holds 3 n floats
+    // (n keys) and that inputs are not written during the call; the outputs
+    // were checked disjoint from every other array above.
+    let (wi, wo, keys, f, se) = unsafe {
+        (
+            input("wi", wi, 3, n)?,
+            input("wo", wo, 3, n)?,
+            keys.map(|k| input("keys", k, 1, n)).transpose()?,
+            output("f_out", f_out, 3, n)?,
+            if stderr_out.is_null() {
+                None
+            } else {
+                Some(output("stderr_out", stderr_out, 3, n)?)
+            },
+        )
+    };
+    let f = VectorsMut::Aos(triples_mut(f));
+    let se = se.map(|s| VectorsMut::Aos(triples_mut(s)));
+    bsdf.eval_into(
+        Vectors::Aos(triples(wi)),
+        Vectors::Aos(triples(wo)),
+        keys,
+        f,
+        se,
+    )?;
+    Ok(())
+}
+
+/// Writes to a float array of `3 n` as `n` triples.
+fn triples_mut(v: &mut [f32]) -> &mut [[f32; 3]] {
+    match VectorsMut::from_flat(v) {
+        Some(VectorsMut::Aos(t)) => t,
+        _ => &mut [],
+    }
+}
+
+/// `strata_eval_batch` over component arrays (structure of arrays): `n`
+/// floats each of `wi_x, wi_y, wi_z, wo_x, wo_y, wo_z`, results to `f_r,
+/// f_g, f_b` and, unless all three are NULL, the standard errors to `se_r,
+/// se_g, se_b`. `keys` is NULL (unkeyed: the same numbers as
+/// `strata_eval_batch`) or `n` keys (as `strata_eval_batch_keyed`).
+///
+/// # Safety
+/// Each non-NULL array holds at least `n` elements; output arrays do not
+/// overlap each other or the inputs (checked); `b` is NULL or live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch_soa(
+    b: *const StrataBsdf,
+    n: usize,
+    wi_x: *const f32,
+    wi_y: *const f32,
+    wi_z: *const f32,
+    wo_x: *const f32,
+    wo_y: *const f32,
+    wo_z: *const f32,
+    keys: *const u64,
+    f_r: *mut f32,
+    f_g: *mut f32,
+    f_b: *mut f32,
+    se_r: *mut f32,
+    se_g: *mut f32,
+    se_b: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch_soa", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        let with_stderr = match [se_r, se_g, se_b].map(|p| p.is_null()) {
+            [true, true, true] => false,
+            [false, false, false] => true,
+            nulls => {
+                let names = ["se_r", "se_g", "se_b"];
+                let null = (0..3).find(|&i| nulls[i]).unwrap_or(0);
+                let given = (0..3).find(|&i| !nulls[i]).unwrap_or(0);
+                return Err(Failure::new(
+                    STRATA_ERR_NULL,
+                    format!(
+                        "{} is NULL but {} is not (n = {n}): pass all three or none",
+                        names[null], names[given]
+                    ),
+                ));
+            }
+        };
+        disjoint(&[
+            span("wi_x", wi_x, 1, n, false, false)?,
+            span("wi_y", wi_y, 1, n, false, false)?,
+            span("wi_z", wi_z, 1, n, false, false)?,
+            span("wo_x", wo_x, 1, n, false, false)?,
+            span("wo_y", wo_y, 1, n, false, false)?,
+            span("wo_z", wo_z, 1, n, false, false)?,
+            span("keys", keys, 1, n, false, true)?,
+            span("f_r", f_r, 1, n, true, false)?,
+            span("f_g", f_g, 1, n, true, false)?,
+            span("f_b", f_b, 1, n, true, false)?,
+            span("se_r", se_r, 1, n, true, true)?,
+            span("se_g", se_g, 1, n, true, true)?,
+            span("se_b", se_b, 1, n, true, true)?,
+        ])?;
+        // SAFETY: the caller guarantees each non-NULL array holds n
+        // elements and that inputs are not written during the call; the
+        // outputs were checked disjoint from every other array above.
+        unsafe {
+            let wi = [
+                input("wi_x", wi_x, 1, n)?,
+                input("wi_y", wi_y, 1, n)?,
+                input("wi_z", wi_z, 1, n)?,
+            ];
+            let wo = [
+                input("wo_x", wo_x, 1, n)?,
+                input("wo_y", wo_y, 1, n)?,
+                input("wo_z", wo_z, 1, n)?,
+            ];
+            let keys = if keys.is_null() {
+                None
+            } else {
+                Some(input("keys", keys, 1, n)?)
+            };
+            let f = [
+                output("f_r", f_r, 1, n)?,
+                output("f_g", f_g, 1, n)?,
+                output("f_b", f_b, 1, n)?,
+            ];
+            let se = if with_stderr {
+                Some(VectorsMut::Soa([
+                    output("se_r", se_r, 1, n)?,
+                    output("se_g", se_g, 1, n)?,
+                    output("se_b", se_b, 1, n)?,
+                ]))
+            } else {
+                None
+            };
+            bsdf.eval_into(
+                Vectors::Soa(wi),
+                Vectors::Soa(wo),
+                keys,
+                VectorsMut::Soa(f),
+                se,
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// Samples one outgoing direction per incident direction `wi[k]` (`3 n`
+/// floats), into `out[k]`. `keys` NULL: query `k` is keyed by its
+/// direction's bits and draws sample index `k` (as line `k` of `strata
+/// sample` does); otherwise `n` keys, query `k` drawing from `(seed,
+/// keys[k])`. Each sample carries the pdf `strata_pdf_batch` gives for its
+/// direction. n = 0 does nothing.
+///
+/// # Safety
+/// `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
+/// `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
+/// live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_sample_batch(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    keys: *const u64,
+    out: *mut StrataSample,
+) -> i32 {
+    guard("strata_sample_batch", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        disjoint(&[
+            span("wi", wi, 3, n, false, false)?,
+            span("keys", keys, 1, n, false, true)?,
+            span("out", out, 1, n, true, false)?,
+        ])?;
+        // SAFETY: the caller guarantees the arrays' lengths and that inputs
+        // are not written during the call; `out` was checked disjoint from
+        // them. `StrataSample` has the layout of `SampleRecord` (asserted at
+        // compile time), so `out`'s records may be written as those.
+        unsafe {
+            let wi = input("wi", wi, 3, n)?;
+            let keys = if keys.is_null() {
+                None
+            } else {
+                Some(input("keys", keys, 1, n)?)
+            };
+            let out = output("out", out.cast::<SampleRecord>(), 1, n)?;
+            bsdf.sample_records(Vectors::Aos(triples(wi)), keys, out)?;
+        }
+        Ok(())
+    })
+}
+
+/// `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
+/// wi_y, wi_z`; results to `wo_x, wo_y, wo_z`, `weight_r, weight_g,
+/// weight_b`, `pdf` and `flags` (`STRATA_SAMPLE_*` bits; an absorbed walk
+/// writes zeros everywhere). The same numbers as `strata_sample_batch`.
+///
+/// # Safety
+/// Each non-NULL array holds at least `n` elements; output arrays do not
+/// overlap each other or the inputs (checked); `b` is NULL or live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_sample_batch_soa(
+    b: *const StrataBsdf,
+    n: usize,
+    wi_x: *const f32,
+    wi_y: *const f32,
+    wi_z: *const f32,
+    keys: *const u64,
+    wo_x: *mut f32,
+    wo_y: *mut f32,
+    wo_z: *mut f32,
+    weight_r: *mut f32,
+    weight_g: *mut f32,
+    weight_b: *mut f32,
+    pdf: *mut f32,
+    flags: *mut u32,
+) -> i32 {
+    guard("strata_sample_batch_soa", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        disjoint(&[
+            span("wi_x", wi_x, 1, n, false, false)?,
+            span("wi_y", wi_y, 1, n, false, false)?,
+            span("wi_z", wi_z, 1, n, false, false)?,
+            span("keys", keys, 1, n, false, true)?,
+            span("wo_x", wo_x, 1, n, true, false)?,
+            span("wo_y", wo_y, 1, n, true, false)?,
+            span("wo_z", wo_z, 1, n, true, false)?,
+            span("weight_r", weight_r, 1, n, true, false)?,
+            span("weight_g", weight_g, 1, n, true, false)?,
+            span("weight_b", weight_b, 1, n, true, false)?,
+            span("pdf", pdf, 1, n, true, false)?,
+            span("flags", flags, 1, n, true, false)?,
+        ])?;
+        // SAFETY: the caller guarantees each non-NULL array holds n
+        // elements and that inputs are not written during the call; the
+        // outputs were checked disjoint from every other array above.
+        unsafe {
+            let wi = [
+                input("wi_x", wi_x, 1, n)?,
+                input("wi_y", wi_y, 1, n)?,
+                input("wi_z", wi_z, 1, n)?,
+            ];
+            let keys = if keys.is_null() {
+                None
+            } else {
+                Some(input("keys", keys, 1, n)?)
+            };
+            let wo = [
+                output("wo_x", wo_x, 1, n)?,
+                output("wo_y", wo_y, 1, n)?,
+                output("wo_z", wo_z, 1, n)?,
+            ];
+            let weight = [
+                output("weight_r", weight_r, 1, n)?,
+                output("weight_g", weight_g, 1, n)?,
+                output("weight_b", weight_b, 1, n)?,
+            ];
+            let pdf = output("pdf", pdf, 1, n)?;
+            let flags = output("flags", flags, 1, n)?;
+            bsdf.sample_into(
+                Vectors::Soa(wi),
+                keys,
+                VectorsMut::Soa(wo),
+                VectorsMut::Soa(weight),
+                pdf,
+                flags,
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
+/// each), per solid angle, into `pdf_out` (`n` floats). A function of the two
+/// directions and the seed: it is the number a sample of that direction
+/// carries. n = 0 does nothing.
+///
+/// # Safety
+/// `wi`, `wo` hold at least `3 n` floats, `pdf_out` `n`; `pdf_out` does not
+/// overlap the inputs (checked); `b` is NULL or live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf_batch(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    pdf_out: *mut f32,
+) -> i32 {
+    guard("strata_pdf_batch", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        disjoint(&[
+            span("wi", wi, 3, n, false, false)?,
+            span("wo", wo, 3, n, false, false)?,
+            span("pdf_out", pdf_out, 1, n, true, false)?,
+        ])?;
+        // SAFETY: the caller guarantees the arrays' lengths and that inputs
+        // are not written during the call; `pdf_out` was checked disjoint.
+        unsafe {
+            let wi = input("wi", wi, 3, n)?;
+            let wo = input("wo", wo, 3, n)?;
+            let pdf = output("pdf_out", pdf_out, 1, n)?;
+            bsdf.pdf_into(Vectors::Aos(triples(wi)), Vectors::Aos(triples(wo)), pdf)?;
+        }
+        Ok(())
+    })
+}
+
+/// The directional albedo of each incident direction `wi[k]` (`3 n` floats)
+/// from `walks` walks each (1 to 2^40), into `out[k]`. `keys` NULL: keyed by
+/// the directions' bits; otherwise `n` keys. n = 0 does nothing.
+///
+/// # Safety
+/// `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
+/// `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
+/// live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_albedo_batch(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    walks: u64,
+    keys: *const u64,
+    out: *mut StrataAlbedo,
+) -> i32 {
+    guard("strata_albedo_batch", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        walk_count("walks", walks)?;
+        disjoint(&[
+            span("wi", wi, 3, n, false, false)?,
+            span("keys", keys, 1, n, false, true)?,
+            span("out", out, 1, n, true, false)?,
+        ])?;
+        // SAFETY: the caller guarantees the arrays' lengths and that inputs
+        // are not written during the call; `out` was checked disjoint.
+        // `StrataAlbedo` has the layout of `AlbedoRecord` (asserted at
+        // compile time).
+        unsafe {
+            let wi = input("wi", wi, 3, n)?;
+            let keys = if keys.is_null() {
+                None
+            } else {
+                Some(input("keys", keys, 1, n)?)
+            };
+            let out = output("out", out.cast::<AlbedoRecord>(), 1, n)?;
+            bsdf.albedo_records(Vectors::Aos(triples(wi)), walks, keys, out)?;
+        }
+        Ok(())
+    })
+}
+
+// ------------------------------------------------------------------- strings
+
+/// The message of this thread's last failed call: the function, the
+/// argument, and in a batch the query index and what is wrong. "" if the
+/// last call succeeded; never NULL. Valid until the next strata call on this
+/// thread; each thread has its own.
+#[no_mangle]
+pub extern "C" fn strata_last_error() -> *const c_char {
+    LAST_ERROR
+        .try_with(|e| e.borrow().as_ptr())
+        .unwrap_or(EMPTY.as_ptr())
+}
+
+/// A C string from a Rust literal ending in NUL.
+const fn c_str(bytes: &'static [u8]) -> &'static CStr {
+    match CStr::from_bytes_with_nul(bytes) {
+        Ok(v) => v,
+        Err(_) => panic!("not a C string"),
+    }
+}
+
+const EMPTY: &CStr = c_str(b"\0");
+const VERSION: &CStr = c_str(concat!(env!("CARGO_PKG_VERSION"), "\0").as_bytes());
+
+/// The version of strata, e.g. "0.1.0" (static; never NULL).
+#[no_mangle]
+pub extern "C" fn strata_version() -> *const c_char {
+    VERSION.as_ptr()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last() -> String {
+        // SAFETY: `strata_last_error` returns a NUL-terminated string that
+        // lives until the next strata call on this thread.
+        unsafe { CStr::from_ptr(strata_last_error()) }
+            .to_str()
+            .unwrap()
+            .to_owned()
+    }
+
+    #[test]
+    fn a_panic_is_caught_and_reported() {
+        let status = guard("strata_test", || panic!("boom {}", 7));
+        assert_eq!(status, STRATA_ERR_PANIC);
+        assert_eq!(
+            last(),
+            "strata_test: internal error (strata panicked: boom 7); please report it"
+        );
+        assert_eq!(guard("strata_test", || Ok(())), STRATA_OK);
+        assert_eq!(last(), "");
+    }
+
+    #[test]
+    fn a_nul_in_a_message_is_escaped() {
+        let status = guard("strata_test", || Err(Failure::invalid("a\0b")));
+        assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT);
+        assert_eq!(last(), "strata_test: a\\0b");
+    }
+
+    #[test]
+    fn overlapping_outputs_are_found() {
+        let v = [0f32; 8];
+        let p = v.as_ptr();
+        // Inputs may share memory; an output may not share with anything.
+        let s = |name, p, written| span(name, p, 1, 4, written, false).unwrap();
+        assert!(disjoint(&[s("a", p, false), s("b", p, false)]).is_ok());
+        // SAFETY: `p + 3` is within `v`.
+        let q = unsafe { p.add(3) };
+        let e = disjoint(&[s("a", p, false), s("out", q, true)]).unwrap_err();
+        assert_eq!(e.code, STRATA_ERR_INVALID_ARGUMENT);
+        assert!(e.message.starts_with("a and out overlap"), "{}", e.message);
+        // SAFETY: `p + 4` is within `v`.
+        let r = unsafe { p.add(4) };
+        assert!(disjoint(&[s("a", p, false), s("out", r, true)]).is_ok());
+    }
+}
