@@ -659,8 +659,8 @@ pub unsafe extern "C" fn strata_eval_batch(
 
 /// `strata_eval_batch` with a key per query (`keys`: `n` values, not NULL):
 /// query `k` draws its walks from the stream `(seed, keys[k])`, so a renderer
-/// passes fresh keys for fresh noise. Keys `0, 1, ..., n - 1` give exactly
-/// what `strata eval` prints for `n` query lines (its key is the line index).
+/// passes fresh keys for fresh noise. (The unkeyed call keys each query by
+/// its directions' bits, as `strata eval` does.)
 ///
 /// # Safety
 /// As `strata_eval_batch`; a non-NULL `keys` holds at least `n` values.

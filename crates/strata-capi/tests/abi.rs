@@ -558,11 +558,11 @@ fn run_cli(args: &[&str], stdin: &str) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-/// `strata eval` keys query lines by their index: keys 0..n through the C
-/// ABI give its f and stderr (printed as f64; the ABI's f32 are their
-/// casts), and its pdf (keyed by the directions, as the ABI's), exactly.
+/// `strata eval` keys each query by its directions, as unkeyed C calls do:
+/// they give its f and stderr (printed as f64; the ABI's f32 are their
+/// casts) and its pdf, exactly.
 #[test]
-fn keyed_eval_and_pdf_are_what_strata_eval_prints() {
+fn unkeyed_eval_and_pdf_are_what_strata_eval_prints() {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../examples/materials/coated_copper.toml"
@@ -625,17 +625,15 @@ fn keyed_eval_and_pdf_are_what_strata_eval_prints() {
     assert_eq!(lines.len(), n);
 
     let c = Capi::toml(COATED_COPPER, 48, 13);
-    let keys: Vec<u64> = (0..n as u64).collect();
     let (wi_f, wo_f) = (flat(&wi_cli), flat(&wo_cli));
     let (mut f, mut se, mut pdf) = (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n], vec![0.0f32; n]);
     // SAFETY: 3 n floats each, n keys and pdfs.
     unsafe {
-        let s = strata_eval_batch_keyed(
+        let s = strata_eval_batch(
             c.0,
             n,
             wi_f.as_ptr(),
             wo_f.as_ptr(),
-            keys.as_ptr(),
             f.as_mut_ptr(),
             se.as_mut_ptr(),
         );
@@ -654,15 +652,17 @@ fn keyed_eval_and_pdf_are_what_strata_eval_prints() {
         let cli_pdf = line["pdf"].as_f64().unwrap() as f32;
         assert_eq!(pdf[k].to_bits(), cli_pdf.to_bits(), "query {k}");
     }
-    // Unkeyed calls key by the directions instead, so they differ.
+    // Keyed calls draw other streams.
+    let keys: Vec<u64> = (0..n as u64).collect();
     let mut g = vec![0.0f32; 3 * n];
-    // SAFETY: 3 n floats each.
+    // SAFETY: 3 n floats each, n keys.
     let s = unsafe {
-        strata_eval_batch(
+        strata_eval_batch_keyed(
             c.0,
             n,
             wi_f.as_ptr(),
             wo_f.as_ptr(),
+            keys.as_ptr(),
             g.as_mut_ptr(),
             null_mut(),
         )

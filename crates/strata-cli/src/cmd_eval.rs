@@ -7,6 +7,10 @@
 //! bad line (malformed JSON, a missing or extra field, not three numbers, a zero
 //! or non-finite direction) stops the run with an error naming its line number;
 //! the answers to the lines before it have already been printed.
+//!
+//! Each query is keyed by its directions' bits, as the library's unkeyed
+//! calls key it (and the C and Python bindings'): a line's answer depends on
+//! the seed and its directions only, the same number every binding gives.
 
 use crate::common::{load_material, stdout_failure, EngineArgs};
 use serde::Serialize;
@@ -53,7 +57,7 @@ pub fn run(args: Args) -> Result<(), String> {
     // the line index, so a query's answer depends only on the seed and where
     // it stands in the input (not on the engine or the chunking).
     let mut pairs = Vec::with_capacity(CHUNK);
-    let mut keys = Vec::with_capacity(CHUNK);
+    let mut lines_of = Vec::with_capacity(CHUNK);
     let mut lines = stdin.lock().lines().enumerate();
     loop {
         let mut failure = None;
@@ -73,7 +77,7 @@ pub fn run(args: Args) -> Result<(), String> {
                 Ok(None) => continue,
                 Ok(Some((wi, wo))) => {
                     pairs.push((wi, wo));
-                    keys.push(i as u64);
+                    lines_of.push(line_no);
                 }
                 Err(e) => {
                     failure = Some(e);
@@ -85,11 +89,11 @@ pub fn run(args: Args) -> Result<(), String> {
             }
         }
         let done = pairs.len() < CHUNK || failure.is_some();
-        if let Err(e) = answer(&bsdf, &args, &pairs, &keys, &mut out) {
+        if let Err(e) = answer(&bsdf, &args, &pairs, &lines_of, &mut out) {
             return e;
         }
         pairs.clear();
-        keys.clear();
+        lines_of.clear();
         if let Some(e) = failure {
             // The answers before the bad line are out; then the error.
             out.flush().or_else(stdout_failure)?;
@@ -107,7 +111,7 @@ fn answer(
     bsdf: &LayeredBsdf,
     args: &Args,
     pairs: &[(glam::Vec3, glam::Vec3)],
-    keys: &[u64],
+    lines_of: &[usize],
     out: &mut impl Write,
 ) -> Result<(), Result<(), String>> {
     if pairs.is_empty() {
@@ -116,12 +120,16 @@ fn answer(
     // Directions were validated when parsed, so the batch cannot fail on them.
     let fail = |e: strata_bsdf::BatchError| {
         Err(match e.index {
-            Some(i) => format!("stdin line {}: {}", keys[i] + 1, e.error),
+            Some(i) => format!("stdin line {}: {}", lines_of[i], e.error),
             None => format!("--{}", e.error),
         })
     };
+    let keys: Vec<u64> = pairs
+        .iter()
+        .map(|&(a, b)| strata_bsdf::api::direction_key(a, b))
+        .collect();
     let f = bsdf
-        .eval_batch_keyed(pairs, args.samples, keys)
+        .eval_batch_keyed(pairs, args.samples, &keys)
         .map_err(fail)?;
     let p = bsdf.pdf_batch(pairs).map_err(fail)?;
     for (e, p) in f.iter().zip(p) {
