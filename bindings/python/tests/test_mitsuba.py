@@ -2,16 +2,19 @@
 
 Agreement criterion (per case, variant and image size): the strata and the
 built-in images are each the average of K independent renders (different
-seeds). For every 8x8 block of pixels (full blocks only) and channel, the
-standard error of the block mean is estimated from the spread of the K
-renders, pixel by pixel (sum of the per-pixel sample variances over the
-block's P pixels, divided by P^2 K: 64 (K - 1) degrees of freedom), and the
-difference of the two block means must be within Z_MAX = 5 combined standard
-errors (blocks with zero variance in both, pure background, must agree to
-1e-5 relative). The image means must agree within 4 combined standard errors
-of the image means (estimated in the same way) and, where those standard errors allow it (below 0.25 %
-of the mean: every llvm_ad_rgb configuration; the tiny scalar_rgb images are
-too noisy for it), to 1 %.
+seeds; every render is deterministic, so the test is too). For every 8x8
+block of pixels (full blocks only) and channel, the standard error of the
+block mean is estimated from the spread of the K renders, pixel by pixel
+(the sum of the per-pixel sample variances over the block's P pixels,
+divided by P^2 K: 64 (K - 1) degrees of freedom), and the difference of the
+two block means must be within Z_MAX = 5 combined standard errors (blocks
+with zero variance in both, pure background, must agree to 1e-5 relative).
+Z_MAX is 5, not 3, because per-pixel variances from K = 4 renders are
+themselves noisy where rare bright paths (sun highlights) dominate. The
+image means must agree within Z_MAX combined standard errors (estimated in
+the same way) and, where those standard errors are below 0.25 % of the mean
+(every llvm_ad_rgb configuration; the tiny scalar_rgb images are too noisy),
+to 1 %.
 """
 
 import math
@@ -121,6 +124,7 @@ CONFIGS = [
     ("scalar_rgb", 17, 11, 8, 4),
     ("llvm_ad_rgb", 37, 23, 96, 4),
     ("llvm_ad_rgb", 61, 41, 64, 4),
+    ("llvm_ad_rgb", 53, 19, 96, 4),
 ]
 
 
@@ -142,7 +146,7 @@ def test_agrees_with_builtin(tmp_path, case, variant, width, height, spp, k):
     print(f"{case} {variant} {width}x{height}: mean strata {mean_s:.5f} builtin {mean_r:.5f} "
           f"({100 * (mean_s / mean_r - 1):+.3f} % +- {100 * rel_se:.3f} %), max |z| {z.max():.2f} "
           f"over {z.size} block-channels")
-    assert abs(mean_s - mean_r) < 4 * se_mean
+    assert abs(mean_s - mean_r) < Z_MAX * se_mean
     if variant != "scalar_rgb":
         assert rel_se < 0.0025, "too few samples for the 1 % criterion"
     if rel_se < 0.0025:
@@ -235,3 +239,19 @@ def test_delta_samples_are_flagged(materials):
         elif mi.has_flag(bs.sampled_type, mi.BSDFFlags.DiffuseReflection):
             kinds.add("diffuse")
     assert kinds == {"delta", "diffuse"}
+
+
+def test_symbolic_mode_is_a_clear_error(tmp_path):
+    use_variant("llvm_ad_rgb")
+    loops, calls = dr.flag(dr.JitFlag.SymbolicLoops), dr.flag(dr.JitFlag.SymbolicCalls)
+    dr.set_flag(dr.JitFlag.SymbolicLoops, True)
+    dr.set_flag(dr.JitFlag.SymbolicCalls, True)
+    try:
+        s = scene({"type": "strata", "filename": material(tmp_path, LAMBERT)}, 9, 7, 1)
+        with pytest.raises(Exception) as e:
+            mi.render(s)
+        text = str(e.value) + str(e.value.__cause__) + str(e.value.__context__)
+        assert "enable_evaluated_mode()" in text, text
+    finally:
+        dr.set_flag(dr.JitFlag.SymbolicLoops, loops)
+        dr.set_flag(dr.JitFlag.SymbolicCalls, calls)

@@ -29,12 +29,13 @@ after switching variants call :func:`register` again.
 must see real arrays, not the symbolic ones Dr.Jit traces by default, so the
 Dr.Jit flags ``SymbolicLoops`` and ``SymbolicCalls`` must be off: then each
 method is called once per bounce with all the lanes that hit the material (a
-wavefront batch that strata answers in one call). Importing this module does
-*not* change any flag; creating a ``"strata"`` BSDF in a JIT variant turns
-both flags off (with a :class:`RuntimeWarning` the first time, if they were
-on), and :func:`enable_evaluated_mode` does it explicitly, before loading a
-scene. Evaluated mode makes the whole render slower (3-4x even with built-in
-BSDFs); the scalar variants need nothing.
+wavefront batch that strata answers in one call). Importing this module
+changes no flag (evaluated mode makes every render of the process slower,
+3-4x even with built-in BSDFs): call :func:`enable_evaluated_mode` on the
+thread that renders, before ``mi.render``. Dr.Jit's flags are per thread,
+which is why constructing the BSDF cannot do it (Mitsuba builds scenes on
+worker threads). A ``"strata"`` BSDF called inside a symbolic trace raises a
+``RuntimeError`` saying so. The scalar variants need nothing.
 
 **Conventions.** Mitsuba hands a BSDF directions already in the local shading
 frame (z = shading normal), as strata wants them. Mitsuba's ``si.wi`` is the
@@ -60,7 +61,6 @@ measuring the share of a render spent in strata (:func:`reset_stats`).
 from __future__ import annotations
 
 import time
-import warnings
 
 import drjit as dr
 import mitsuba as mi
@@ -104,22 +104,11 @@ def _is_jit() -> bool:
     return not v.startswith("scalar")
 
 
-_warned = False
-
-
-def _ensure_evaluated_mode() -> None:
-    global _warned
-    if dr.flag(dr.JitFlag.SymbolicLoops) or dr.flag(dr.JitFlag.SymbolicCalls):
-        if not _warned:
-            warnings.warn(
-                "strata_bsdf.mitsuba: turning Dr.Jit's SymbolicLoops and SymbolicCalls off "
-                "(evaluated mode, needed by a Python BSDF); call "
-                "strata_bsdf.mitsuba.enable_evaluated_mode() first to silence this",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-            _warned = True
-        enable_evaluated_mode()
+_SYMBOLIC = (
+    "strata_bsdf.mitsuba: the strata BSDF was called inside a symbolic Dr.Jit trace, where its "
+    "arrays have no values; call strata_bsdf.mitsuba.enable_evaluated_mode() before mi.render "
+    "(it turns Dr.Jit's SymbolicLoops and SymbolicCalls off)"
+)
 
 
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -177,6 +166,10 @@ class _Host:
     def __init__(self):
         self.jit = _is_jit()
 
+    def check(self):
+        if self.jit and dr.flag(dr.JitFlag.SymbolicScope):
+            raise RuntimeError(_SYMBOLIC)
+
     def vec_in(self, v, n):
         if self.jit:
             dr.eval(v)
@@ -228,8 +221,6 @@ def _make_class():
             self._light = self._camera.with_transport("radiance")
             self._filename = name
             self._host = _Host()
-            if self._host.jit:
-                _ensure_evaluated_mode()
             lobes = self._camera.lobes
             n_above, n_below = self._camera.exterior_ior, self._camera.exterior_ior_below
             self._eta_down = np.float32(n_below / n_above)  # wi above, wo below
@@ -263,6 +254,7 @@ def _make_class():
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             h = self._host
+            h.check()
             n = _width(si.wi.x, sample1, sample2.x, active)
             t0 = time.perf_counter()
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
@@ -302,6 +294,7 @@ def _make_class():
 
         def _eval(self, ctx, si, wo, active, method):
             h = self._host
+            h.check()
             n = _width(si.wi.x, wo.x, active)
             t0 = time.perf_counter()
             act = _bools(active, n)
