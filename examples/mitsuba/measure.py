@@ -34,7 +34,7 @@ ONE_INTERFACE = (
 
 def timed_render(scene, repeat, sm=None):
     mi.render(scene, seed=0)  # warm-up: compiles the kernels
-    times, inside = [], []
+    times, inside, module = [], [], []
     for r in range(repeat):
         if sm:
             sm.reset_stats()
@@ -45,9 +45,11 @@ def timed_render(scene, repeat, sm=None):
         times.append(time.perf_counter() - t)
         if sm:
             inside.append(sum(s["seconds"] for s in sm.stats.values()))
+            module.append(sum(s["strata_seconds"] for s in sm.stats.values()))
     i = times.index(statistics.median(times))
     calls = sum(s["calls"] for s in sm.stats.values()) if sm else 0
-    return times[i], (inside[i] if sm else None), calls
+    queries = sum(s["queries"] for s in sm.stats.values()) if sm else 0
+    return times[i], (inside[i] if sm else None), (module[i] if sm else None), calls, queries
 
 
 def main():
@@ -70,10 +72,11 @@ def main():
     builtin = {"type": "roughconductor", "distribution": "ggx", "alpha": 0.3,
                "eta": {"type": "rgb", "value": ETA}, "k": {"type": "rgb", "value": K}}
     print(f"## Renders: {args.size}x{args.size}, {args.spp} spp, path depth {args.depth}, llvm_ad_rgb\n")
-    print("| BSDF | mode | render (s) | inside strata (s) | share | calls into strata |")
-    print("|---|---|---|---|---|---|")
-    t, _, _ = timed_render(scene(builtin), args.repeat)
-    print(f"| Mitsuba roughconductor | symbolic (default) | {t:.2f} | – | – | – |")
+    print("| BSDF | mode | render (s) | in the plugin (s) | in strata's batch calls (s) | share in strata | "
+          "plugin calls | queries |")
+    print("|---|---|---|---|---|---|---|---|")
+    t, *_ = timed_render(scene(builtin), args.repeat)
+    print(f"| Mitsuba roughconductor | symbolic (default) | {t:.2f} | – | – | – | – | – |")
     sm.enable_evaluated_mode()
     rows = [("Mitsuba roughconductor", builtin, None),
             ("Mitsuba diffuse", {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.7, 0.7, 0.7]}}, None)]
@@ -86,11 +89,12 @@ def main():
             ("strata scattering_slab", {"type": "strata", "filename": str(ROOT / "examples/materials/scattering_slab.toml")}, sm),
         ]
         for name, bsdf, stats in rows:
-            t, inside, calls = timed_render(scene(bsdf), args.repeat, stats)
+            t, inside, module, calls, queries = timed_render(scene(bsdf), args.repeat, stats)
             if stats:
-                print(f"| {name} | evaluated | {t:.2f} | {inside:.2f} | {100 * inside / t:.0f} % | {calls} |")
+                print(f"| {name} | evaluated | {t:.2f} | {inside:.2f} | {module:.2f} | {100 * module / t:.0f} % | "
+                      f"{calls} | {queries} |")
             else:
-                print(f"| {name} | evaluated | {t:.2f} | – | – | – |")
+                print(f"| {name} | evaluated | {t:.2f} | – | – | – | – | – |")
 
     print(f"\n## Per-query cost through Python ({args.queries} queries, coated_copper, 1 walk per eval)\n")
     b = strata_bsdf.Bsdf.from_path(ROOT / "examples/materials/coated_copper.toml", samples=1)

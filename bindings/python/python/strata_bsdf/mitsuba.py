@@ -70,8 +70,9 @@ from . import DELTA, REFLECTION, TRANSMISSION, Bsdf
 
 __all__ = ["register", "enable_evaluated_mode", "stats", "reset_stats", "sample_keys"]
 
-#: Calls into strata made by the plugin and the seconds spent in them
-#: (wall clock, conversions included), per method.
+#: Per plugin method: calls, queries (lanes), ``seconds`` spent in the method
+#: (wall clock: conversions, key hashing and the strata calls) and
+#: ``strata_seconds`` spent in the compiled module's batch calls alone.
 stats: dict = {}
 
 
@@ -79,17 +80,18 @@ def reset_stats() -> None:
     """Zeroes :data:`stats`."""
     stats.clear()
     for k in ("eval", "sample", "pdf", "eval_pdf"):
-        stats[k] = {"calls": 0, "queries": 0, "seconds": 0.0}
+        stats[k] = {"calls": 0, "queries": 0, "seconds": 0.0, "strata_seconds": 0.0}
 
 
 reset_stats()
 
 
-def _count(method: str, n: int, t0: float) -> None:
+def _count(method: str, n: int, t0: float, strata: float) -> None:
     s = stats[method]
     s["calls"] += 1
     s["queries"] += n
     s["seconds"] += time.perf_counter() - t0
+    s["strata_seconds"] += strata
 
 
 def enable_evaluated_mode() -> None:
@@ -259,7 +261,9 @@ def _make_class():
             t0 = time.perf_counter()
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
             keys = sample_keys(_floats(sample1, n), _floats(sample2.x, n), _floats(sample2.y, n))
+            t1 = time.perf_counter()
             (wx, wy, wz), (r, g, b), pdf, flags = self._bsdf(ctx).sample(wi, keys)
+            t_strata = time.perf_counter() - t1
             refl = (flags & REFLECTION) != 0
             trans = (flags & TRANSMISSION) != 0
             delta = (flags & DELTA) != 0
@@ -283,7 +287,7 @@ def _make_class():
             # eta of a refraction: IOR on wo's side over wi's side.
             eta = np.where(trans, np.where(wi[2] > 0, self._eta_down, 1 / self._eta_down), 1).astype(np.float32)
             outs = [np.where(ok, a, zero).astype(np.float32) for a in (wx, wy, wz, r, g, b, pdf, eta)]
-            _count("sample", n, t0)
+            _count("sample", n, t0, t_strata)
             bs = mi.BSDFSample3f()
             bs.wo = h.vec_out(outs[0:3])
             bs.pdf = h.float_out(outs[6])
@@ -305,13 +309,19 @@ def _make_class():
                 ok[:] = False
             bsdf = self._bsdf(ctx)
             value = pdf = None
+            t_strata = 0.0
             if method in ("eval", "eval_pdf"):
+                t1 = time.perf_counter()
                 (r, g, b), _ = bsdf.eval(wi, w)
+                t_strata += time.perf_counter() - t1
                 cos = np.abs(w[2])
                 value = tuple(np.where(ok, c * cos, 0).astype(np.float32) for c in (r, g, b))
             if method in ("pdf", "eval_pdf"):
-                pdf = np.where(ok, bsdf.pdf(wi, w), 0).astype(np.float32)
-            _count(method, n, t0)
+                t1 = time.perf_counter()
+                p = bsdf.pdf(wi, w)
+                t_strata += time.perf_counter() - t1
+                pdf = np.where(ok, p, 0).astype(np.float32)
+            _count(method, n, t0, t_strata)
             return value, pdf
 
         def eval(self, ctx, si, wo, active=True):
