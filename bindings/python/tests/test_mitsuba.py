@@ -281,3 +281,44 @@ def test_eval_equals_builtin_pointwise(tmp_path, case):
                 assert abs(vs[c] - vb[c]) <= 2e-4 * abs(vb[c]) + 1e-7, (mode, wi, wo, c, vs[c], vb[c])
             checked += vb[0] > 0
     assert checked > 20  # nonzero values compared (opaque stacks: only both-above pairs)
+
+
+@pytest.mark.parametrize("case", ["diffuse", "roughdielectric"])
+def test_light_tracer_agrees_with_builtin(tmp_path, case):
+    """Mitsuba's particle tracer (TransportMode.Importance: light paths, strata's
+    radiance mode) with strata against the built-in BSDF: image means within
+    Z_MAX standard errors (a light tracer is too noisy here for 1 %)."""
+    use_variant("llvm_ad_rgb")
+    text, builtin = CASES[case]
+
+    def scene_pt(bsdf):
+        return mi.load_dict(
+            {
+                "type": "scene",
+                "integrator": {"type": "ptracer", "max_depth": 8},
+                "sensor": {
+                    "type": "perspective",
+                    "fov": 28,
+                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                    "film": {"type": "hdrfilm", "width": 29, "height": 21, "rfilter": {"type": "box"}},
+                    "sampler": {"type": "independent", "sample_count": 256},
+                },
+                "light": {"type": "sphere", "center": [2, 2, 2], "radius": 0.8,
+                          "emitter": {"type": "area", "radiance": rgb([4.0, 4.0, 4.0])}},
+                "sphere": {"type": "sphere", "bsdf": bsdf},
+                "floor": {"type": "rectangle", "to_world": mi.ScalarTransform4f().translate([0, 0, -1.5]).scale(4),
+                          "bsdf": {"type": "diffuse"}},
+            }
+        )
+
+    k = 4
+    strata = scene_pt({"type": "strata", "filename": material(tmp_path, text)})
+    ref = scene_pt(builtin)
+    a = np.stack([np.array(mi.render(strata, seed=s), dtype=np.float64) for s in range(k)])
+    b = np.stack([np.array(mi.render(ref, seed=100 + s), dtype=np.float64) for s in range(k)])
+    assert np.isfinite(a).all() and a.mean() > 0
+    n_px = a[0].size
+    se = math.sqrt((a.var(axis=0, ddof=1).sum() + b.var(axis=0, ddof=1).sum()) / (n_px * n_px * k))
+    print(f"ptracer {case}: strata {a.mean():.5f} builtin {b.mean():.5f} ({100 * (a.mean() / b.mean() - 1):+.2f} % "
+          f"+- {100 * se / b.mean():.2f} %)")
+    assert abs(a.mean() - b.mean()) < Z_MAX * se
