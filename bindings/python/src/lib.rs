@@ -151,13 +151,23 @@ fn checked<'py, T: numpy::Element>(
             shape_text(arr.shape())
         )));
     }
-    if !arr.is_c_contiguous() {
+    if !arr.is_c_contiguous() || !arr.is_aligned() {
         return Err(PyValueError::new_err(format!(
-            "{name} (shape {}) must be C-contiguous: pass numpy.ascontiguousarray({name})",
+            "{name} (shape {}) must be C-contiguous and aligned: pass numpy.ascontiguousarray({name})",
             shape_text(arr.shape())
         )));
     }
     Ok(())
+}
+
+/// A shared borrow of an input array (an error, not a panic, if Rust code
+/// holds it mutably).
+fn borrow<'py, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &Bound<'py, numpy::PyArray<T, D>>,
+) -> PyResult<numpy::PyReadonlyArray<'py, T, D>> {
+    a.try_readonly()
+        .map_err(|e| PyValueError::new_err(format!("{name} cannot be read: {e}")))
 }
 
 /// Parses a vector argument: an `(N, 3)` float32 array or three `(N,)` ones.
@@ -188,7 +198,7 @@ fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> 
                 ))
             })?;
             checked::<f32>(&label, a, "float32", 1, "(N,)")?;
-            arrays.push(a.cast::<PyArray1<f32>>()?.readonly());
+            arrays.push(borrow(&label, a.cast::<PyArray1<f32>>()?)?);
         }
         let lens: Vec<usize> = arrays.iter().map(|a| a.len()).collect();
         if lens[1] != lens[0] || lens[2] != lens[0] {
@@ -216,7 +226,7 @@ fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyAr
         PyTypeError::new_err("keys must be None or a uint64 numpy array of shape (N,)")
     })?;
     checked::<u64>("keys", a, "uint64", 1, "(N,)")?;
-    Ok(Some(a.cast::<PyArray1<u64>>()?.readonly()))
+    Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
 }
 
 /// How results are laid out: as the `wi` argument was.
@@ -317,7 +327,9 @@ fn lobes(stack: &LayerStack) -> Lobes {
 /// pointing away from the surface; in radiance mode `wi` points to the light
 /// and `wo` to the viewer (docs/conventions.md). Vector arguments are float32
 /// arrays of shape (N, 3), or tuples of three contiguous float32 arrays of
-/// shape (N,); results have the layout of `wi`.
+/// shape (N,); results have the layout of `wi`. A call reads its inputs with
+/// the GIL released: do not modify them from another thread meanwhile. One
+/// `Bsdf` may be used from several threads at once.
 #[pyclass(frozen, module = "strata_bsdf")]
 struct Bsdf {
     inner: LayeredBsdf,

@@ -230,6 +230,8 @@ GOOD = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8]], np.float32)
         (np.zeros(3, np.float32), ValueError, ["wi", "(N, 3)", "(3,)"]),
         (np.zeros(0, np.float32), ValueError, ["wi", "(N, 3)", "(0,)"]),
         (np.zeros((3, 6), np.float32)[:, ::2], ValueError, ["wi", "C-contiguous", "(3, 3)"]),
+        (np.frombuffer(bytearray(37), dtype=np.float32, offset=1, count=9).reshape(3, 3), ValueError,
+         ["wi", "aligned", "(3, 3)"]),
         ([[0, 0, 1]] * 3, TypeError, ["wi.x", "float32", "list"]),
         ("up", TypeError, ["wi", "(N, 3)", "str"]),
         ((np.zeros(3, np.float32), np.zeros(3, np.float32)), ValueError, ["wi", "2 items"]),
