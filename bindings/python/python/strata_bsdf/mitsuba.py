@@ -60,6 +60,8 @@ measuring the share of a render spent in strata (:func:`reset_stats`).
 
 from __future__ import annotations
 
+import math
+import struct
 import time
 
 import drjit as dr
@@ -68,7 +70,7 @@ import numpy as np
 
 from . import DELTA, REFLECTION, TRANSMISSION, Bsdf
 
-__all__ = ["register", "enable_evaluated_mode", "stats", "reset_stats", "sample_keys"]
+__all__ = ["register", "enable_evaluated_mode", "stats", "reset_stats", "sample_keys", "sample_key"]
 
 #: Per plugin method: calls, queries (lanes), ``seconds`` spent in the method
 #: (wall clock: conversions, key hashing and the strata calls) and
@@ -135,6 +137,27 @@ def sample_keys(u1: np.ndarray, u2x: np.ndarray, u2y: np.ndarray) -> np.ndarray:
     with np.errstate(over="ignore"):
         k = _mix((b[0] | (b[1] << np.uint64(32))) + _GOLDEN)
         return _mix(k ^ (b[2] + _GOLDEN))
+
+
+_MASK = (1 << 64) - 1
+
+
+def _mix_int(k: int) -> int:
+    k ^= k >> 30
+    k = (k * 0xBF58476D1CE4E5B9) & _MASK
+    k ^= k >> 27
+    k = (k * 0x94D049BB133111EB) & _MASK
+    return k ^ (k >> 31)
+
+
+def _bits(x: float) -> int:
+    return struct.unpack("<I", struct.pack("<f", x))[0]
+
+
+def sample_key(u1: float, u2x: float, u2y: float) -> int:
+    """:func:`sample_keys` for one sample, on Python numbers (the scalar variants)."""
+    k = _mix_int(((_bits(u1) | (_bits(u2x) << 32)) + 0x9E3779B97F4A7C15) & _MASK)
+    return _mix_int(k ^ ((_bits(u2y) + 0x9E3779B97F4A7C15) & _MASK))
 
 
 def _width(*xs) -> int:
@@ -254,8 +277,82 @@ def _make_class():
         def _bsdf(self, ctx):
             return self._camera if ctx.mode == mi.TransportMode.Radiance else self._light
 
+        def _lane_type(self, flags):
+            """(sampled type, component) of one sample's strata flags."""
+            if flags & DELTA:
+                key, t = ("dr", F.DeltaReflection) if flags & REFLECTION else ("dt", F.DeltaTransmission)
+            else:
+                key, t = ("r", self._refl) if flags & REFLECTION else ("t", self._trans)
+            return int(t), self._component.get(key, 0)
+
+        def _sample_scalar(self, ctx, si, sample1, sample2, active):
+            """sample() for the scalar variants: one query, no numpy array arithmetic."""
+            t0 = time.perf_counter()
+            bs = mi.BSDFSample3f()
+            bs.wo, bs.pdf, bs.eta, bs.sampled_type, bs.sampled_component = mi.Vector3f(0), 0.0, 1.0, 0, 0
+            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            if not (active and all(map(math.isfinite, wi)) and any(wi)):
+                return bs, mi.Color3f(0)
+            key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
+            t1 = time.perf_counter()
+            wo, weight, pdf, flags = self._bsdf(ctx).sample(
+                np.array([wi], np.float32), np.array([key], np.uint64)
+            )
+            t_strata = time.perf_counter() - t1
+            fl = int(flags[0])
+            stype, comp = self._lane_type(fl) if fl else (0, 0)
+            ok = fl != 0 and (int(ctx.type_mask) & stype) != 0
+            if ctx.component != 0xFFFFFFFF and ctx.component != -1:
+                ok = ok and comp == ctx.component
+            _count("sample", 1, t0, t_strata)
+            if not ok:
+                return bs, mi.Color3f(0)
+            w = wo[0].tolist()
+            bs.wo = mi.Vector3f(w[0], w[1], w[2])
+            bs.pdf = float(pdf[0])
+            if fl & TRANSMISSION:
+                bs.eta = float(self._eta_down) if wi[2] > 0 else float(1 / self._eta_down)
+            bs.sampled_type, bs.sampled_component = stype, comp
+            r, g, b = weight[0].tolist()
+            return bs, mi.Color3f(r, g, b)
+
+        def _eval_scalar(self, ctx, si, wo, active, method):
+            """eval/pdf/eval_pdf for the scalar variants."""
+            t0 = time.perf_counter()
+            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            w = (float(wo.x), float(wo.y), float(wo.z))
+            ok = (
+                active
+                and self._nondelta
+                and (int(ctx.type_mask) & int(F.Smooth)) != 0
+                and all(map(math.isfinite, wi + w))
+                and any(wi)
+                and any(w)
+            )
+            value, pdf = mi.Color3f(0), 0.0
+            t_strata = 0.0
+            if ok:
+                bsdf = self._bsdf(ctx)
+                a, b = np.array([wi], np.float32), np.array([w], np.float32)
+                t1 = time.perf_counter()
+                if method != "pdf":
+                    f, _ = bsdf.eval(a, b)
+                if method != "eval":
+                    p = bsdf.pdf(a, b)
+                t_strata = time.perf_counter() - t1
+                if method != "pdf":
+                    cos = abs(float(np.float32(w[2])))
+                    r, g, bl = f[0].tolist()
+                    value = mi.Color3f(float(np.float32(r * cos)), float(np.float32(g * cos)), float(np.float32(bl * cos)))
+                if method != "eval":
+                    pdf = float(p[0])
+            _count(method, 1, t0, t_strata)
+            return value, pdf
+
         def sample(self, ctx, si, sample1, sample2, active=True):
             h = self._host
+            if not h.jit:
+                return self._sample_scalar(ctx, si, sample1, sample2, active)
             h.check()
             n = _width(si.wi.x, sample1, sample2.x, active)
             t0 = time.perf_counter()
@@ -325,14 +422,20 @@ def _make_class():
             return value, pdf
 
         def eval(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "eval")[0]
             value, _ = self._eval(ctx, si, wo, active, "eval")
             return self._host.color_out(value)
 
         def pdf(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "pdf")[1]
             _, pdf = self._eval(ctx, si, wo, active, "pdf")
             return self._host.float_out(pdf)
 
         def eval_pdf(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "eval_pdf")
             value, pdf = self._eval(ctx, si, wo, active, "eval_pdf")
             return self._host.color_out(value), self._host.float_out(pdf)
 
