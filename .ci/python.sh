@@ -39,7 +39,9 @@ cargo build --release -p strata-cli
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
 export STRATA_CLI="$TARGET_DIR/release/strata"
 
-echo "== cargo clippy -p strata-bsdf-python -- -D warnings"
+echo "== cargo fmt --check, cargo clippy -p strata-bsdf-python -- -D warnings"
+rustup component add rustfmt clippy >/dev/null 2>&1 || true
+cargo fmt -p strata-bsdf-python -- --check
 cargo clippy -q -p strata-bsdf-python --all-targets -- -D warnings
 
 echo "== pytest bindings/python/tests"
