@@ -158,6 +158,7 @@ def test_agrees_with_builtin(tmp_path, case, variant, width, height, spp, k):
 def test_coated_copper_is_deterministic(materials, variant, width, height):
     use_variant(variant)
     bsdf = {"type": "strata", "filename": str(materials / "coated_copper.toml"), "samples": 2, "seed": 3}
+    assert "samples=2, seed=3" in str(mi.load_dict(bsdf))
     s = scene(bsdf, width, height, 4)
     a = np.array(mi.render(s, seed=7))
     b = np.array(mi.render(scene(bsdf, width, height, 4), seed=7))
@@ -165,6 +166,9 @@ def test_coated_copper_is_deterministic(materials, variant, width, height):
     np.testing.assert_array_equal(a, b)
     c = np.array(mi.render(s, seed=8))
     assert not np.array_equal(a, c)
+    # strata's own seed changes the walks too.
+    d = np.array(mi.render(scene(dict(bsdf, seed=4), width, height, 4), seed=7))
+    assert not np.array_equal(a, d)
     # The sphere is lit: copper is reddish.
     centre = a[height // 2 - 2 : height // 2 + 2, width // 2 - 2 : width // 2 + 2].mean(axis=(0, 1))
     assert centre[0] > centre[2] > 0
