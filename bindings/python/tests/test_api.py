@@ -119,6 +119,23 @@ def test_sample_bit_identical_to_cli(strata_cli, materials, material):
     assert np.all(pdf[live] > 0) and np.all(pdf[~live] == 0)
 
 
+@pytest.mark.parametrize("material,theta,phi", [("scattering_slab.toml", 30.0, 20.0),
+                                                ("scattering_slab.toml", 120.0, 0.0),
+                                                ("coated_copper.toml", 60.0, 45.0)])
+def test_albedo_bit_identical_to_cli(strata_cli, materials, material, theta, phi):
+    path = materials / material
+    n, seed = 5000, 4
+    cli = run_cli(strata_cli, ["albedo", "--material", str(path), "--theta", str(theta), "--phi", str(phi),
+                               "--samples", str(n), "--seed", str(seed)])[0]
+    # The CLI's direction: f64 trigonometry, cast to f32.
+    t, p = math.radians(theta), math.radians(phi)
+    wi = np.array([[math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)]], np.float32)
+    r, tr, r_se, t_se = Bsdf.from_path(path, seed=seed).albedo(wi, n)
+    for got, key in ((r, "R"), (tr, "T"), (r_se, "stderr_R"), (t_se, "stderr_T")):
+        np.testing.assert_array_equal(got[0], np.array(cli[key], np.float64).astype(np.float32))
+    assert r[0].sum() > 0
+
+
 def test_soa_and_aos_identical(materials):
     rng = np.random.default_rng(3)
     bsdf = Bsdf.from_path(materials / "scattering_slab.toml", samples=8, seed=5)
