@@ -1,0 +1,87 @@
+"""Type stubs of the compiled module (re-exported by ``strata_bsdf``)."""
+
+from os import PathLike
+from typing import Literal, Optional, Tuple, TypedDict, Union
+
+import numpy as np
+import numpy.typing as npt
+
+F32 = npt.NDArray[np.float32]
+#: Directions or RGB values: an (N, 3) float32 array, or three contiguous (N,) float32 arrays.
+Vectors = Union[F32, Tuple[F32, F32, F32]]
+Keys = Optional[npt.NDArray[np.uint64]]
+Transport = Literal["radiance", "importance"]
+
+REFLECTION: int
+TRANSMISSION: int
+DELTA: int
+MAX_WALKS: int
+__version__: str
+
+class QueryError(ValueError):
+    """A query that cannot be answered; ``index`` is its index in the batch
+    (None for a fault in an argument of the whole call)."""
+
+    index: Optional[int]
+
+class MaterialError(ValueError):
+    """A material that cannot be loaded (the message names layer, field and value)."""
+
+class Lobes(TypedDict):
+    delta_reflection: bool
+    delta_transmission: bool
+    glossy: bool
+    diffuse: bool
+    transmission: bool
+
+class Bsdf:
+    """A strata layered BSDF answering batches of queries (local frame, z = normal,
+    both directions pointing away from the surface)."""
+
+    @staticmethod
+    def from_toml(
+        text: str, samples: int = 1, seed: int = 0, transport: Transport = "radiance", pdf_samples: int = 4
+    ) -> Bsdf: ...
+    @staticmethod
+    def from_json(
+        text: str, samples: int = 1, seed: int = 0, transport: Transport = "radiance", pdf_samples: int = 4
+    ) -> Bsdf: ...
+    @staticmethod
+    def from_path(
+        path: Union[str, PathLike[str]],
+        samples: int = 1,
+        seed: int = 0,
+        transport: Transport = "radiance",
+        pdf_samples: int = 4,
+    ) -> Bsdf: ...
+    def with_transport(self, transport: Transport) -> Bsdf: ...
+    def eval(self, wi: Vectors, wo: Vectors, keys: Keys = None) -> Tuple[Vectors, Vectors]:
+        """(f, stderr): f(wi, wo) per channel without the cosine, and its standard error."""
+    def sample(
+        self, wi: Vectors, keys: Keys = None
+    ) -> Tuple[Vectors, Vectors, F32, npt.NDArray[np.uint32]]:
+        """(wo, weight, pdf, flags): weight = f |cos θo| / p; flags REFLECTION | TRANSMISSION | DELTA, 0 if absorbed."""
+    def pdf(self, wi: Vectors, wo: Vectors) -> F32:
+        """The approximate density of sample's wo (what sample reports as pdf)."""
+    def albedo(self, wi: Vectors, n: int, keys: Keys = None) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
+        """(R, T, R_stderr, T_stderr) from n walks per direction."""
+    @property
+    def samples(self) -> int: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def transport(self) -> Transport: ...
+    @property
+    def description(self) -> Optional[str]: ...
+    @property
+    def interfaces(self) -> int: ...
+    @property
+    def transmissive(self) -> bool: ...
+    @property
+    def two_sided(self) -> bool: ...
+    @property
+    def exterior_ior(self) -> float: ...
+    @property
+    def exterior_ior_below(self) -> float: ...
+    @property
+    def lobes(self) -> Lobes: ...

@@ -1,0 +1,471 @@
+"""A Mitsuba 3 plugin: strata's layered BSDFs as the BSDF type ``"strata"``.
+
+Usage::
+
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")        # or "scalar_rgb"
+    import strata_bsdf.mitsuba           # registers "strata" for this variant
+
+    scene = mi.load_dict({
+        ...,
+        "shape": {"type": "sphere",
+                  "bsdf": {"type": "strata",
+                           "filename": "examples/materials/coated_copper.toml",
+                           "samples": 1, "seed": 0}},
+    })
+
+Parameters of ``"strata"``:
+
+* ``filename`` (string): a strata material, TOML or JSON (``.json``),
+  resolved through Mitsuba's file resolver.
+* ``samples`` (int, default 1): walks per ``eval`` (each eval is an unbiased
+  estimate; more walks, less noise per call).
+* ``seed`` (int, default 0): seeds strata's random streams.
+
+Importing registers the plugin for the variant that is set at that moment;
+after switching variants call :func:`register` again.
+
+**Evaluated mode.** In a JIT variant (``llvm_*``, ``cuda_*``) a Python BSDF
+must see real arrays, not the symbolic ones Dr.Jit traces by default, so the
+Dr.Jit flags ``SymbolicLoops`` and ``SymbolicCalls`` must be off: then each
+method is called once per bounce with all the lanes that hit the material (a
+wavefront batch that strata answers in one call). Importing this module
+changes no flag (evaluated mode makes every render of the process slower,
+3-4x even with built-in BSDFs): call :func:`enable_evaluated_mode` on the
+thread that renders, before ``mi.render``. Dr.Jit's flags are per thread,
+which is why constructing the BSDF cannot do it (Mitsuba builds scenes on
+worker threads). A ``"strata"`` BSDF called inside a symbolic trace raises a
+``RuntimeError`` saying so. The scalar variants need nothing.
+
+**Conventions.** Mitsuba hands a BSDF directions already in the local shading
+frame (z = shading normal), as strata wants them. Mitsuba's ``si.wi`` is the
+direction the path arrived from (the viewer, for camera paths), its ``eval``
+includes ``|cos θ_wo|`` and its transport mode names what the *path*
+carries. So a camera path (``TransportMode.Radiance``) is strata's
+``transport="importance"`` with strata ``wi = si.wi``, ``wo = wo``, and a
+light path (``TransportMode.Importance``) is strata's ``"radiance"``; the
+plugin holds one strata ``Bsdf`` per mode. The sampler's numbers
+(``sample1``, ``sample2``) are hashed into strata's per-query keys, so each
+sample draws a fresh walk; ``eval`` and ``pdf`` are keyed by the directions
+(the same pair gives the same answer, and ``pdf`` is the number ``sample``
+reported). Delta samples (every event of the walk a smooth interface) are
+flagged ``DeltaReflection``/``DeltaTransmission`` with a positive pdf (the
+density of strata's non-delta lobes there, as strata reports it); the
+others ``GlossyReflection``/``GlossyTransmission``, or ``DiffuseReflection``
+for a stack whose only non-delta interface is Lambertian.
+
+``stats`` counts the calls into strata and the time they took, for
+measuring the share of a render spent in strata (:func:`reset_stats`).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from . import DELTA, REFLECTION, TRANSMISSION, Bsdf
+
+__all__ = ["register", "enable_evaluated_mode", "stats", "reset_stats", "sample_keys", "sample_key"]
+
+#: Per plugin method: calls, queries (lanes), ``seconds`` spent in the method
+#: (wall clock: conversions, key hashing and the strata calls) and
+#: ``strata_seconds`` spent in the compiled module's batch calls alone.
+stats: dict = {}
+
+
+def reset_stats() -> None:
+    """Zeroes :data:`stats`."""
+    stats.clear()
+    for k in ("eval", "sample", "pdf", "eval_pdf"):
+        stats[k] = {"calls": 0, "queries": 0, "seconds": 0.0, "strata_seconds": 0.0}
+
+
+reset_stats()
+
+
+def _count(method: str, n: int, t0: float, strata: float) -> None:
+    s = stats[method]
+    s["calls"] += 1
+    s["queries"] += n
+    s["seconds"] += time.perf_counter() - t0
+    s["strata_seconds"] += strata
+
+
+def enable_evaluated_mode() -> None:
+    """Turns Dr.Jit's symbolic loops and calls off (evaluated mode), which a
+    Python BSDF needs in a JIT variant. Call it before loading the scene."""
+    dr.set_flag(dr.JitFlag.SymbolicLoops, False)
+    dr.set_flag(dr.JitFlag.SymbolicCalls, False)
+
+
+def _is_jit() -> bool:
+    v = mi.variant() or ""
+    return not v.startswith("scalar")
+
+
+_SYMBOLIC = (
+    "strata_bsdf.mitsuba: the strata BSDF was called inside a symbolic Dr.Jit trace, where its "
+    "arrays have no values; call strata_bsdf.mitsuba.enable_evaluated_mode() before mi.render "
+    "(it turns Dr.Jit's SymbolicLoops and SymbolicCalls off)"
+)
+
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mix(k: np.ndarray) -> np.ndarray:
+    """SplitMix64's finalizer, on uint64 arrays (wrapping arithmetic)."""
+    k = k ^ (k >> np.uint64(30))
+    k = k * _M1
+    k = k ^ (k >> np.uint64(27))
+    k = k * _M2
+    return k ^ (k >> np.uint64(31))
+
+
+def sample_keys(u1: np.ndarray, u2x: np.ndarray, u2y: np.ndarray) -> np.ndarray:
+    """strata query keys (uint64) from the sampler's numbers: a hash of the
+    bits of ``sample1`` and ``sample2``, so distinct samples draw
+    independent walks and the same numbers draw the same walk."""
+    b = [np.ascontiguousarray(x, dtype=np.float32).view(np.uint32).astype(np.uint64) for x in (u1, u2x, u2y)]
+    with np.errstate(over="ignore"):
+        k = _mix((b[0] | (b[1] << np.uint64(32))) + _GOLDEN)
+        return _mix(k ^ (b[2] + _GOLDEN))
+
+
+_MASK = (1 << 64) - 1
+
+
+def _mix_int(k: int) -> int:
+    k ^= k >> 30
+    k = (k * 0xBF58476D1CE4E5B9) & _MASK
+    k ^= k >> 27
+    k = (k * 0x94D049BB133111EB) & _MASK
+    return k ^ (k >> 31)
+
+
+def _bits(x: float) -> int:
+    return struct.unpack("<I", struct.pack("<f", x))[0]
+
+
+def sample_key(u1: float, u2x: float, u2y: float) -> int:
+    """:func:`sample_keys` for one sample, on Python numbers (the scalar variants)."""
+    k = _mix_int(((_bits(u1) | (_bits(u2x) << 32)) + 0x9E3779B97F4A7C15) & _MASK)
+    return _mix_int(k ^ ((_bits(u2y) + 0x9E3779B97F4A7C15) & _MASK))
+
+
+def _width(*xs) -> int:
+    return max(dr.width(x) for x in xs)
+
+
+def _floats(x, n: int) -> np.ndarray:
+    """A Mitsuba Float (any width, or a Python scalar) as a contiguous float32
+    array of length n."""
+    if isinstance(x, (float, int, bool)):
+        return np.full(n, x, dtype=np.float32)
+    a = np.asarray(x.numpy(), dtype=np.float32).reshape(-1)
+    if a.shape[0] != n:
+        a = np.broadcast_to(a, (n,))
+    return np.ascontiguousarray(a)
+
+
+def _bools(x, n: int) -> np.ndarray:
+    if isinstance(x, (bool, int)):
+        return np.full(n, bool(x))
+    a = np.asarray(x.numpy(), dtype=bool).reshape(-1)
+    if a.shape[0] != n:
+        a = np.broadcast_to(a, (n,))
+    return a
+
+
+class _Host:
+    """Converts between Mitsuba's values and numpy arrays in the current
+    variant (scalar: Python floats; JIT: Dr.Jit arrays, zero-copy)."""
+
+    def __init__(self):
+        self.jit = _is_jit()
+
+    def check(self):
+        if self.jit and dr.flag(dr.JitFlag.SymbolicScope):
+            raise RuntimeError(_SYMBOLIC)
+
+    def vec_in(self, v, n):
+        if self.jit:
+            dr.eval(v)
+        return tuple(_floats(c, n) for c in (v.x, v.y, v.z))
+
+    def float_out(self, a: np.ndarray):
+        if self.jit:
+            return mi.Float(np.ascontiguousarray(a, dtype=np.float32))
+        return float(a[0])
+
+    def uint_out(self, a: np.ndarray):
+        if self.jit:
+            return mi.UInt32(np.ascontiguousarray(a, dtype=np.uint32))
+        return int(a[0])
+
+    def vec_out(self, t):
+        return mi.Vector3f(*(self.float_out(c) for c in t))
+
+    def color_out(self, t):
+        return mi.Color3f(*(self.float_out(c) for c in t))
+
+
+def _valid_dirs(wi, active):
+    """Lanes that can be queried: active, finite and nonzero; the others get
+    +z (and their results are zeroed)."""
+    x, y, z = wi
+    ok = active & np.isfinite(x) & np.isfinite(y) & np.isfinite(z) & ((x != 0) | (y != 0) | (z != 0))
+    if not ok.all():
+        wi = tuple(np.where(ok, c, np.float32(d)).astype(np.float32) for c, d in zip(wi, (0.0, 0.0, 1.0)))
+    return wi, ok
+
+
+def _make_class():
+    F = mi.BSDFFlags
+
+    class StrataBSDF(mi.BSDF):
+        """strata's layered BSDF as a Mitsuba BSDF (see the module docstring)."""
+
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            if "filename" not in props:
+                raise ValueError('strata: the "filename" parameter (a TOML or JSON material) is required')
+            name = str(props["filename"])
+            path = str(mi.file_resolver().resolve(name))
+            samples = int(props["samples"]) if "samples" in props else 1
+            seed = int(props["seed"]) if "seed" in props else 0
+            # Mitsuba's radiance mode (camera paths) is strata's importance mode.
+            self._camera = Bsdf.from_path(path, samples=samples, seed=seed, transport="importance")
+            self._light = self._camera.with_transport("radiance")
+            self._filename = name
+            self._host = _Host()
+            lobes = self._camera.lobes
+            n_above, n_below = self._camera.exterior_ior, self._camera.exterior_ior_below
+            self._eta_down = np.float32(n_below / n_above)  # wi above, wo below
+            sides = F.FrontSide
+            if lobes["transmission"] or self._camera.two_sided:
+                sides = sides | F.BackSide
+            comps = []
+            self._refl = F.GlossyReflection if lobes["glossy"] else F.DiffuseReflection
+            self._trans = F.GlossyTransmission
+            types = {}
+            if lobes["delta_reflection"]:
+                types["dr"] = F.DeltaReflection
+            if lobes["delta_transmission"]:
+                types["dt"] = F.DeltaTransmission
+            if lobes["glossy"] or lobes["diffuse"]:
+                types["r"] = self._refl
+                if lobes["transmission"]:
+                    types["t"] = self._trans
+            self._component = {}
+            flags = 0
+            for i, (k, t) in enumerate(types.items()):
+                comps.append(t | sides)
+                flags = flags | t | sides
+                self._component[k] = i
+            self.m_components = comps
+            self.m_flags = flags
+            self._nondelta = bool(lobes["glossy"] or lobes["diffuse"])
+
+        def _bsdf(self, ctx):
+            return self._camera if ctx.mode == mi.TransportMode.Radiance else self._light
+
+        def _lane_type(self, flags):
+            """(sampled type, component) of one sample's strata flags."""
+            if flags & DELTA:
+                key, t = ("dr", F.DeltaReflection) if flags & REFLECTION else ("dt", F.DeltaTransmission)
+            else:
+                key, t = ("r", self._refl) if flags & REFLECTION else ("t", self._trans)
+            return int(t), self._component.get(key, 0)
+
+        def _sample_scalar(self, ctx, si, sample1, sample2, active):
+            """sample() for the scalar variants: one query, no numpy array arithmetic."""
+            t0 = time.perf_counter()
+            bs = mi.BSDFSample3f()
+            bs.wo, bs.pdf, bs.eta, bs.sampled_type, bs.sampled_component = mi.Vector3f(0), 0.0, 1.0, 0, 0
+            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            if not (active and all(map(math.isfinite, wi)) and any(wi)):
+                return bs, mi.Color3f(0)
+            key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
+            t1 = time.perf_counter()
+            wo, weight, pdf, flags = self._bsdf(ctx).sample(
+                np.array([wi], np.float32), np.array([key], np.uint64)
+            )
+            t_strata = time.perf_counter() - t1
+            fl = int(flags[0])
+            stype, comp = self._lane_type(fl) if fl else (0, 0)
+            ok = fl != 0 and (int(ctx.type_mask) & stype) != 0
+            if ctx.component != 0xFFFFFFFF and ctx.component != -1:
+                ok = ok and comp == ctx.component
+            _count("sample", 1, t0, t_strata)
+            if not ok:
+                return bs, mi.Color3f(0)
+            w = wo[0].tolist()
+            bs.wo = mi.Vector3f(w[0], w[1], w[2])
+            bs.pdf = float(pdf[0])
+            if fl & TRANSMISSION:
+                bs.eta = float(self._eta_down) if wi[2] > 0 else float(1 / self._eta_down)
+            bs.sampled_type, bs.sampled_component = stype, comp
+            r, g, b = weight[0].tolist()
+            return bs, mi.Color3f(r, g, b)
+
+        def _eval_scalar(self, ctx, si, wo, active, method):
+            """eval/pdf/eval_pdf for the scalar variants."""
+            t0 = time.perf_counter()
+            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            w = (float(wo.x), float(wo.y), float(wo.z))
+            ok = (
+                active
+                and self._nondelta
+                and (int(ctx.type_mask) & int(F.Smooth)) != 0
+                and all(map(math.isfinite, wi + w))
+                and any(wi)
+                and any(w)
+            )
+            value, pdf = mi.Color3f(0), 0.0
+            t_strata = 0.0
+            if ok:
+                bsdf = self._bsdf(ctx)
+                a, b = np.array([wi], np.float32), np.array([w], np.float32)
+                t1 = time.perf_counter()
+                if method != "pdf":
+                    f, _ = bsdf.eval(a, b)
+                if method != "eval":
+                    p = bsdf.pdf(a, b)
+                t_strata = time.perf_counter() - t1
+                if method != "pdf":
+                    cos = abs(float(np.float32(w[2])))
+                    r, g, bl = f[0].tolist()
+                    value = mi.Color3f(float(np.float32(r * cos)), float(np.float32(g * cos)), float(np.float32(bl * cos)))
+                if method != "eval":
+                    pdf = float(p[0])
+            _count(method, 1, t0, t_strata)
+            return value, pdf
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            h = self._host
+            if not h.jit:
+                return self._sample_scalar(ctx, si, sample1, sample2, active)
+            h.check()
+            n = _width(si.wi.x, sample1, sample2.x, active)
+            t0 = time.perf_counter()
+            wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
+            keys = sample_keys(_floats(sample1, n), _floats(sample2.x, n), _floats(sample2.y, n))
+            t1 = time.perf_counter()
+            (wx, wy, wz), (r, g, b), pdf, flags = self._bsdf(ctx).sample(wi, keys)
+            t_strata = time.perf_counter() - t1
+            refl = (flags & REFLECTION) != 0
+            trans = (flags & TRANSMISSION) != 0
+            delta = (flags & DELTA) != 0
+            c = self._component
+            stype = np.zeros(n, np.uint32)
+            comp = np.zeros(n, np.uint32)
+            for mask, key, t in (
+                (refl & delta, "dr", F.DeltaReflection),
+                (trans & delta, "dt", F.DeltaTransmission),
+                (refl & ~delta, "r", self._refl),
+                (trans & ~delta, "t", self._trans),
+            ):
+                stype[mask] = int(t)
+                comp[mask] = c.get(key, 0)
+            ok = ok & (flags != 0)
+            if int(ctx.type_mask) != int(F.All):
+                ok &= (stype & np.uint32(int(ctx.type_mask))) != 0
+            if ctx.component != 0xFFFFFFFF and ctx.component != -1:
+                ok &= comp == np.uint32(ctx.component)
+            zero = np.float32(0)
+            # eta of a refraction: IOR on wo's side over wi's side.
+            eta = np.where(trans, np.where(wi[2] > 0, self._eta_down, 1 / self._eta_down), 1).astype(np.float32)
+            outs = [np.where(ok, a, zero).astype(np.float32) for a in (wx, wy, wz, r, g, b, pdf, eta)]
+            _count("sample", n, t0, t_strata)
+            bs = mi.BSDFSample3f()
+            bs.wo = h.vec_out(outs[0:3])
+            bs.pdf = h.float_out(outs[6])
+            bs.eta = h.float_out(np.where(ok, outs[7], 1).astype(np.float32))
+            bs.sampled_type = h.uint_out(np.where(ok, stype, 0))
+            bs.sampled_component = h.uint_out(comp)
+            return bs, h.color_out(outs[3:6])
+
+        def _eval(self, ctx, si, wo, active, method):
+            h = self._host
+            h.check()
+            n = _width(si.wi.x, wo.x, active)
+            t0 = time.perf_counter()
+            act = _bools(active, n)
+            wi, ok = _valid_dirs(h.vec_in(si.wi, n), act)
+            w, ok2 = _valid_dirs(h.vec_in(wo, n), act)
+            ok &= ok2
+            if not self._nondelta or not (int(ctx.type_mask) & int(F.Smooth)):
+                ok[:] = False
+            bsdf = self._bsdf(ctx)
+            value = pdf = None
+            t_strata = 0.0
+            if method in ("eval", "eval_pdf"):
+                t1 = time.perf_counter()
+                (r, g, b), _ = bsdf.eval(wi, w)
+                t_strata += time.perf_counter() - t1
+                cos = np.abs(w[2])
+                value = tuple(np.where(ok, c * cos, 0).astype(np.float32) for c in (r, g, b))
+            if method in ("pdf", "eval_pdf"):
+                t1 = time.perf_counter()
+                p = bsdf.pdf(wi, w)
+                t_strata += time.perf_counter() - t1
+                pdf = np.where(ok, p, 0).astype(np.float32)
+            _count(method, n, t0, t_strata)
+            return value, pdf
+
+        def eval(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "eval")[0]
+            value, _ = self._eval(ctx, si, wo, active, "eval")
+            return self._host.color_out(value)
+
+        def pdf(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "pdf")[1]
+            _, pdf = self._eval(ctx, si, wo, active, "pdf")
+            return self._host.float_out(pdf)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            if not self._host.jit:
+                return self._eval_scalar(ctx, si, wo, active, "eval_pdf")
+            value, pdf = self._eval(ctx, si, wo, active, "eval_pdf")
+            return self._host.color_out(value), self._host.float_out(pdf)
+
+        def traverse(self, callback):
+            pass
+
+        def parameters_changed(self, keys):
+            pass
+
+        def to_string(self):
+            return f"StrataBSDF[filename={self._filename!r}, {self._camera!r}]"
+
+    return StrataBSDF
+
+
+_registered: dict = {}
+
+
+def register() -> None:
+    """Registers the BSDF type ``"strata"`` for the current Mitsuba variant
+    (done on import; call again after ``mi.set_variant``)."""
+    variant = mi.variant()
+    if variant is None:
+        raise RuntimeError("strata_bsdf.mitsuba: call mitsuba.set_variant(...) before registering")
+    if variant in _registered:
+        return
+    cls = _make_class()
+    mi.register_bsdf("strata", lambda props: cls(props))
+    _registered[variant] = cls
+
+
+if mi.variant() is not None:
+    register()

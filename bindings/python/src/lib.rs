@@ -1,0 +1,682 @@
+//! Python bindings of strata: the module `strata_bsdf._strata_bsdf`,
+//! re-exported by the Python package `strata_bsdf`.
+//!
+//! One class, [`Bsdf`], wraps a [`LayeredBsdf`] and answers batches of
+//! queries given as numpy arrays: `float32` arrays of shape `(N, 3)`, or a
+//! tuple of three contiguous `float32` arrays of shape `(N,)` (the structure
+//! of arrays Dr.Jit hands out, read without a copy). Results mirror the
+//! layout of `wi`. Each batch runs with the GIL released, through the
+//! library's slice calls ([`LayeredBsdf::eval_into`] and the others), so the
+//! numbers are bit for bit those of the Rust API for the same seed and keys.
+
+use numpy::prelude::*;
+use numpy::{
+    dtype, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+use strata_bsdf::stack::InterfaceKind;
+use strata_bsdf::{
+    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, MaterialError as StackMaterialError,
+    Transport, Vectors, VectorsMut, MAX_WALKS,
+};
+
+create_exception!(
+    strata_bsdf,
+    QueryError,
+    PyValueError,
+    "A query that cannot be answered (a direction that is NaN, infinite or of zero length, \
+     or a per-query argument of the wrong length). `index` is the query's index in the batch, \
+     or None when the fault is in an argument of the whole call."
+);
+
+create_exception!(
+    strata_bsdf,
+    MaterialError,
+    PyValueError,
+    "A material that cannot be loaded: unreadable file, malformed TOML or JSON, or an invalid \
+     value (the message names the layer, the field and the value)."
+);
+
+/// A `QueryError` exception from a batch error, with `.index` set.
+fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
+    let err = QueryError::new_err(e.to_string());
+    let index = e.index.map(|i| i as i64);
+    // Setting an attribute on a fresh exception instance cannot fail in
+    // practice; if it did, the message alone still says everything.
+    let _ = err.value(py).setattr("index", index);
+    err
+}
+
+fn material_err(e: StackMaterialError) -> PyErr {
+    MaterialError::new_err(e.to_string())
+}
+
+/// A Python shape as Python prints it: `(4,)`, `(4, 3)`.
+fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        s => format!(
+            "({})",
+            s.iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// What a vector argument must be, for error messages.
+const VECTORS_EXPECTED: &str =
+    "a float32 numpy array of shape (N, 3) or a tuple of three contiguous float32 arrays of shape (N,)";
+
+/// An input batch of 3-vectors, borrowed from numpy.
+enum VecIn<'py> {
+    Aos(PyReadonlyArray2<'py, f32>),
+    Soa([PyReadonlyArray1<'py, f32>; 3]),
+}
+
+impl VecIn<'_> {
+    /// The vectors as the library reads them. The arrays were checked to be
+    /// C-contiguous when parsed, so the slices exist.
+    fn vectors(&self) -> Vectors<'_> {
+        match self {
+            VecIn::Aos(a) => {
+                let flat = a.as_slice().expect("checked contiguous");
+                Vectors::from_flat(flat).expect("checked shape (N, 3)")
+            }
+            VecIn::Soa([x, y, z]) => Vectors::Soa([
+                x.as_slice().expect("checked contiguous"),
+                y.as_slice().expect("checked contiguous"),
+                z.as_slice().expect("checked contiguous"),
+            ]),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.vectors().len()
+    }
+
+    fn layout(&self) -> Layout {
+        match self {
+            VecIn::Aos(_) => Layout::Aos,
+            VecIn::Soa(_) => Layout::Soa,
+        }
+    }
+}
+
+/// The Python type name of `obj`, for error messages.
+fn type_name(obj: &Bound<'_, PyAny>) -> String {
+    obj.get_type()
+        .name()
+        .map(|n| n.to_string())
+        .unwrap_or_else(|_| "?".into())
+}
+
+/// An untyped numpy array, or a clear error naming `name`.
+fn as_array<'a, 'py>(
+    name: &str,
+    obj: &'a Bound<'py, PyAny>,
+) -> PyResult<&'a Bound<'py, PyUntypedArray>> {
+    obj.cast::<PyUntypedArray>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{name} must be {VECTORS_EXPECTED}; got {}",
+            type_name(obj)
+        ))
+    })
+}
+
+/// Checks dtype, number of dimensions and contiguity of one array argument.
+fn checked<'py, T: numpy::Element>(
+    name: &str,
+    arr: &Bound<'py, PyUntypedArray>,
+    type_name: &str,
+    ndim: usize,
+    expected_shape: &str,
+) -> PyResult<()> {
+    let py = arr.py();
+    if !arr.dtype().is_equiv_to(&dtype::<T>(py)) {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must have dtype {type_name}; got {} (shape {}): convert with \
+             numpy.asarray({name}, dtype=numpy.{type_name})",
+            arr.dtype(),
+            shape_text(arr.shape())
+        )));
+    }
+    if arr.ndim() != ndim || (ndim == 2 && arr.shape()[1] != 3) {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape {expected_shape}; got shape {}",
+            shape_text(arr.shape())
+        )));
+    }
+    if !arr.is_c_contiguous() || !arr.is_aligned() {
+        return Err(PyValueError::new_err(format!(
+            "{name} (shape {}) must be C-contiguous and aligned: pass numpy.ascontiguousarray({name})",
+            shape_text(arr.shape())
+        )));
+    }
+    Ok(())
+}
+
+/// A shared borrow of an input array (an error, not a panic, if Rust code
+/// holds it mutably).
+fn borrow<'py, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    name: &str,
+    a: &Bound<'py, numpy::PyArray<T, D>>,
+) -> PyResult<numpy::PyReadonlyArray<'py, T, D>> {
+    a.try_readonly()
+        .map_err(|e| PyValueError::new_err(format!("{name} cannot be read: {e}")))
+}
+
+/// Parses a vector argument: an `(N, 3)` float32 array or three `(N,)` ones.
+fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> {
+    let parts: Option<Vec<Bound<'py, PyAny>>> = if let Ok(t) = obj.cast::<PyTuple>() {
+        Some(t.iter().collect())
+    } else if let Ok(l) = obj.cast::<PyList>() {
+        Some(l.iter().collect())
+    } else {
+        None
+    };
+    if let Some(parts) = parts {
+        if parts.len() != 3 {
+            return Err(PyValueError::new_err(format!(
+                "{name} must be {VECTORS_EXPECTED}; got a sequence of {} items",
+                parts.len()
+            )));
+        }
+        let mut arrays = Vec::with_capacity(3);
+        for (c, p) in ["x", "y", "z"].iter().zip(&parts) {
+            let label = format!("{name}.{c}");
+            let a = p.cast::<PyUntypedArray>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "{label} must be a contiguous float32 numpy array of shape (N,) \
+                     ({name} was given as a sequence of three items, read as its x, y and z \
+                     components); got {}",
+                    type_name(p)
+                ))
+            })?;
+            checked::<f32>(&label, a, "float32", 1, "(N,)")?;
+            arrays.push(borrow(&label, a.cast::<PyArray1<f32>>()?)?);
+        }
+        let lens: Vec<usize> = arrays.iter().map(|a| a.len()).collect();
+        if lens[1] != lens[0] || lens[2] != lens[0] {
+            return Err(PyValueError::new_err(format!(
+                "{name}.x, {name}.y and {name}.z have lengths {}, {} and {}: they must be equal",
+                lens[0], lens[1], lens[2]
+            )));
+        }
+        let z = arrays.pop().expect("three");
+        let y = arrays.pop().expect("three");
+        let x = arrays.pop().expect("three");
+        return Ok(VecIn::Soa([x, y, z]));
+    }
+    let a = as_array(name, obj)?;
+    checked::<f32>(name, a, "float32", 2, "(N, 3)")?;
+    Ok(VecIn::Aos(a.cast::<numpy::PyArray2<f32>>()?.readonly()))
+}
+
+/// Parses an optional `keys` argument: a contiguous uint64 array of shape `(N,)`.
+fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyArray1<'py, u64>>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let a = obj.cast::<PyUntypedArray>().map_err(|_| {
+        PyTypeError::new_err("keys must be None or a uint64 numpy array of shape (N,)")
+    })?;
+    checked::<u64>("keys", a, "uint64", 1, "(N,)")?;
+    Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
+}
+
+/// How results are laid out: as the `wi` argument was.
+#[derive(Clone, Copy)]
+enum Layout {
+    Aos,
+    Soa,
+}
+
+/// An output batch of 3-vectors, owned until handed to numpy.
+enum VecOut {
+    Aos(Vec<f32>),
+    Soa([Vec<f32>; 3]),
+}
+
+impl VecOut {
+    fn new(layout: Layout, n: usize) -> Self {
+        match layout {
+            Layout::Aos => VecOut::Aos(vec![0.0; 3 * n]),
+            Layout::Soa => VecOut::Soa([vec![0.0; n], vec![0.0; n], vec![0.0; n]]),
+        }
+    }
+
+    fn as_mut(&mut self) -> VectorsMut<'_> {
+        match self {
+            VecOut::Aos(v) => VectorsMut::from_flat(v).expect("3 n floats"),
+            VecOut::Soa([x, y, z]) => VectorsMut::Soa([x, y, z]),
+        }
+    }
+
+    fn set(&mut self, i: usize, v: [f32; 3]) {
+        match self {
+            VecOut::Aos(a) => a[3 * i..3 * i + 3].copy_from_slice(&v),
+            VecOut::Soa(c) => {
+                for (s, x) in c.iter_mut().zip(v) {
+                    s[i] = x;
+                }
+            }
+        }
+    }
+
+    /// Hands the buffers to numpy without copying: an `(N, 3)` array or a
+    /// tuple of three `(N,)` arrays.
+    fn into_py(self, py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+        match self {
+            VecOut::Aos(v) => {
+                let n = v.len() / 3;
+                Ok(v.into_pyarray(py).reshape([n, 3])?.into_any())
+            }
+            VecOut::Soa([x, y, z]) => Ok(PyTuple::new(
+                py,
+                [
+                    x.into_pyarray(py).into_any(),
+                    y.into_pyarray(py).into_any(),
+                    z.into_pyarray(py).into_any(),
+                ],
+            )?
+            .into_any()),
+        }
+    }
+}
+
+/// The lobes a stack can produce, for a renderer's flags.
+struct Lobes {
+    delta_reflection: bool,
+    delta_transmission: bool,
+    glossy: bool,
+    diffuse: bool,
+    transmission: bool,
+}
+
+fn lobes(stack: &LayerStack) -> Lobes {
+    let its = stack.interfaces();
+    let features = stack.features();
+    let delta = |i: &strata_bsdf::stack::Interface| i.smooth && i.kind != InterfaceKind::Diffuse;
+    let top = &its[0];
+    let bottom = &its[its.len() - 1];
+    let transmission = stack.transmissive();
+    Lobes {
+        // An all-delta walk reflects off a smooth top (or, for light from
+        // below a transmissive stack, off a smooth bottom).
+        delta_reflection: delta(top) || (transmission && delta(bottom)),
+        // Through every interface without a non-delta event.
+        delta_transmission: transmission && its.iter().all(delta) && !features.scattering,
+        glossy: its
+            .iter()
+            .any(|i| !i.smooth && i.kind != InterfaceKind::Diffuse)
+            || features.scattering,
+        diffuse: its.iter().any(|i| i.kind == InterfaceKind::Diffuse),
+        transmission,
+    }
+}
+
+/// A layered BSDF (a strata `LayeredBsdf`), answering batches of queries.
+///
+/// Create one with `Bsdf.from_toml`, `Bsdf.from_json` or `Bsdf.from_path`.
+/// Directions are in the local frame (z = normal of the stack's top), both
+/// pointing away from the surface; in radiance mode `wi` points to the light
+/// and `wo` to the viewer (docs/conventions.md). Vector arguments are float32
+/// arrays of shape (N, 3), or tuples of three contiguous float32 arrays of
+/// shape (N,); results have the layout of `wi`. A call reads its inputs with
+/// the GIL released: do not modify them from another thread meanwhile. One
+/// `Bsdf` may be used from several threads at once.
+#[pyclass(frozen, module = "strata_bsdf")]
+struct Bsdf {
+    inner: LayeredBsdf,
+}
+
+fn build(
+    stack: LayerStack,
+    samples: u64,
+    seed: u64,
+    transport: &str,
+    pdf_samples: u32,
+) -> PyResult<Bsdf> {
+    if samples == 0 || samples > MAX_WALKS {
+        return Err(PyValueError::new_err(format!(
+            "samples = {samples}: give from 1 to {MAX_WALKS} walks per eval"
+        )));
+    }
+    if pdf_samples == 0 {
+        return Err(PyValueError::new_err(
+            "pdf_samples = 0: at least one walk per pdf is needed",
+        ));
+    }
+    let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
+    Ok(Bsdf {
+        inner: LayeredBsdf::new(stack)
+            .samples(samples)
+            .seed(seed)
+            .pdf_samples(pdf_samples)
+            .transport(transport),
+    })
+}
+
+fn transport_name(t: Transport) -> &'static str {
+    match t {
+        Transport::Radiance => "radiance",
+        Transport::Importance => "importance",
+    }
+}
+
+#[pymethods]
+impl Bsdf {
+    /// A BSDF from a TOML material description (docs/materials.md).
+    ///
+    /// `samples` is the number of walks per `eval` query, `seed` seeds every
+    /// random stream, `transport` is "radiance" (light flows from `wi` to
+    /// `wo`) or "importance" (the adjoint), `pdf_samples` the short walks
+    /// per `pdf`. Raises `MaterialError` (a ValueError) naming the layer, the
+    /// field and the value.
+    #[staticmethod]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    fn from_toml(
+        text: &str,
+        samples: u64,
+        seed: u64,
+        transport: &str,
+        pdf_samples: u32,
+    ) -> PyResult<Self> {
+        let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
+        build(stack, samples, seed, transport, pdf_samples)
+    }
+
+    /// A BSDF from a JSON material description; arguments as `from_toml`.
+    #[staticmethod]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    fn from_json(
+        text: &str,
+        samples: u64,
+        seed: u64,
+        transport: &str,
+        pdf_samples: u32,
+    ) -> PyResult<Self> {
+        let stack = LayerStack::from_json_str(text).map_err(material_err)?;
+        build(stack, samples, seed, transport, pdf_samples)
+    }
+
+    /// A BSDF from a material file (`.json` as JSON, anything else as TOML);
+    /// arguments as `from_toml`.
+    #[staticmethod]
+    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    fn from_path(
+        path: std::path::PathBuf,
+        samples: u64,
+        seed: u64,
+        transport: &str,
+        pdf_samples: u32,
+    ) -> PyResult<Self> {
+        let stack = LayerStack::from_path(path).map_err(material_err)?;
+        build(stack, samples, seed, transport, pdf_samples)
+    }
+
+    /// The same material and settings in another transport mode
+    /// ("radiance" or "importance").
+    fn with_transport(&self, transport: &str) -> PyResult<Self> {
+        let t: Transport = transport.parse().map_err(PyValueError::new_err)?;
+        Ok(Bsdf {
+            inner: self.inner.clone().transport(t),
+        })
+    }
+
+    /// `f(wi, wo)` per RGB channel, without the cosine, and its standard
+    /// error: `(f, stderr)`, each in the layout of `wi`.
+    ///
+    /// `keys` (uint64, shape (N,)) selects each query's random stream; by
+    /// default a query is keyed by its directions' bits (the same pair
+    /// always gives the same estimate). Delta lobes are never returned.
+    #[pyo3(signature = (wi, wo, keys=None))]
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+        keys: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let wi = vectors_in("wi", wi)?;
+        let wo = vectors_in("wo", wo)?;
+        let keys = keys_in(keys)?;
+        let n = wi.len();
+        let mut f = VecOut::new(wi.layout(), n);
+        let mut se = VecOut::new(wi.layout(), n);
+        {
+            let (wiv, wov) = (wi.vectors(), wo.vectors());
+            let k = keys
+                .as_ref()
+                .map(|k| k.as_slice().expect("checked contiguous"));
+            let (fm, sm) = (f.as_mut(), se.as_mut());
+            let bsdf = &self.inner;
+            py.detach(|| bsdf.eval_into(wiv, wov, k, fm, Some(sm)))
+                .map_err(|e| batch_err(py, e))?;
+        }
+        Ok((f.into_py(py)?, se.into_py(py)?))
+    }
+
+    /// One sampled direction per query: `(wo, weight, pdf, flags)`.
+    ///
+    /// `wo` and `weight` (`f |cos θo| / p`, per channel) have the layout of
+    /// `wi`; `pdf` (float32) is exactly what `pdf(wi, wo)` returns; `flags`
+    /// (uint32) has bits REFLECTION = 1, TRANSMISSION = 2, DELTA = 4, and 0
+    /// for an absorbed walk (then everything is zero: count it as a zero
+    /// sample). With `keys`, query k draws from the stream (seed, keys[k]);
+    /// without, from sample index k of its direction's key.
+    #[pyo3(signature = (wi, keys=None))]
+    #[allow(clippy::type_complexity)]
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        keys: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<f32>>,
+        Bound<'py, PyArray1<u32>>,
+    )> {
+        let wi = vectors_in("wi", wi)?;
+        let keys = keys_in(keys)?;
+        let n = wi.len();
+        let mut wo = VecOut::new(wi.layout(), n);
+        let mut weight = VecOut::new(wi.layout(), n);
+        let mut pdf = vec![0.0f32; n];
+        let mut flags = vec![0u32; n];
+        {
+            let wiv = wi.vectors();
+            let k = keys
+                .as_ref()
+                .map(|k| k.as_slice().expect("checked contiguous"));
+            let (wom, wm) = (wo.as_mut(), weight.as_mut());
+            let (p, fl) = (&mut pdf[..], &mut flags[..]);
+            let bsdf = &self.inner;
+            py.detach(|| bsdf.sample_into(wiv, k, wom, wm, p, fl))
+                .map_err(|e| batch_err(py, e))?;
+        }
+        Ok((
+            wo.into_py(py)?,
+            weight.into_py(py)?,
+            pdf.into_pyarray(py),
+            flags.into_pyarray(py),
+        ))
+    }
+
+    /// The approximate density of `sample`'s direction `wo` for each pair
+    /// (float32, shape (N,)), keyed by the directions: a function of
+    /// `(wi, wo)` and the seed.
+    fn pdf<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let wi = vectors_in("wi", wi)?;
+        let wo = vectors_in("wo", wo)?;
+        let mut pdf = vec![0.0f32; wi.len()];
+        {
+            let (wiv, wov) = (wi.vectors(), wo.vectors());
+            let p = &mut pdf[..];
+            let bsdf = &self.inner;
+            py.detach(|| bsdf.pdf_into(wiv, wov, p))
+                .map_err(|e| batch_err(py, e))?;
+        }
+        Ok(pdf.into_pyarray(py))
+    }
+
+    /// Directional albedo from `n` walks per direction:
+    /// `(R, T, R_stderr, T_stderr)`, reflected and transmitted fractions per
+    /// channel with their standard errors, each in the layout of `wi`.
+    #[pyo3(signature = (wi, n, keys=None))]
+    #[allow(clippy::type_complexity)]
+    fn albedo<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        n: u64,
+        keys: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyAny>,
+    )> {
+        let wi = vectors_in("wi", wi)?;
+        let keys = keys_in(keys)?;
+        let m = wi.len();
+        let mut rec = vec![AlbedoRecord::default(); m];
+        {
+            let wiv = wi.vectors();
+            let k = keys
+                .as_ref()
+                .map(|k| k.as_slice().expect("checked contiguous"));
+            let out = &mut rec[..];
+            let bsdf = &self.inner;
+            py.detach(|| bsdf.albedo_records(wiv, n, k, out))
+                .map_err(|e| batch_err(py, e))?;
+        }
+        let layout = wi.layout();
+        let mut outs = [(); 4].map(|_| VecOut::new(layout, m));
+        for (i, r) in rec.iter().enumerate() {
+            outs[0].set(i, r.reflected);
+            outs[1].set(i, r.transmitted);
+            outs[2].set(i, r.reflected_stderr);
+            outs[3].set(i, r.transmitted_stderr);
+        }
+        let [a, b, c, d] = outs;
+        Ok((
+            a.into_py(py)?,
+            b.into_py(py)?,
+            c.into_py(py)?,
+            d.into_py(py)?,
+        ))
+    }
+
+    /// Walks per `eval` query.
+    #[getter]
+    fn samples(&self) -> u64 {
+        self.inner.samples_per_eval()
+    }
+
+    /// The seed of every random stream.
+    #[getter]
+    fn seed(&self) -> u64 {
+        self.inner.seed_value()
+    }
+
+    /// "radiance" or "importance".
+    #[getter]
+    fn transport(&self) -> &'static str {
+        transport_name(self.inner.transport_mode())
+    }
+
+    /// The material's description text, if it has one.
+    #[getter]
+    fn description(&self) -> Option<String> {
+        self.inner.stack().desc().description.clone()
+    }
+
+    /// Number of interfaces.
+    #[getter]
+    fn interfaces(&self) -> usize {
+        self.inner.stack().len()
+    }
+
+    /// The bottom interface is a dielectric: light passes through.
+    #[getter]
+    fn transmissive(&self) -> bool {
+        self.inner.stack().transmissive()
+    }
+
+    /// An opaque stack that mirrors light from below (see conventions).
+    #[getter]
+    fn two_sided(&self) -> bool {
+        self.inner.stack().two_sided()
+    }
+
+    /// IOR of the exterior above the top interface.
+    #[getter]
+    fn exterior_ior(&self) -> f64 {
+        self.inner.stack().exterior_above()
+    }
+
+    /// IOR of the exterior below (for a transmissive stack).
+    #[getter]
+    fn exterior_ior_below(&self) -> f64 {
+        self.inner.stack().exterior_below()
+    }
+
+    /// The lobes the stack can produce, as a dict of booleans:
+    /// `delta_reflection`, `delta_transmission` (from `sample` only),
+    /// `glossy` (a rough interface or a scattering medium), `diffuse` (a
+    /// Lambertian interface) and `transmission` (the stack transmits).
+    #[getter]
+    fn lobes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let l = lobes(self.inner.stack());
+        let d = PyDict::new(py);
+        d.set_item("delta_reflection", l.delta_reflection)?;
+        d.set_item("delta_transmission", l.delta_transmission)?;
+        d.set_item("glossy", l.glossy)?;
+        d.set_item("diffuse", l.diffuse)?;
+        d.set_item("transmission", l.transmission)?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        let what = self
+            .inner
+            .stack()
+            .desc()
+            .description
+            .clone()
+            .unwrap_or_else(|| format!("{} interfaces", self.inner.stack().len()));
+        format!(
+            "Bsdf({what:?}, samples={}, seed={}, transport={:?})",
+            self.inner.samples_per_eval(),
+            self.inner.seed_value(),
+            transport_name(self.inner.transport_mode())
+        )
+    }
+}
+
+/// strata's layered BSDFs for Python (the compiled part of `strata_bsdf`).
+#[pymodule]
+fn _strata_bsdf(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_class::<Bsdf>()?;
+    m.add("QueryError", py.get_type::<QueryError>())?;
+    m.add("MaterialError", py.get_type::<MaterialError>())?;
+    m.add("REFLECTION", strata_bsdf::SampleFlags::REFLECTION)?;
+    m.add("TRANSMISSION", strata_bsdf::SampleFlags::TRANSMISSION)?;
+    m.add("DELTA", strata_bsdf::SampleFlags::DELTA)?;
+    m.add("MAX_WALKS", MAX_WALKS)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,335 @@
+"""The Python module against the Rust API (through the CLI), and its errors."""
+
+import json
+import math
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import strata_bsdf as sb
+from strata_bsdf import Bsdf, MaterialError, QueryError
+
+LAMBERT = '[[layers]]\ninterface = { kind = "diffuse", albedo = 0.7 }\n'
+GLASS = '[[layers]]\ninterface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }\n'
+
+
+def normalized(v):
+    """v normalized exactly as strata normalizes (in f64, scaled by the
+    largest component first)."""
+    d = [float(x) for x in v]
+    m = max(abs(x) for x in d)
+    s = [x / m for x in d]
+    length = math.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+    return [x / length for x in s]
+
+
+def fixed_directions(n, rng, lower=0.0):
+    """n unit f32 directions that strata's normalization leaves unchanged
+    (so that the CLI, which normalizes its input before the library does
+    again, and Python see the same f32 bits). `lower` is the fraction below
+    the surface."""
+    out = np.empty((n, 3), np.float32)
+    for i in range(n):
+        v = rng.normal(size=3)
+        v[2] = abs(v[2]) + 0.05
+        if rng.random() < lower:
+            v[2] = -v[2]
+        v = np.float32(normalized(v))
+        for _ in range(10):
+            w = np.float32(normalized(v))
+            if np.array_equal(w, v):
+                break
+            v = w
+        else:
+            raise AssertionError("no fixed point")
+        out[i] = v
+    return out
+
+
+def soa(a):
+    return tuple(np.ascontiguousarray(a[:, i]) for i in range(3))
+
+
+def aos(t):
+    return np.stack(t, axis=1)
+
+
+def run_cli(cli, args, stdin=""):
+    r = subprocess.run([str(cli)] + args, input=stdin, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    return [json.loads(line) for line in r.stdout.splitlines() if line.strip()]
+
+
+@pytest.mark.parametrize(
+    "material,lower",
+    [("coated_copper.toml", 0.0), ("clear_coat_lambertian.toml", 0.0), ("scattering_slab.toml", 0.4),
+     ("three_interfaces.toml", 0.0), ("coated_copper.json", 0.0)],
+)
+def test_eval_and_pdf_bit_identical_to_cli(strata_cli, materials, material, lower):
+    path = materials / material
+    rng = np.random.default_rng(7)
+    n, samples, seed = 40, 16, 12345
+    wi = fixed_directions(n, rng)
+    wo = fixed_directions(n, rng, lower)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    cli = run_cli(strata_cli, ["eval", "--material", str(path), "--samples", str(samples), "--seed", str(seed)], lines)
+    assert len(cli) == n
+    bsdf = Bsdf.from_path(path, samples=samples, seed=seed)
+    # The CLI keys query k by its line index.
+    f, se = bsdf.eval(wi, wo, keys=np.arange(n, dtype=np.uint64))
+    pdf = bsdf.pdf(wi, wo)
+    np.testing.assert_array_equal(f, np.array([c["f"] for c in cli], dtype=np.float64).astype(np.float32))
+    np.testing.assert_array_equal(se, np.array([c["stderr"] for c in cli], dtype=np.float64).astype(np.float32))
+    np.testing.assert_array_equal(pdf, np.array([c["pdf"] for c in cli], dtype=np.float64).astype(np.float32))
+    assert np.all(f >= 0) and np.any(f > 0)
+
+
+@pytest.mark.parametrize("material", ["coated_copper.toml", "scattering_slab.toml", "clear_coat_lambertian.toml"])
+def test_sample_bit_identical_to_cli(strata_cli, materials, material):
+    path = materials / material
+    wi = np.array([0.3, -0.2, 0.9], np.float32)
+    n, seed = 300, 99
+    cli = run_cli(
+        strata_cli,
+        ["sample", "--material", str(path), "--wi", ",".join(repr(float(x)) for x in wi), "--count", str(n),
+         "--seed", str(seed)],
+    )
+    bsdf = Bsdf.from_path(path, seed=seed)
+    # Unkeyed, query k draws sample index k of its direction's key: line k of `strata sample`.
+    wo, weight, pdf, flags = bsdf.sample(np.tile(wi, (n, 1)))
+    want_wo = np.array([c["wo"] or [0, 0, 0] for c in cli], np.float64).astype(np.float32)
+    want_w = np.array([c["weight"] for c in cli], np.float64).astype(np.float32)
+    np.testing.assert_array_equal(wo, want_wo)
+    np.testing.assert_array_equal(weight, want_w)
+    for c, fl in zip(cli, flags):
+        if c["wo"] is None:
+            assert fl == 0
+        else:
+            assert bool(fl & sb.REFLECTION) == c["reflection"]
+            assert bool(fl & sb.TRANSMISSION) == (not c["reflection"])
+            assert bool(fl & sb.DELTA) == c["specular"]
+    # The pdf a sample carries is the pdf of its direction.
+    live = flags != 0
+    np.testing.assert_array_equal(pdf[live], bsdf.pdf(np.tile(wi, (int(live.sum()), 1)), wo[live]))
+    assert np.all(pdf[live] > 0) and np.all(pdf[~live] == 0)
+
+
+@pytest.mark.parametrize("material,theta,phi", [("scattering_slab.toml", 30.0, 20.0),
+                                                ("scattering_slab.toml", 120.0, 0.0),
+                                                ("coated_copper.toml", 60.0, 45.0)])
+def test_albedo_bit_identical_to_cli(strata_cli, materials, material, theta, phi):
+    path = materials / material
+    n, seed = 5000, 4
+    cli = run_cli(strata_cli, ["albedo", "--material", str(path), "--theta", str(theta), "--phi", str(phi),
+                               "--samples", str(n), "--seed", str(seed)])[0]
+    # The CLI's direction: f64 trigonometry, cast to f32.
+    t, p = math.radians(theta), math.radians(phi)
+    wi = np.array([[math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)]], np.float32)
+    r, tr, r_se, t_se = Bsdf.from_path(path, seed=seed).albedo(wi, n)
+    for got, key in ((r, "R"), (tr, "T"), (r_se, "stderr_R"), (t_se, "stderr_T")):
+        np.testing.assert_array_equal(got[0], np.array(cli[key], np.float64).astype(np.float32))
+    assert r[0].sum() > 0
+
+
+def test_soa_and_aos_identical(materials):
+    rng = np.random.default_rng(3)
+    bsdf = Bsdf.from_path(materials / "scattering_slab.toml", samples=8, seed=5)
+    wi = fixed_directions(33, rng)
+    wo = fixed_directions(33, rng, 0.5)
+    keys = rng.integers(0, 2**63, size=33, dtype=np.uint64)
+    f_a, s_a = bsdf.eval(wi, wo, keys)
+    f_s, s_s = bsdf.eval(soa(wi), soa(wo), keys)
+    assert isinstance(f_s, tuple) and len(f_s) == 3 and f_s[0].shape == (33,)
+    np.testing.assert_array_equal(f_a, aos(f_s))
+    np.testing.assert_array_equal(s_a, aos(s_s))
+    # Mixed layouts: the result follows wi.
+    np.testing.assert_array_equal(f_a, bsdf.eval(wi, soa(wo), keys)[0])
+    for k in (None, keys):
+        a = bsdf.sample(wi, k)
+        s = bsdf.sample(soa(wi), k)
+        np.testing.assert_array_equal(a[0], aos(s[0]))
+        np.testing.assert_array_equal(a[1], aos(s[1]))
+        np.testing.assert_array_equal(a[2], s[2])
+        np.testing.assert_array_equal(a[3], s[3])
+    np.testing.assert_array_equal(bsdf.pdf(wi, wo), bsdf.pdf(soa(wi), soa(wo)))
+    ra = bsdf.albedo(wi, 64)
+    rs = bsdf.albedo(soa(wi), 64)
+    for x, y in zip(ra, rs):
+        np.testing.assert_array_equal(x, aos(y))
+
+
+def test_keys_select_streams(materials):
+    bsdf = Bsdf.from_path(materials / "coated_copper.toml", samples=4)
+    wi = np.tile(np.float32([0.0, 0.6, 0.8]), (4, 1))
+    wo = np.tile(np.float32([0.6, 0.0, 0.8]), (4, 1))
+    f, _ = bsdf.eval(wi, wo)  # keyed by the directions: four equal answers
+    assert np.all(f == f[0])
+    f, _ = bsdf.eval(wi, wo, np.array([1, 2, 1, 3], np.uint64))
+    assert np.array_equal(f[0], f[2]) and not np.array_equal(f[0], f[1])
+    s1 = bsdf.sample(wi, np.array([5, 6, 5, 7], np.uint64))[0]
+    assert np.array_equal(s1[0], s1[2]) and not np.array_equal(s1[0], s1[1])
+
+
+def test_lambertian_values():
+    """A Lambertian alone: f = albedo / pi exactly (first order), R = albedo."""
+    bsdf = Bsdf.from_toml(LAMBERT, samples=1)
+    rng = np.random.default_rng(1)
+    wi, wo = fixed_directions(50, rng), fixed_directions(50, rng)
+    f, se = bsdf.eval(wi, wo)
+    np.testing.assert_allclose(f, 0.7 / np.pi, rtol=1e-6)
+    r, t, rse, tse = bsdf.albedo(wi[:3], 20000)
+    assert np.all(np.abs(r - 0.7) < 5 * rse + 1e-6)
+    assert np.all(t == 0)
+    assert bsdf.lobes == {"delta_reflection": False, "delta_transmission": False, "glossy": False,
+                          "diffuse": True, "transmission": False}
+
+
+def test_transport_modes_differ_by_eta_squared():
+    rad = Bsdf.from_toml(GLASS, samples=4, seed=1)
+    imp = rad.with_transport("importance")
+    assert (rad.transport, imp.transport) == ("radiance", "importance")
+    wi = np.array([[0.3, 0.1, 0.9], [0.2, 0.0, -0.9], [0.1, 0.2, 0.9]], np.float32)
+    wo = np.array([[-0.2, 0.0, -0.9], [-0.3, 0.1, 0.9], [0.0, -0.1, 0.95]], np.float32)
+    keys = np.arange(3, dtype=np.uint64)
+    fr, _ = rad.eval(wi, wo, keys)
+    fi, _ = imp.eval(wi, wo, keys)
+    # f*(wi -> wo) = f(wi -> wo) (n_i / n_o)^2: 1/2.25 entering, 2.25 leaving, 1 in reflection.
+    np.testing.assert_allclose(fi[0], fr[0] / 2.25, rtol=1e-6)
+    np.testing.assert_allclose(fi[1], fr[1] * 2.25, rtol=1e-6)
+    np.testing.assert_array_equal(fi[2], fr[2])
+    assert rad.exterior_ior == 1.0 and rad.exterior_ior_below == 1.5 and rad.transmissive
+
+
+def test_gil_released_during_a_batch(materials):
+    bsdf = Bsdf.from_path(materials / "thick_scattering.toml", samples=20000)
+    wi = np.tile(np.float32([0, 0, 1]), (64, 1))
+    ticks = []
+    done = threading.Event()
+
+    def spin():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=spin)
+    t.start()
+    t0 = time.perf_counter()
+    bsdf.eval(wi, wi)
+    t1 = time.perf_counter()
+    done.set()
+    t.join()
+    during = [x for x in ticks if t0 < x < t1]
+    assert t1 - t0 > 0.05, "the batch is too short to tell"
+    # The other thread kept running while the batch ran (with the GIL held, it could not).
+    assert len(during) >= 10, (len(during), t1 - t0)
+
+
+# ----------------------------------------------------------------------- errors
+
+
+def bsdf():
+    return Bsdf.from_toml(LAMBERT)
+
+
+GOOD = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8]], np.float32)
+
+
+@pytest.mark.parametrize(
+    "wi,exc,words",
+    [
+        (np.zeros((3, 3)), TypeError, ["wi", "float32", "float64", "(3, 3)"]),
+        (np.zeros((3, 4), np.float32), ValueError, ["wi", "(N, 3)", "(3, 4)"]),
+        (np.zeros(3, np.float32), ValueError, ["wi", "(N, 3)", "(3,)"]),
+        (np.zeros(0, np.float32), ValueError, ["wi", "(N, 3)", "(0,)"]),
+        (np.zeros((3, 6), np.float32)[:, ::2], ValueError, ["wi", "C-contiguous", "(3, 3)"]),
+        (np.frombuffer(bytearray(37), dtype=np.float32, offset=1, count=9).reshape(3, 3), ValueError,
+         ["wi", "aligned", "(3, 3)"]),
+        ([[0, 0, 1]] * 3, TypeError, ["wi.x", "float32", "list"]),
+        ("up", TypeError, ["wi", "(N, 3)", "str"]),
+        ((np.zeros(3, np.float32), np.zeros(3, np.float32)), ValueError, ["wi", "2 items"]),
+        ((np.zeros(3, np.float32), np.zeros(3, np.float32), np.zeros(2, np.float32)), ValueError,
+         ["wi.x, wi.y and wi.z", "3, 3 and 2"]),
+        ((np.zeros(3, np.float32), np.zeros(3), np.zeros(3, np.float32)), TypeError, ["wi.y", "float64"]),
+    ],
+)
+def test_bad_arrays_name_the_argument_and_shape(wi, exc, words):
+    with pytest.raises(exc) as e:
+        bsdf().eval(wi, GOOD)
+    for w in words:
+        assert w in str(e.value), (w, str(e.value))
+
+
+def test_bad_directions_name_index_and_field():
+    wo = GOOD.copy()
+    wo[2] = 0
+    with pytest.raises(QueryError) as e:
+        bsdf().eval(GOOD, wo)
+    assert str(e.value) == "query 2: wo = [0, 0, 0] is not a direction: it has zero length"
+    assert e.value.index == 2 and isinstance(e.value, ValueError)
+    wi = GOOD.copy()
+    wi[1, 0] = np.nan
+    for call in (lambda b: b.eval(wi, GOOD), lambda b: b.pdf(wi, GOOD), lambda b: b.sample(wi),
+                 lambda b: b.albedo(wi, 4), lambda b: b.eval(soa(wi), soa(GOOD))):
+        with pytest.raises(QueryError) as e:
+            call(bsdf())
+        assert str(e.value) == "query 1: wi = [NaN, 0, 0.8] is not a direction: components must be finite"
+        assert e.value.index == 1
+    wi[1, 0] = np.inf
+    with pytest.raises(QueryError, match=r"query 1: wi = \[inf, 0, 0.8\]"):
+        bsdf().sample(wi)
+
+
+def test_bad_keys_and_counts():
+    with pytest.raises(QueryError) as e:
+        bsdf().eval(GOOD, GOOD, np.arange(2, dtype=np.uint64))
+    assert "keys has 2 entries for 3 queries" in str(e.value) and e.value.index is None
+    with pytest.raises(TypeError, match="keys must have dtype uint64; got int64"):
+        bsdf().sample(GOOD, np.arange(3))
+    with pytest.raises(ValueError, match="wo has 2 entries for 3 queries"):
+        bsdf().eval(GOOD, GOOD[:2])
+    with pytest.raises(QueryError, match="n = 0: at least one walk"):
+        bsdf().albedo(GOOD, 0)
+    with pytest.raises(ValueError, match="samples = 0"):
+        Bsdf.from_toml(LAMBERT, samples=0)
+    with pytest.raises(ValueError, match="unknown transport mode"):
+        Bsdf.from_toml(LAMBERT, transport="light")
+
+
+def test_empty_batches_give_empty_results():
+    e = np.zeros((0, 3), np.float32)
+    f, se = bsdf().eval(e, e)
+    assert f.shape == (0, 3) and se.shape == (0, 3) and f.dtype == np.float32
+    wo, w, p, fl = bsdf().sample(e)
+    assert wo.shape == (0, 3) and p.shape == (0,) and fl.dtype == np.uint32
+    z = np.zeros(0, np.float32)
+    f, _ = bsdf().eval((z, z, z), (z, z, z))
+    assert all(c.shape == (0,) for c in f)
+
+
+def test_material_errors_name_layer_and_field(tmp_path):
+    with pytest.raises(MaterialError) as e:
+        Bsdf.from_toml('[[layers]]\ninterface = { kind = "dielectric", ior = 1.5 \n')
+    assert "invalid TOML material" in str(e.value) and "line 2" in str(e.value)
+    assert isinstance(e.value, ValueError)
+    thick = (
+        '[[layers]]\ninterface = { kind = "dielectric", ior = 1.5 }\n'
+        "medium = { thickness = -1.0, sigma_t = 1.0 }\n"
+        '[[layers]]\ninterface = { kind = "diffuse", albedo = 0.5 }\n'
+    )
+    with pytest.raises(MaterialError) as e:
+        Bsdf.from_toml(thick)
+    assert str(e.value).startswith("invalid material: layer 0: medium.thickness = -1"), str(e.value)
+    with pytest.raises(MaterialError, match="roughness"):
+        Bsdf.from_toml('[[layers]]\ninterface = { kind = "dielectric", ior = 1.5, roughness = -0.1 }\n')
+    with pytest.raises(MaterialError, match="invalid JSON material"):
+        Bsdf.from_json("{")
+    with pytest.raises(MaterialError, match="cannot read"):
+        Bsdf.from_path(tmp_path / "missing.toml")
+    p = tmp_path / "m.json"
+    p.write_text(json.dumps({"layers": [{"interface": {"kind": "diffuse", "albedo": 0.5}}]}))
+    assert Bsdf.from_path(p).interfaces == 1

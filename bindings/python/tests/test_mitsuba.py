@@ -1,0 +1,328 @@
+"""The Mitsuba 3 plugin against Mitsuba's built-in BSDFs, in scalar_rgb and llvm_ad_rgb.
+
+Agreement criterion (per case, variant and image size): the strata and the
+built-in images are each the average of K independent renders (different
+seeds; every render is deterministic, so the test is too). For every 8x8
+block of pixels (full blocks only) and channel, the standard error of the
+block mean is estimated from the spread of the K renders, pixel by pixel
+(the sum of the per-pixel sample variances over the block's P pixels,
+divided by P^2 K: 64 (K - 1) degrees of freedom), and the difference of the
+two block means must be within Z_MAX = 5 combined standard errors (blocks
+with zero variance in both, pure background, must agree to 1e-5 relative).
+Z_MAX is 5, not 3, because per-pixel variances from K = 4 renders are
+themselves noisy where rare bright paths (sun highlights) dominate. The
+image means must agree within Z_MAX combined standard errors (estimated in
+the same way) and, where those standard errors are below 0.25 % of the mean
+(every llvm_ad_rgb configuration, and the scalar_rgb diffuse and conductor),
+to 1 %.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+mi = pytest.importorskip("mitsuba")
+dr = pytest.importorskip("drjit")
+
+Z_MAX = 5.0
+BLOCK = 8
+
+LAMBERT = '[[layers]]\ninterface = { kind = "diffuse", albedo = 0.7 }\n'
+ETA, K = [0.2, 0.92, 1.1], [3.9, 2.45, 2.2]
+CONDUCTOR = (
+    '[[layers]]\ninterface = { kind = "conductor", eta = [0.2, 0.92, 1.1], k = [3.9, 2.45, 2.2], '
+    'roughness = 0.3, shadowing = "separable" }\n'
+)
+GLASS = '[[layers]]\ninterface = { kind = "dielectric", ior = 1.5, roughness = 0.3, shadowing = "separable" }\n'
+
+
+def rgb(v):
+    return {"type": "rgb", "value": v}
+
+
+CASES = {
+    "diffuse": (LAMBERT, {"type": "diffuse", "reflectance": rgb([0.7, 0.7, 0.7])}),
+    "roughconductor": (
+        CONDUCTOR,
+        {"type": "roughconductor", "distribution": "ggx", "alpha": 0.3, "eta": rgb(ETA), "k": rgb(K)},
+    ),
+    "roughdielectric": (
+        GLASS,
+        {"type": "roughdielectric", "distribution": "ggx", "alpha": 0.3, "int_ior": 1.5, "ext_ior": 1.0},
+    ),
+}
+
+
+def use_variant(name):
+    if name not in mi.variants():
+        pytest.skip(f"Mitsuba variant {name} not available")
+    mi.set_variant(name)
+    import strata_bsdf.mitsuba as sm
+
+    sm.register()
+    if not name.startswith("scalar"):
+        sm.enable_evaluated_mode()
+    return sm
+
+
+def scene(bsdf, width, height, spp):
+    return mi.load_dict(
+        {
+            "type": "scene",
+            "integrator": {"type": "path", "max_depth": 8},
+            "sensor": {
+                "type": "perspective",
+                "fov": 28,
+                "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                "film": {"type": "hdrfilm", "width": width, "height": height, "rfilter": {"type": "box"}},
+                "sampler": {"type": "independent", "sample_count": spp},
+            },
+            "env": {"type": "constant", "radiance": rgb([0.3, 0.35, 0.4])},
+            "sun": {"type": "directional", "direction": [-1, -1, -1], "irradiance": rgb([3.0, 3.0, 3.0])},
+            "sphere": {"type": "sphere", "bsdf": bsdf},
+        }
+    )
+
+
+def renders(bsdf, width, height, spp, seeds):
+    s = scene(bsdf, width, height, spp)
+    return np.stack([np.array(mi.render(s, seed=int(k)), dtype=np.float64) for k in seeds])
+
+
+def block_stats(imgs):
+    """Per 8x8 block and channel: the mean over the K renders and its standard error."""
+    k, h, w, c = imgs.shape
+    hb, wb = h // BLOCK, w // BLOCK
+    x = imgs[:, : hb * BLOCK, : wb * BLOCK, :].reshape(k, hb, BLOCK, wb, BLOCK, c)
+    mean = x.mean(axis=(0, 2, 4))
+    var_px = x.var(axis=0, ddof=1)  # (hb, B, wb, B, c)
+    p = BLOCK * BLOCK
+    se = np.sqrt(var_px.sum(axis=(1, 3)) / (p * p * k))
+    return mean, se
+
+
+def compare(strata_imgs, ref_imgs):
+    ms, ss = block_stats(strata_imgs)
+    mr, sr = block_stats(ref_imgs)
+    se = np.sqrt(ss**2 + sr**2)
+    diff = np.abs(ms - mr)
+    flat = se == 0
+    assert np.all(diff[flat] <= 1e-5 * np.abs(mr[flat]) + 1e-7), "background blocks differ"
+    z = np.where(flat, 0.0, diff / np.where(flat, 1.0, se))
+    return z, strata_imgs.mean(), ref_imgs.mean()
+
+
+def material(tmp_path, text):
+    p = tmp_path / f"m{abs(hash(text))}.toml"
+    p.write_text(text)
+    return str(p)
+
+
+# (variant, width, height, spp, renders per side)
+CONFIGS = [
+    ("scalar_rgb", 23, 15, 128, 4),
+    ("llvm_ad_rgb", 37, 23, 96, 4),
+    ("llvm_ad_rgb", 61, 41, 64, 4),
+    ("llvm_ad_rgb", 53, 19, 96, 4),
+]
+
+
+@pytest.mark.parametrize("variant,width,height,spp,k", CONFIGS, ids=[f"{c[0]}-{c[1]}x{c[2]}" for c in CONFIGS])
+@pytest.mark.parametrize("case", list(CASES))
+def test_agrees_with_builtin(tmp_path, case, variant, width, height, spp, k):
+    use_variant(variant)
+    text, builtin = CASES[case]
+    strata = {"type": "strata", "filename": material(tmp_path, text)}
+    a = renders(strata, width, height, spp, range(k))
+    b = renders(builtin, width, height, spp, range(100, 100 + k))
+    assert a.shape == (k, height, width, 3)
+    assert np.isfinite(a).all()
+    z, mean_s, mean_r = compare(a, b)
+    # Standard error of each image mean, from the per-pixel spread of its K renders.
+    n_px = a[0].size
+    se_mean = math.sqrt((a.var(axis=0, ddof=1).sum() + b.var(axis=0, ddof=1).sum()) / (n_px * n_px * k))
+    rel_se = se_mean / mean_r
+    print(f"{case} {variant} {width}x{height}: mean strata {mean_s:.5f} builtin {mean_r:.5f} "
+          f"({100 * (mean_s / mean_r - 1):+.3f} % +- {100 * rel_se:.3f} %), max |z| {z.max():.2f} "
+          f"over {z.size} block-channels")
+    assert abs(mean_s - mean_r) < Z_MAX * se_mean
+    if variant != "scalar_rgb":
+        assert rel_se < 0.0025, "too few samples for the 1 % criterion"
+    if rel_se < 0.0025:
+        assert abs(mean_s / mean_r - 1) < 0.01
+    assert z.max() < Z_MAX, (z.max(), np.unravel_index(z.argmax(), z.shape))
+
+
+@pytest.mark.parametrize("variant,width,height", [("scalar_rgb", 13, 9), ("llvm_ad_rgb", 47, 29)])
+def test_coated_copper_is_deterministic(materials, variant, width, height):
+    use_variant(variant)
+    bsdf = {"type": "strata", "filename": str(materials / "coated_copper.toml"), "samples": 2, "seed": 3}
+    assert "samples=2, seed=3" in str(mi.load_dict(bsdf))
+    s = scene(bsdf, width, height, 4)
+    a = np.array(mi.render(s, seed=7))
+    b = np.array(mi.render(scene(bsdf, width, height, 4), seed=7))
+    assert np.isfinite(a).all()
+    np.testing.assert_array_equal(a, b)
+    c = np.array(mi.render(s, seed=8))
+    assert not np.array_equal(a, c)
+    # strata's own seed changes the walks too.
+    d = np.array(mi.render(scene(dict(bsdf, seed=4), width, height, 4), seed=7))
+    assert not np.array_equal(a, d)
+    # The sphere is lit: copper is reddish.
+    centre = a[height // 2 - 2 : height // 2 + 2, width // 2 - 2 : width // 2 + 2].mean(axis=(0, 1))
+    assert centre[0] > centre[2] > 0
+
+
+def si_with(wi):
+    si = mi.SurfaceInteraction3f()
+    si.wi = wi
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    return si
+
+
+def test_plugin_scalar_calls(tmp_path):
+    """eval includes |cos wo|, the frame is the local one, eval_pdf and pdf agree,
+    transmission sets eta and the transport mode picks the adjoint."""
+    use_variant("scalar_rgb")
+    lam = mi.load_dict({"type": "strata", "filename": material(tmp_path, LAMBERT)})
+    ctx = mi.BSDFContext()
+    wi = mi.Vector3f(0.3, 0.2, math.sqrt(1 - 0.13))
+    wo = mi.Vector3f(-0.6, 0.0, 0.8)
+    si = si_with(wi)
+    v = lam.eval(ctx, si, wo)
+    assert abs(v[0] - 0.7 / math.pi * 0.8) < 1e-6
+    v2, p = lam.eval_pdf(ctx, si, wo)
+    assert list(v2) == list(v) and p == lam.pdf(ctx, si, wo) and p > 0
+    assert lam.eval(ctx, si, mi.Vector3f(0, 0.6, -0.8))[0] == 0  # opaque: nothing below
+    assert lam.flags() & int(mi.BSDFFlags.DiffuseReflection)
+    assert not lam.flags() & int(mi.BSDFFlags.Transmission)
+
+    glass = mi.load_dict({"type": "strata", "filename": material(tmp_path, GLASS)})
+    assert glass.flags() & int(mi.BSDFFlags.GlossyTransmission)
+    assert glass.flags() & int(mi.BSDFFlags.BackSide)
+    seen = {}
+    for i in range(400):
+        for z in (0.8, -0.8):
+            u = ((i * 0.618034) % 1.0, (i * 0.754878) % 1.0, (i * 0.569840) % 1.0)
+            bs, w = glass.sample(ctx, si_with(mi.Vector3f(0.6, 0, z)), u[0], mi.Point2f(u[1], u[2]))
+            if bs.pdf == 0:
+                continue
+            trans = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Transmission)
+            assert (bs.wo[2] * z < 0) == trans
+            if trans:
+                seen[z] = bs.eta
+            else:
+                assert bs.eta == 1
+            assert mi.has_flag(bs.sampled_type, mi.BSDFFlags.Glossy)
+    assert abs(seen[0.8] - 1.5) < 1e-6 and abs(seen[-0.8] - 1 / 1.5) < 1e-6
+    # Camera paths (radiance) take the adjoint of strata's radiance BSDF:
+    # leaving the glass towards the viewer, radiance loses (1/1.5)^2.
+    si = si_with(mi.Vector3f(0.2, 0.1, 0.9))
+    wo = mi.Vector3f(-0.1, 0.0, -0.95)
+    rad = glass.eval(ctx, si, wo)
+    ictx = mi.BSDFContext(mi.TransportMode.Importance)
+    imp = glass.eval(ictx, si, wo)
+    assert rad[0] > 0 and abs(rad[0] * 2.25 - imp[0]) < 1e-5 * imp[0]
+
+
+def test_delta_samples_are_flagged(materials):
+    use_variant("scalar_rgb")
+    cc = mi.load_dict({"type": "strata", "filename": str(materials / "clear_coat_lambertian.toml")})
+    assert cc.flags() & int(mi.BSDFFlags.DeltaReflection)
+    assert cc.flags() & int(mi.BSDFFlags.DiffuseReflection)
+    ctx = mi.BSDFContext()
+    kinds = set()
+    for i in range(300):
+        u = ((i * 0.618034) % 1.0, (i * 0.754878) % 1.0, (i * 0.569840) % 1.0)
+        bs, w = cc.sample(ctx, si_with(mi.Vector3f(0.3, 0, 0.95)), u[0], mi.Point2f(u[1], u[2]))
+        if mi.has_flag(bs.sampled_type, mi.BSDFFlags.DeltaReflection):
+            kinds.add("delta")
+            assert bs.pdf > 0
+            assert abs(bs.wo[0] + 0.3 / math.hypot(0.3, 0.95)) < 1e-5  # the mirror direction
+        elif mi.has_flag(bs.sampled_type, mi.BSDFFlags.DiffuseReflection):
+            kinds.add("diffuse")
+    assert kinds == {"delta", "diffuse"}
+
+
+def test_symbolic_mode_is_a_clear_error(tmp_path):
+    use_variant("llvm_ad_rgb")
+    loops, calls = dr.flag(dr.JitFlag.SymbolicLoops), dr.flag(dr.JitFlag.SymbolicCalls)
+    dr.set_flag(dr.JitFlag.SymbolicLoops, True)
+    dr.set_flag(dr.JitFlag.SymbolicCalls, True)
+    try:
+        s = scene({"type": "strata", "filename": material(tmp_path, LAMBERT)}, 9, 7, 1)
+        with pytest.raises(Exception) as e:
+            mi.render(s)
+        text = str(e.value) + str(e.value.__cause__) + str(e.value.__context__)
+        assert "enable_evaluated_mode()" in text, text
+    finally:
+        dr.set_flag(dr.JitFlag.SymbolicLoops, loops)
+        dr.set_flag(dr.JitFlag.SymbolicCalls, calls)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_eval_equals_builtin_pointwise(tmp_path, case):
+    """For a one-interface stack strata's eval is exact (the first-order term),
+    so the plugin's eval must equal the built-in BSDF's value, cosine included,
+    in both transport modes, for reflection and for transmission either way."""
+    use_variant("scalar_rgb")
+    text, builtin = CASES[case]
+    s = mi.load_dict({"type": "strata", "filename": material(tmp_path, text)})
+    b = mi.load_dict(builtin)
+    rng = np.random.default_rng(11)
+    checked = 0
+    for mode in (mi.TransportMode.Radiance, mi.TransportMode.Importance):
+        ctx = mi.BSDFContext(mode)
+        for _ in range(60):
+            wi, wo = rng.normal(size=3), rng.normal(size=3)
+            wi, wo = wi / np.linalg.norm(wi), wo / np.linalg.norm(wo)
+            if min(abs(wi[2]), abs(wo[2])) < 0.05:
+                continue
+            si = si_with(mi.Vector3f(*wi))
+            vs, vb = s.eval(ctx, si, mi.Vector3f(*wo)), b.eval(ctx, si, mi.Vector3f(*wo))
+            for c in range(3):
+                assert abs(vs[c] - vb[c]) <= 2e-4 * abs(vb[c]) + 1e-7, (mode, wi, wo, c, vs[c], vb[c])
+            checked += vb[0] > 0
+    assert checked > 20  # nonzero values compared (opaque stacks: only both-above pairs)
+
+
+@pytest.mark.parametrize("case", ["diffuse", "roughdielectric"])
+def test_light_tracer_agrees_with_builtin(tmp_path, case):
+    """Mitsuba's particle tracer (TransportMode.Importance: light paths, strata's
+    radiance mode) with strata against the built-in BSDF: image means within
+    Z_MAX standard errors (a light tracer is too noisy here for 1 %)."""
+    use_variant("llvm_ad_rgb")
+    text, builtin = CASES[case]
+
+    def scene_pt(bsdf):
+        return mi.load_dict(
+            {
+                "type": "scene",
+                "integrator": {"type": "ptracer", "max_depth": 8},
+                "sensor": {
+                    "type": "perspective",
+                    "fov": 28,
+                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 5], target=[0, 0, 0], up=[0, 1, 0]),
+                    "film": {"type": "hdrfilm", "width": 29, "height": 21, "rfilter": {"type": "box"}},
+                    "sampler": {"type": "independent", "sample_count": 256},
+                },
+                "light": {"type": "sphere", "center": [2, 2, 2], "radius": 0.8,
+                          "emitter": {"type": "area", "radiance": rgb([4.0, 4.0, 4.0])}},
+                "sphere": {"type": "sphere", "bsdf": bsdf},
+                "floor": {"type": "rectangle", "to_world": mi.ScalarTransform4f().translate([0, 0, -1.5]).scale(4),
+                          "bsdf": {"type": "diffuse"}},
+            }
+        )
+
+    k = 4
+    strata = scene_pt({"type": "strata", "filename": material(tmp_path, text)})
+    ref = scene_pt(builtin)
+    a = np.stack([np.array(mi.render(strata, seed=s), dtype=np.float64) for s in range(k)])
+    b = np.stack([np.array(mi.render(ref, seed=100 + s), dtype=np.float64) for s in range(k)])
+    assert np.isfinite(a).all() and a.mean() > 0
+    n_px = a[0].size
+    se = math.sqrt((a.var(axis=0, ddof=1).sum() + b.var(axis=0, ddof=1).sum()) / (n_px * n_px * k))
+    print(f"ptracer {case}: strata {a.mean():.5f} builtin {b.mean():.5f} ({100 * (a.mean() / b.mean() - 1):+.2f} % "
+          f"+- {100 * se / b.mean():.2f} %)")
+    assert abs(a.mean() - b.mean()) < Z_MAX * se
