@@ -80,8 +80,8 @@ def test_eval_and_pdf_bit_identical_to_cli(strata_cli, materials, material, lowe
     cli = run_cli(strata_cli, ["eval", "--material", str(path), "--samples", str(samples), "--seed", str(seed)], lines)
     assert len(cli) == n
     bsdf = Bsdf.from_path(path, samples=samples, seed=seed)
-    # The CLI keys query k by its line index.
-    f, se = bsdf.eval(wi, wo, keys=np.arange(n, dtype=np.uint64))
+    # The CLI keys each query by its directions, as an unkeyed call does.
+    f, se = bsdf.eval(wi, wo)
     pdf = bsdf.pdf(wi, wo)
     np.testing.assert_array_equal(f, np.array([c["f"] for c in cli], dtype=np.float64).astype(np.float32))
     np.testing.assert_array_equal(se, np.array([c["stderr"] for c in cli], dtype=np.float64).astype(np.float32))
