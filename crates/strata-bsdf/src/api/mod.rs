@@ -432,10 +432,11 @@ impl LayeredBsdf {
     /// Eval of validated pairs on the engine the call resolves to, in the
     /// BSDF's transport mode.
     fn eval_validated(&self, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
-        if let (Estimator::Auto, Some(exact)) = (self.estimator, &self.exact) {
+        if self.eval_by_query(dirs.len(), samples) {
             return dirs
                 .iter()
-                .map(|&(a, b)| self.exact_eval(exact, a, b, samples))
+                .zip(keys)
+                .map(|(&(a, b), &k)| self.eval_one(a, b, samples, k))
                 .collect();
         }
         // Each query's walks start from the side `eval_start` chooses.
@@ -448,23 +449,42 @@ impl LayeredBsdf {
             .zip(&swapped)
             .map(|(&(a, b), &s)| if s { (b, a) } else { (a, b) })
             .collect();
-        let mut est: Vec<Estimate> = match self.engine.resolve(dirs.len(), samples) {
-            Engine::Scalar => walked
-                .iter()
-                .zip(keys)
-                .map(|(&(a, b), &k)| self.scalar.eval(a, b, samples, self.seed, k))
-                .collect(),
-            _ => self.install(dirs.len(), samples, || {
-                self.wave.eval_batch(&walked, samples, self.seed, keys).0
-            }),
-        };
-        for ((e, &(a, b)), &s) in est.iter_mut().zip(dirs).zip(&swapped) {
-            if let Some(x) = self.transport.factor_of(self.stack(), a[2], b[2], s) {
-                e.value = e.value.map(|v| v * x);
-                e.stderr = e.stderr.map(|v| v * x);
-            }
+        let est = self.install(dirs.len(), samples, || {
+            self.wave.eval_batch(&walked, samples, self.seed, keys).0
+        });
+        est.into_iter()
+            .zip(dirs)
+            .zip(&swapped)
+            .map(|((e, &(a, b)), &s)| self.scaled(e, a, b, s))
+            .collect()
+    }
+
+    /// Whether an eval call of `n` queries runs query by query: by the
+    /// closed form, or on the scalar engine.
+    fn eval_by_query(&self, n: usize, samples: u64) -> bool {
+        (self.estimator == Estimator::Auto && self.exact.is_some())
+            || self.engine.resolve(n, samples) == Engine::Scalar
+    }
+
+    /// One query's eval by the closed form or on the scalar engine, from the
+    /// side `eval_start` chooses, in the transport mode; allocates nothing.
+    fn eval_one(&self, a: [f64; 3], b: [f64; 3], samples: u64, key: u64) -> Estimate {
+        if let (Estimator::Auto, Some(exact)) = (self.estimator, &self.exact) {
+            return self.exact_eval(exact, a, b, samples);
         }
-        est
+        let s = self.eval_start.swaps(a[2], b[2]);
+        let (x, y) = if s { (b, a) } else { (a, b) };
+        self.scaled(self.scalar.eval(x, y, samples, self.seed, key), a, b, s)
+    }
+
+    /// An estimate of the radiance BSDF from `a` to `b` (or, `swapped`, from
+    /// `b` to `a`) as this mode's BSDF from `a` to `b`.
+    fn scaled(&self, mut e: Estimate, a: [f64; 3], b: [f64; 3], swapped: bool) -> Estimate {
+        if let Some(x) = self.transport.factor_of(self.stack(), a[2], b[2], swapped) {
+            e.value = e.value.map(|v| v * x);
+            e.stderr = e.stderr.map(|v| v * x);
+        }
+        e
     }
 
     /// The closed form of a query, as an estimate of standard error 0 (the
@@ -495,21 +515,18 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Vec<Option<Sample>> {
-        let walks: Vec<Option<WalkSample>> = match self.engine.resolve(dirs.len(), 1) {
-            Engine::Scalar => dirs
+        if self.engine.resolve(dirs.len(), 1) == Engine::Scalar {
+            return dirs
                 .iter()
                 .zip(keys.iter().zip(sample_index))
-                .map(|(&a, (&k, &i))| {
-                    let mut rng = WalkRng::new(self.seed, k, i, Stream::Walk);
-                    self.scalar.sample(a, &mut rng)
-                })
-                .collect(),
-            _ => self.install(dirs.len(), 1, || {
-                self.wave
-                    .sample_batch(dirs, self.seed, keys, sample_index)
-                    .0
-            }),
-        };
+                .map(|(&a, (&k, &i))| self.sample_one(a, k, i))
+                .collect();
+        }
+        let walks = self.install(dirs.len(), 1, || {
+            self.wave
+                .sample_batch(dirs, self.seed, keys, sample_index)
+                .0
+        });
         // The pdf of each sampled direction, as `pdf(wi, wo)` computes it.
         let pairs: Vec<Pair> = walks
             .iter()
@@ -520,42 +537,50 @@ impl LayeredBsdf {
         walks
             .into_iter()
             .zip(dirs)
-            .map(|(w, a)| {
-                let w = w?;
-                let mut weight = w.weight;
-                let wo = [w.wo.x as f64, w.wo.y as f64, w.wo.z as f64];
-                if let Some(s) = self.transport.factor(self.stack(), a[2], wo[2]) {
-                    weight = weight.map(|v| (v as f64 * s) as f32);
-                }
-                Some(Sample {
-                    wo: w.wo,
-                    weight,
-                    pdf: pdfs.next().unwrap_or(0.0),
-                    reflection: w.reflection,
-                    specular: w.specular,
-                })
-            })
+            .map(|(w, &a)| Some(self.finish_sample(w?, a, pdfs.next().unwrap_or(0.0))))
             .collect()
+    }
+
+    /// One sample on the scalar engine, with its pdf; allocates nothing.
+    fn sample_one(&self, a: [f64; 3], key: u64, index: u64) -> Option<Sample> {
+        let mut rng = WalkRng::new(self.seed, key, index, Stream::Walk);
+        let w = self.scalar.sample(a, &mut rng)?;
+        let pdf = Direction::new("wo", w.wo).map_or(0.0, |b| self.pdf_one(a, b.get()));
+        Some(self.finish_sample(w, a, pdf))
+    }
+
+    /// A walk's sample from `a` with its pdf, in the transport mode.
+    fn finish_sample(&self, w: WalkSample, a: [f64; 3], pdf: f32) -> Sample {
+        let mut weight = w.weight;
+        if let Some(s) = self.transport.factor(self.stack(), a[2], w.wo.z as f64) {
+            weight = weight.map(|v| (v as f64 * s) as f32);
+        }
+        Sample {
+            wo: w.wo,
+            weight,
+            pdf,
+            reflection: w.reflection,
+            specular: w.specular,
+        }
+    }
+
+    /// One pair's approximate pdf on the scalar engine, keyed by the
+    /// directions; allocates nothing.
+    fn pdf_one(&self, a: [f64; 3], b: [f64; 3]) -> f32 {
+        let key = pdf_key(a, b);
+        self.scalar.pdf(a, b, self.pdf_samples, self.seed, key) as f32
     }
 
     /// The approximate pdf of validated pairs, keyed by the directions.
     fn pdf_validated(&self, dirs: &[Pair]) -> Vec<f32> {
-        let f32s = |d: [f64; 3]| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
-        let keys: Vec<u64> = dirs
-            .iter()
-            .map(|&(a, b)| direction_key(f32s(a), f32s(b)))
-            .collect();
-        let keys = &keys[..];
-        let p: Vec<f64> = match self.engine.resolve_pdf(dirs.len()) {
-            Engine::Scalar => dirs
-                .iter()
-                .zip(keys)
-                .map(|(&(a, b), &k)| self.scalar.pdf(a, b, self.pdf_samples, self.seed, k))
-                .collect(),
-            _ => self.install_if(dirs.len() > PDF_CHUNK, || {
-                self.wave.pdf_batch(dirs, self.pdf_samples, self.seed, keys)
-            }),
-        };
+        if self.engine.resolve_pdf(dirs.len()) == Engine::Scalar {
+            return dirs.iter().map(|&(a, b)| self.pdf_one(a, b)).collect();
+        }
+        let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
+        let p = self.install_if(dirs.len() > PDF_CHUNK, || {
+            self.wave
+                .pdf_batch(dirs, self.pdf_samples, self.seed, &keys)
+        });
         p.into_iter().map(|x| x as f32).collect()
     }
 
@@ -633,6 +658,12 @@ fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
         .enumerate()
         .map(|(i, &(a, b))| Ok((direction_at("wi", i, a)?, direction_at("wo", i, b)?)))
         .collect()
+}
+
+/// The key of a pdf query: the bits of the normalized directions in f32.
+fn pdf_key(a: [f64; 3], b: [f64; 3]) -> u64 {
+    let f32s = |d: [f64; 3]| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+    direction_key(f32s(a), f32s(b))
 }
 
 /// A query key from the bits of two directions.

@@ -14,7 +14,10 @@
 //! `k` of `strata sample` does). With `Some(keys)` the renderer's sampler
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
-use super::{direction_at, direction_key, one_each, walk_count, BatchError, LayeredBsdf, Pair};
+use super::{
+    direction_at, direction_key, one_each, walk_count, BatchError, Direction, Engine, Estimate,
+    LayeredBsdf, Pair,
+};
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -267,15 +270,12 @@ impl LayeredBsdf {
         if let Some(s) = &stderr {
             s.check("stderr", n)?;
         }
-        let (pairs, keys) = self.eval_input(&wi, &wo, keys)?;
-        let est = self.eval_validated(&pairs, self.samples, &keys);
-        for (k, e) in est.iter().enumerate() {
+        self.evals(&wi, &wo, keys, |k, e| {
             f.set(k, f32x3(e.value));
             if let Some(s) = &mut stderr {
                 s.set(k, f32x3(e.stderr));
             }
-        }
-        Ok(())
+        })
     }
 
     /// [`LayeredBsdf::eval_into`] into `#[repr(C)]` records.
@@ -288,15 +288,12 @@ impl LayeredBsdf {
     ) -> Result<(), BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("out", out.len(), n)?;
-        let (pairs, keys) = self.eval_input(&wi, &wo, keys)?;
-        let est = self.eval_validated(&pairs, self.samples, &keys);
-        for (o, e) in out.iter_mut().zip(est) {
-            *o = EvalRecord {
+        self.evals(&wi, &wo, keys, |k, e| {
+            out[k] = EvalRecord {
                 f: f32x3(e.value),
                 stderr: f32x3(e.stderr),
-            };
-        }
-        Ok(())
+            }
+        })
     }
 
     /// One sample per query, written to `wo`, `weight`, `pdf` and `flags`
@@ -315,14 +312,13 @@ impl LayeredBsdf {
         weight.check("weight", n)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("flags", flags.len(), n)?;
-        for (k, s) in self.sample_slices(&wi, keys)?.iter().enumerate() {
-            let r = SampleRecord::of(s.as_ref());
+        self.samples_of(&wi, keys, |k, s| {
+            let r = SampleRecord::of(s);
             wo.set(k, r.wo);
             weight.set(k, r.weight);
             pdf[k] = r.pdf;
             flags[k] = r.flags;
-        }
-        Ok(())
+        })
     }
 
     /// [`LayeredBsdf::sample_into`] into `#[repr(C)]` records.
@@ -334,10 +330,7 @@ impl LayeredBsdf {
     ) -> Result<(), BatchError> {
         let n = wi.count("wi")?;
         one_each("out", out.len(), n)?;
-        for (o, s) in out.iter_mut().zip(self.sample_slices(&wi, keys)?) {
-            *o = SampleRecord::of(s.as_ref());
-        }
-        Ok(())
+        self.samples_of(&wi, keys, |k, s| out[k] = SampleRecord::of(s))
     }
 
     /// The approximate pdf of every pair, written to `pdf` (keyed by the
@@ -345,7 +338,15 @@ impl LayeredBsdf {
     pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
-        let (pairs, _) = self.eval_input(&wi, &wo, None)?;
+        check_pairs(&wi, &wo)?;
+        if self.engine.resolve_pdf(n) == Engine::Scalar {
+            for (k, p) in pdf.iter_mut().enumerate() {
+                let (a, b) = pair_at(&wi, &wo, k);
+                *p = self.pdf_one(a, b);
+            }
+            return Ok(());
+        }
+        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
         pdf.copy_from_slice(&self.pdf_validated(&pairs));
         Ok(())
     }
@@ -390,55 +391,98 @@ impl LayeredBsdf {
         Ok(n)
     }
 
-    /// Validated pairs and their keys (from the directions if not given).
-    fn eval_input(
+    /// The eval of every pair, handed to `out` in query order once every
+    /// input is known to be valid. Calls that run query by query (the
+    /// scalar engine, a closed form) allocate nothing; wavefront batches
+    /// allocate their engine's working memory.
+    fn evals(
         &self,
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
-    ) -> Result<(Vec<Pair>, Vec<u64>), BatchError> {
+        mut out: impl FnMut(usize, &Estimate),
+    ) -> Result<(), BatchError> {
         let n = wi.len();
-        let pairs = (0..n)
-            .map(|i| {
-                Ok((
-                    direction_at("wi", i, wi.get(i))?,
-                    direction_at("wo", i, wo.get(i))?,
-                ))
-            })
-            .collect::<Result<Vec<Pair>, BatchError>>()?;
-        let keys = match keys {
-            Some(k) => {
-                one_each("keys", k.len(), n)?;
-                k.to_vec()
+        check_pairs(wi, wo)?;
+        if let Some(k) = keys {
+            one_each("keys", k.len(), n)?;
+        }
+        let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
+        if self.eval_by_query(n, self.samples) {
+            for k in 0..n {
+                let (a, b) = pair_at(wi, wo, k);
+                out(k, &self.eval_one(a, b, self.samples, key(k)));
             }
-            None => (0..n)
-                .map(|i| direction_key(wi.get(i), wo.get(i)))
-                .collect(),
-        };
-        Ok((pairs, keys))
+            return Ok(());
+        }
+        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
+        let keys: Vec<u64> = (0..n).map(key).collect();
+        for (k, e) in self
+            .eval_validated(&pairs, self.samples, &keys)
+            .iter()
+            .enumerate()
+        {
+            out(k, e);
+        }
+        Ok(())
     }
 
-    /// The samples of a slice call: unkeyed queries draw sample index `k`
-    /// of their direction's key, keyed ones sample index 0 of their key.
-    fn sample_slices(
+    /// The sample of every query, handed to `out` in query order: unkeyed
+    /// queries draw sample index `k` of their direction's key, keyed ones
+    /// sample index 0 of their key. Allocates nothing on the scalar engine.
+    fn samples_of(
         &self,
         wi: &Vectors,
         keys: Option<&[u64]>,
-    ) -> Result<Vec<Option<super::Sample>>, BatchError> {
+        mut out: impl FnMut(usize, Option<&super::Sample>),
+    ) -> Result<(), BatchError> {
         let n = wi.len();
-        let dirs = wi.directions("wi")?;
-        let (keys, index): (Vec<u64>, Vec<u64>) = match keys {
-            Some(k) => {
-                one_each("keys", k.len(), n)?;
-                (k.to_vec(), vec![0; n])
-            }
-            None => (
-                (0..n)
-                    .map(|i| direction_key(wi.get(i), wi.get(i)))
-                    .collect(),
-                (0..n as u64).collect(),
-            ),
+        for k in 0..n {
+            direction_at("wi", k, wi.get(k))?;
+        }
+        if let Some(k) = keys {
+            one_each("keys", k.len(), n)?;
+        }
+        let stream = |k: usize| match keys {
+            Some(x) => (x[k], 0),
+            None => (direction_key(wi.get(k), wi.get(k)), k as u64),
         };
-        Ok(self.sample_validated(&dirs, &keys, &index))
+        if self.engine.resolve(n, 1) == Engine::Scalar {
+            for k in 0..n {
+                let (key, index) = stream(k);
+                out(k, self.sample_one(dir_at(wi, k), key, index).as_ref());
+            }
+            return Ok(());
+        }
+        let dirs: Vec<[f64; 3]> = (0..n).map(|k| dir_at(wi, k)).collect();
+        let (keys, index): (Vec<u64>, Vec<u64>) = (0..n).map(stream).unzip();
+        for (k, s) in self
+            .sample_validated(&dirs, &keys, &index)
+            .iter()
+            .enumerate()
+        {
+            out(k, s.as_ref());
+        }
+        Ok(())
     }
+}
+
+/// Checks that every pair holds two directions (the error names the first
+/// query that does not), allocating nothing.
+fn check_pairs(wi: &Vectors, wo: &Vectors) -> Result<(), BatchError> {
+    for k in 0..wi.len() {
+        direction_at("wi", k, wi.get(k))?;
+        direction_at("wo", k, wo.get(k))?;
+    }
+    Ok(())
+}
+
+/// Direction `k` of a checked batch.
+fn dir_at(v: &Vectors, k: usize) -> [f64; 3] {
+    Direction::new("wi", v.get(k)).map_or([0.0; 3], Direction::get)
+}
+
+/// Pair `k` of a checked batch.
+fn pair_at(wi: &Vectors, wo: &Vectors, k: usize) -> Pair {
+    (dir_at(wi, k), dir_at(wo, k))
 }

@@ -36,9 +36,32 @@ use crate::rng::{query_prefix, Stream, WalkRng};
 use crate::stack::LayerStack;
 
 /// A one-lane number: `f32` or `f64`.
-pub trait Scalar: Lane<Mask = bool> + PartialOrd {}
-impl Scalar for f32 {}
-impl Scalar for f64 {}
+pub trait Scalar: Lane<Mask = bool> + PartialOrd {
+    /// Runs `f` with this thread's buffer for adjoint chains (as the last
+    /// query left it: the chain's builder clears it), so that an eval
+    /// allocates nothing once the thread has run one. If the buffer is in
+    /// use on this thread already, `f` gets a fresh one.
+    fn with_chain<R>(f: impl FnOnce(&mut Vec<Link<Self>>) -> R) -> R;
+}
+
+macro_rules! chain_buffer {
+    ($t:ty) => {
+        impl Scalar for $t {
+            fn with_chain<R>(f: impl FnOnce(&mut Vec<Link<Self>>) -> R) -> R {
+                thread_local! {
+                    static CHAIN: std::cell::RefCell<Vec<Link<$t>>> =
+                        const { std::cell::RefCell::new(Vec::new()) };
+                }
+                CHAIN.with(|c| match c.try_borrow_mut() {
+                    Ok(mut v) => f(&mut v),
+                    Err(_) => f(&mut Vec::new()),
+                })
+            }
+        }
+    };
+}
+chain_buffer!(f32);
+chain_buffer!(f64);
 
 /// The adjoint chain never exceeds this many segments. Each further segment
 /// needs one more delta bounce that the chain survives only with probability
@@ -458,28 +481,29 @@ impl<S: Scalar> ScalarEngine<S> {
         let wo = v3::<S>(o.apply(wo));
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
-        let mut chain = Vec::with_capacity(8);
         // A fixed chain is the same for every walk: the first walk's serves all.
         let fixed = events::chain_is_fixed(&self.stack, &self.layout, e_out);
         let prefix = query_prefix(seed, query);
-        for k in 0..n {
-            if k == 0 || !fixed {
-                let mut rng_a = WalkRng::from_prefix(prefix, k, Stream::Adjoint);
-                self.adjoint_chain(wo, e_out, &mut rng_a, &mut chain);
+        S::with_chain(|chain| {
+            for k in 0..n {
+                if k == 0 || !fixed {
+                    let mut rng_a = WalkRng::from_prefix(prefix, k, Stream::Adjoint);
+                    self.adjoint_chain(wo, e_out, &mut rng_a, chain);
+                }
+                let mut c = Connect {
+                    wo,
+                    exit: e_out,
+                    exit_rough: !self.stack.interface(e_out).smooth,
+                    region: self.layout.exit_region(e_out),
+                    chain,
+                    acc: Rgb::zero(),
+                    from_collisions: Rgb::zero(),
+                };
+                let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
+                self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
+                f(rgb_f64(c.acc + c.from_collisions));
             }
-            let mut c = Connect {
-                wo,
-                exit: e_out,
-                exit_rough: !self.stack.interface(e_out).smooth,
-                region: self.layout.exit_region(e_out),
-                chain: &chain,
-                acc: Rgb::zero(),
-                from_collisions: Rgb::zero(),
-            };
-            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
-            self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
-            f(rgb_f64(c.acc + c.from_collisions));
-        }
+        });
         // First-order term: the entrance alone, when it is also the exit.
         if e_in == e_out {
             rgb_f64(self.ifaces[e_in].eval(wi, wo))

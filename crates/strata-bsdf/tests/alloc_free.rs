@@ -1,0 +1,117 @@
+//! The slice calls allocate nothing when they run query by query (on the
+//! scalar engine, which `Engine::Auto` picks for calls of fewer walks than
+//! the wavefront has lanes, or by a closed form): counted by a global
+//! allocator, after a first call has set up the thread's buffers. Wavefront
+//! batches allocate their engine's working memory per call (docs/embedding.md).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use strata_bsdf::{Engine, EvalRecord, LayeredBsdf, SampleRecord, Transport, Vectors, VectorsMut};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards to the system allocator, counting calls.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: the caller's guarantees are passed on unchanged.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: as above.
+        unsafe { System.dealloc(p, l) }
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> usize {
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    f();
+    ALLOCATIONS.load(Ordering::SeqCst) - before
+}
+
+// One test function: the counter is global, so nothing else may run at once.
+#[test]
+fn query_by_query_calls_allocate_nothing() {
+    let coated = include_str!("../materials/coated_copper.toml");
+    let slab = include_str!("../materials/scattering_slab.toml");
+    let clear = include_str!("../materials/clear_coat_lambertian.toml");
+    let wi = [[0.3f32, 0.0, 0.95], [0.1, -0.4, 0.9], [0.2, 0.2, -0.9]];
+    let wo = [[-0.3f32, 0.1, 0.95], [0.5, 0.0, 0.8], [0.0, 0.3, 0.9]];
+    for toml in [coated, slab, clear] {
+        for transport in [Transport::Radiance, Transport::Importance] {
+            let stack = strata_bsdf::LayerStack::from_toml_str(toml).unwrap();
+            let b = LayeredBsdf::new(stack)
+                .samples(64)
+                .engine(Engine::Scalar)
+                .transport(transport);
+            let mut f = [[0.0f32; 3]; 3];
+            let mut rec = [EvalRecord::default(); 3];
+            let mut s = [SampleRecord::default(); 3];
+            let mut p = [0.0f32; 3];
+            let mut run = || {
+                b.eval_into(
+                    Vectors::Aos(&wi),
+                    Vectors::Aos(&wo),
+                    None,
+                    VectorsMut::Aos(&mut f),
+                    None,
+                )
+                .unwrap();
+                b.eval_records(
+                    Vectors::Aos(&wi),
+                    Vectors::Aos(&wo),
+                    Some(&[1, 2, 3]),
+                    &mut rec,
+                )
+                .unwrap();
+                b.sample_records(Vectors::Aos(&wi), None, &mut s).unwrap();
+                b.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut p)
+                    .unwrap();
+            };
+            run(); // sets up the thread's chain buffer
+            assert_eq!(allocations(&mut run), 0, "{toml}");
+            assert!(f.iter().flatten().any(|&x| x > 0.0));
+            assert!(s.iter().any(|r| r.flags != 0));
+        }
+    }
+    // Auto picks the scalar engine for a single sample and a single pdf.
+    let stack = strata_bsdf::LayerStack::from_toml_str(coated).unwrap();
+    let b = LayeredBsdf::new(stack);
+    let mut s = [SampleRecord::default(); 1];
+    let mut p = [0.0f32; 1];
+    let mut one = || {
+        b.sample_records(Vectors::Aos(&wi[..1]), Some(&[9]), &mut s)
+            .unwrap();
+        b.pdf_into(Vectors::Aos(&wi[..1]), Vectors::Aos(&wo[..1]), &mut p)
+            .unwrap();
+    };
+    one();
+    assert_eq!(allocations(&mut one), 0);
+    // The wavefront engine allocates per call: the count is not zero (so
+    // the counter counts), and does not grow with the batch in proportion.
+    let b = b.engine(Engine::Wavefront).samples(64).threads(2).unwrap();
+    let (wi4, wo4) = (vec![wi[0]; 4096], vec![wo[0]; 4096]);
+    let mut f = vec![[0.0f32; 3]; 4096];
+    let mut eval = |n: usize| {
+        allocations(|| {
+            b.eval_into(
+                Vectors::Aos(&wi4[..n]),
+                Vectors::Aos(&wo4[..n]),
+                None,
+                VectorsMut::Aos(&mut f[..n]),
+                None,
+            )
+            .unwrap()
+        })
+    };
+    let (small, large) = (eval(16), eval(4096));
+    assert!(
+        small > 0 && large < 4096 / 2,
+        "{small} and {large} allocations"
+    );
+}
