@@ -53,6 +53,8 @@ fn query_by_query_calls_allocate_nothing() {
             let mut rec = [EvalRecord::default(); 3];
             let mut s = [SampleRecord::default(); 3];
             let mut p = [0.0f32; 3];
+            let (mut so, mut sw) = ([[0.0f32; 3]; 3], [[0.0f32; 3]; 3]);
+            let (mut sp, mut sf) = ([0.0f32; 3], [0u32; 3]);
             let mut run = || {
                 b.eval_into(
                     Vectors::Aos(&wi),
@@ -70,6 +72,15 @@ fn query_by_query_calls_allocate_nothing() {
                 )
                 .unwrap();
                 b.sample_records(Vectors::Aos(&wi), None, &mut s).unwrap();
+                b.sample_into(
+                    Vectors::Aos(&wi),
+                    Some(&[4, 5, 6]),
+                    VectorsMut::Aos(&mut so),
+                    VectorsMut::Aos(&mut sw),
+                    &mut sp,
+                    &mut sf,
+                )
+                .unwrap();
                 b.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut p)
                     .unwrap();
             };

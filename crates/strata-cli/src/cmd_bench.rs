@@ -57,6 +57,10 @@ pub struct Args {
     /// the normal (the library's default) or always from wi.
     #[arg(long, default_value = "normal")]
     eval_start: strata_bsdf::EvalStart,
+    /// The estimator of `--against`: auto (the library's default: a closed
+    /// form where the stack has one) or uni (always the walks).
+    #[arg(long, default_value = "auto")]
+    estimator: strata_bsdf::Estimator,
     /// Runs per pair of `--against` (the fastest counts).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     reps: u32,
@@ -227,7 +231,14 @@ pub fn run(args: Args) -> Result<(), String> {
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
     if args.against.is_some() {
-        let text = crate::bench_pbrt::report(args.walks, args.reps, all, args.eval_start, args.json)?;
+        let text = crate::bench_pbrt::report(
+            args.walks,
+            args.reps,
+            all,
+            args.eval_start,
+            args.estimator,
+            args.json,
+        )?;
         return print_out(&text);
     }
     let stacks: Vec<(String, LayerStack)> = match &args.material {

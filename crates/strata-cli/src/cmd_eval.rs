@@ -31,6 +31,14 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Estimator: auto (a closed form where the stack has one, the walks
+    /// elsewhere) or uni (always the unidirectional walks).
+    #[arg(long, default_value = "auto")]
+    estimator: strata_bsdf::Estimator,
+    /// Where the walks start: from whichever of wi and wo is nearer the
+    /// normal (normal, the default) or always from wi.
+    #[arg(long, default_value = "normal")]
+    eval_start: strata_bsdf::EvalStart,
     #[command(flatten)]
     engine: EngineArgs,
 }
@@ -49,13 +57,17 @@ struct Answer {
 /// Runs `strata eval`.
 pub fn run(args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
-    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
+    let bsdf = LayeredBsdf::new(stack)
+        .seed(args.seed)
+        .estimator(args.estimator)
+        .eval_start(args.eval_start);
+    let bsdf = args.engine.apply(bsdf)?;
     let stdin = std::io::stdin();
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    // Queries are read in chunks and evaluated as a batch; the query key is
-    // the line index, so a query's answer depends only on the seed and where
-    // it stands in the input (not on the engine or the chunking).
+    // Queries are read in chunks and evaluated as a batch; each is keyed by
+    // its directions, so its answer depends only on the seed and the
+    // directions (not on the engine, the chunking or its line).
     let mut pairs = Vec::with_capacity(CHUNK);
     let mut lines_of = Vec::with_capacity(CHUNK);
     let mut lines = stdin.lock().lines().enumerate();

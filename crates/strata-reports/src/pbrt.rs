@@ -16,7 +16,7 @@
 //!   in half its time.
 
 use std::time::Instant;
-use strata_bsdf::{Engine, EvalStart, LayerStack, LayeredBsdf};
+use strata_bsdf::{Engine, Estimator, EvalStart, LayerStack, LayeredBsdf};
 
 const VALUES: &str = include_str!("../data/pbrt-v4/values_f.csv");
 /// The timing file used, and the machine it was measured on.
@@ -128,6 +128,7 @@ pub fn pairs(name: &str) -> Vec<PbrtPair> {
             .position(|c| *c == h)
             .expect("column of values_f.csv")
     };
+    let c_cfg = col("config");
     let (c_pair, c_to, c_ti) = (col("pair"), col("theta_o_deg"), col("theta_i_deg"));
     let (c_wo, c_wi, c_n, c_f, c_se) = (
         col("wo_x"),
@@ -138,7 +139,7 @@ pub fn pairs(name: &str) -> Vec<PbrtPair> {
     );
     lines
         .map(|l| l.split(',').collect::<Vec<&str>>())
-        .filter(|v| v[0] == name)
+        .filter(|v| v[c_cfg] == name)
         .map(|v| {
             let num = |i: usize| v[i].parse::<f64>().expect("a number in values_f.csv");
             PbrtPair {
@@ -183,11 +184,14 @@ pub struct PairResult {
     pub f: f64,
     /// Its standard error.
     pub se: f64,
-    /// strata's wall time per walk, in seconds.
+    /// strata's wall time per walk, in seconds (per query when `exact`).
     pub seconds_per_walk: f64,
+    /// strata answered by a closed form (standard error 0, no walk).
+    pub exact: bool,
     /// pbrt-v4's time per call, in seconds.
     pub pbrt_seconds_per_call: f64,
-    /// strata's efficiency over pbrt-v4's (`None` where a variance is 0).
+    /// strata's efficiency over pbrt-v4's: infinite where strata's answer
+    /// is exact, `None` where pbrt-v4's variance is 0 (a lone interface).
     pub ratio: Option<f64>,
 }
 
@@ -199,9 +203,9 @@ impl PairResult {
 }
 
 /// Runs strata's eval on every pair of `config`: `walks` walks per pair on
-/// `threads` threads, the fastest of `reps` runs (each a fresh seed's walks,
-/// so that the variance is measured once per run and the time is the
-/// quickest: a shared machine's slow phases only lengthen runs).
+/// `threads` threads, `reps` runs with different query keys; the time is
+/// the fastest run's (a shared machine's slow phases only lengthen runs)
+/// and the variance the first run's.
 pub fn compare(
     config: &Config,
     walks: u64,
@@ -209,6 +213,7 @@ pub fn compare(
     reps: u32,
     engine: Engine,
     start: EvalStart,
+    estimator: Estimator,
 ) -> Result<Vec<PairResult>, String> {
     let stack =
         LayerStack::from_toml_str(&config.toml).map_err(|e| format!("{}: {e}", config.name))?;
@@ -218,6 +223,7 @@ pub fn compare(
         .samples(walks)
         .engine(engine)
         .eval_start(start)
+        .estimator(estimator)
         .threads(threads)
         .map_err(|e| e.to_string())?;
     let mut out = Vec::new();
@@ -236,16 +242,21 @@ pub fn compare(
             est.get_or_insert(e);
         }
         let e = est.expect("at least one run");
-        let seconds_per_walk = best / walks as f64;
+        let exact = e.stderr == [0.0; 3] && e.value[0] > 0.0;
+        let seconds_per_walk = if exact { best } else { best / walks as f64 };
         let var_s = e.stderr[0] * e.stderr[0] * walks as f64;
         let var_p = p.se * p.se * p.calls;
-        let ratio =
-            (var_s > 0.0 && var_p > 0.0).then(|| (var_p * pbrt_t) / (var_s * seconds_per_walk));
+        let ratio = match (exact, var_s > 0.0 && var_p > 0.0) {
+            (true, _) if var_p > 0.0 => Some(f64::INFINITY),
+            (false, true) => Some((var_p * pbrt_t) / (var_s * seconds_per_walk)),
+            _ => None,
+        };
         out.push(PairResult {
             pbrt: p,
             f: e.value[0],
             se: e.stderr[0],
             seconds_per_walk,
+            exact,
             pbrt_seconds_per_call: pbrt_t,
             ratio,
         });

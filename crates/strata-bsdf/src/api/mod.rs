@@ -137,7 +137,7 @@ impl std::str::FromStr for Engine {
 /// use glam::Vec3;
 /// let stack = LayerStack::from_toml_str(r#"
 ///     [[layers]]
-///     interface = { kind = "dielectric", ior = 1.5 }
+///     interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
 ///     [[layers]]
 ///     interface = { kind = "diffuse", albedo = 0.8 }
 /// "#).unwrap();
@@ -527,17 +527,27 @@ impl LayeredBsdf {
                 .sample_batch(dirs, self.seed, keys, sample_index)
                 .0
         });
-        // The pdf of each sampled direction, as `pdf(wi, wo)` computes it.
+        // The pdf of each sampled direction, as `pdf(wi, wo)` computes it
+        // (0 for a direction that is not one, as on the scalar path).
+        let pair = |w: &Option<WalkSample>, a: [f64; 3]| {
+            Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get()))
+        };
         let pairs: Vec<Pair> = walks
             .iter()
             .zip(dirs)
-            .filter_map(|(w, &a)| Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get())))
+            .filter_map(|(w, &a)| pair(w, a))
             .collect();
         let mut pdfs = self.pdf_validated(&pairs).into_iter();
         walks
             .into_iter()
             .zip(dirs)
-            .map(|(w, &a)| Some(self.finish_sample(w?, a, pdfs.next().unwrap_or(0.0))))
+            .map(|(w, &a)| {
+                let pdf = match pair(&w, a) {
+                    Some(_) => pdfs.next().unwrap_or(0.0),
+                    None => 0.0,
+                };
+                Some(self.finish_sample(w?, a, pdf))
+            })
             .collect()
     }
 

@@ -50,6 +50,10 @@ impl<'a> Vectors<'a> {
     }
 
     /// Vector `i`.
+    ///
+    /// # Panics
+    /// If `i` is out of range of a slice (the batch calls check the lengths
+    /// first, naming the argument).
     pub fn get(&self, i: usize) -> Vec3 {
         match self {
             Vectors::Aos(v) => Vec3::from(v[i]),
@@ -105,6 +109,10 @@ impl<'a> VectorsMut<'a> {
     }
 
     /// Writes vector `i`.
+    ///
+    /// # Panics
+    /// If `i` is out of range of a slice (the batch calls check the lengths
+    /// first, naming the argument).
     pub fn set(&mut self, i: usize, v: [f32; 3]) {
         match self {
             VectorsMut::Aos(a) => a[i] = v,
@@ -403,6 +411,7 @@ impl LayeredBsdf {
         mut out: impl FnMut(usize, &Estimate),
     ) -> Result<(), BatchError> {
         let n = wi.len();
+        walk_count("samples", self.samples).map_err(BatchError::call)?;
         check_pairs(wi, wo)?;
         if let Some(k) = keys {
             one_each("keys", k.len(), n)?;

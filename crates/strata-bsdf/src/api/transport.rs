@@ -12,8 +12,9 @@ use crate::stack::LayerStack;
 
 /// What flows from `wi` to `wo` in a query, and so which BSDF it answers.
 ///
-/// strata's walks always start at `wi`; the mode says what that direction
-/// is. A renderer that passes the direction its path arrived from as `wi`
+/// `sample` walks start at `wi` (and `eval`'s are carried over to it when
+/// they start at `wo`: [`crate::EvalStart`]); the mode says what that
+/// direction is. A renderer that passes the direction its path arrived from as `wi`
 /// (Mitsuba's `si.wi`, pbrt's `wo`) uses `Importance` for paths traced from
 /// the camera (those renderers' "radiance" mode: the path carries
 /// importance from the sensor, and light arrives from the sampled

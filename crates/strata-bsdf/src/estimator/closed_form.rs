@@ -78,9 +78,18 @@ impl SmoothCoatLambertian {
         }
         let (ti, mi) = self.enter(ci);
         let (to, mo) = self.enter(co);
+        if ti == 0.0 || to == 0.0 {
+            // Total reflection outside a coat less dense than the exterior:
+            // no light enters or leaves (and μ′ = 0 would make 0/0 below).
+            return [0.0; 3];
+        }
         let scale = ti * to / (PI * self.eta * self.eta);
         std::array::from_fn(|c| {
-            let att = (-self.tau[c] / mi).exp() * (-self.tau[c] / mo).exp();
+            let att = if self.tau[c] > 0.0 {
+                (-self.tau[c] / mi).exp() * (-self.tau[c] / mo).exp()
+            } else {
+                1.0
+            };
             scale * att * self.rho[c] / (1.0 - self.rho[c] * self.r_bar[c])
         })
     }
