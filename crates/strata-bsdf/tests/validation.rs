@@ -100,16 +100,26 @@ struct Tally {
     z2: Vec<f64>,
     failures: Vec<String>,
     worst: f64,
+    /// Every comparison as a CSV line, written out when `STRATA_VALIDATION_OUT` names a
+    /// directory (validation/table.py makes docs/validation.md's table from it).
+    lines: Vec<String>,
 }
 
 impl Tally {
-    fn check(&mut self, what: &str, s: f64, s_err: f64, r: f64, r_err: f64, bound: f64) {
+    /// `key` identifies the comparison for the table (engine, case, quantity, angles, channel).
+    #[allow(clippy::too_many_arguments)]
+    fn check(&mut self, key: &str, what: &str, s: f64, s_err: f64, r: f64, r_err: f64, bound: f64) {
         assert!(
             s.is_finite() && s_err.is_finite(),
             "{what}: non-finite {s} ± {s_err}"
         );
         let sigma = (s_err * s_err + r_err * r_err).sqrt();
         let excess = ((s - r).abs() - bound).max(0.0);
+        if sigma == 0.0 && bound == 0.0 {
+            // An exact zero on both sides (a channel with no light) says nothing.
+            assert_eq!(s, r, "{what}");
+            return;
+        }
         let z = if sigma > 0.0 {
             excess / sigma
         } else if excess > 0.0 {
@@ -117,11 +127,10 @@ impl Tally {
         } else {
             0.0
         };
-        if sigma == 0.0 && bound == 0.0 {
-            // An exact zero on both sides (a channel with no light) says nothing.
-            assert_eq!(s, r, "{what}");
-            return;
-        }
+        self.lines.push(format!(
+            "{key},{s:e},{s_err:e},{r:e},{r_err:e},{bound:e},{:.3}",
+            (s - r) / sigma.max(f64::MIN_POSITIVE)
+        ));
         self.z2.push(z * z);
         self.worst = self.worst.max(z);
         if excess > K * sigma {
@@ -132,6 +141,14 @@ impl Tally {
     }
 
     fn finish(self, name: &str) {
+        if let Ok(dir) = std::env::var("STRATA_VALIDATION_OUT") {
+            let path = format!("{dir}/{name}.strata.csv");
+            let text = format!(
+                "engine,case,quantity,theta_i,theta_o,phi_o,channel,strata,strata_sigma,reference,reference_sigma,bound,z\n{}\n",
+                self.lines.join("\n")
+            );
+            std::fs::write(&path, text).unwrap_or_else(|e| panic!("{path}: {e}"));
+        }
         let n = self.z2.len();
         let mean = self.z2.iter().sum::<f64>() / n as f64;
         eprintln!(
@@ -253,7 +270,11 @@ fn point_file(name: &str, walks: u64, cone_dirs: usize) {
             }
             let bsdf = &cache.as_ref().unwrap().1;
             let s = strata_value(bsdf, row, walks, cone_dirs);
-            let (r, rs, rb) = (row.rgb("ref", 0.0), row.rgb("sigma", 0.0), row.rgb("bound", 0.0));
+            let (r, rs, rb) = (
+                row.rgb("ref", 0.0),
+                row.rgb("sigma", 0.0),
+                row.rgb("bound", 0.0),
+            );
             for c in 0..3 {
                 let what = format!(
                     "{label} {} {} θi {} θo {} φo {} ch {c}",
@@ -263,7 +284,15 @@ fn point_file(name: &str, walks: u64, cone_dirs: usize) {
                     row.get("theta_o").unwrap_or(""),
                     row.get("phi_o").unwrap_or(""),
                 );
-                tally.check(&what, s[c].0, s[c].1, r[c], rs[c], rb[c]);
+                let key = format!(
+                    "{label},{},{},{},{},{},{c}",
+                    row.get("case").unwrap(),
+                    row.get("quantity").unwrap(),
+                    row.get("theta_i").unwrap(),
+                    row.get("theta_o").unwrap_or(""),
+                    row.get("phi_o").unwrap_or(""),
+                );
+                tally.check(&key, &what, s[c].0, s[c].1, r[c], rs[c], rb[c]);
             }
         }
     }
@@ -305,7 +334,9 @@ fn iadpython_adding_doubling() {
             let al = bsdf.albedo(vec3(dir(0.0, 0.0)), 200_000).expect("albedo");
             let what = format!("{label} n {n} τ {tau} a {a} g {g}");
             // Grey slab: the three channels are the same walks; compare one.
+            let case = format!("iad n={n} tau={tau} a={a} g={g}");
             tally.check(
+                &format!("{label},{case},R,0,,,grey"),
                 &format!("{what} R"),
                 al.reflected.value[0],
                 al.reflected.stderr[0],
@@ -314,6 +345,7 @@ fn iadpython_adding_doubling() {
                 row.num("quad_err_R"),
             );
             tally.check(
+                &format!("{label},{case},T,0,,,grey"),
                 &format!("{what} T"),
                 al.transmitted.value[0],
                 al.transmitted.stderr[0],
