@@ -16,8 +16,11 @@
 //! reference's stated deterministic error (quadrature, truncation). About 700 comparisons:
 //! a correct estimator trips one with probability ≈ 700 × 6.3e-5 ≈ 4 % for an arbitrary seed;
 //! the seeds are fixed, so the outcome is deterministic. Each file also asserts that the mean
-//! of z² (excess over the bound) stays below 1.5: it is 1 ± sqrt(2/N) for a correct
-//! estimator (N ≥ 60 here), so a bias of about half a standard error everywhere fails it.
+//! of z² (excess over the bound; a row's channels averaged, as they share walks) over its N
+//! rows is at most 1 + 4 sqrt(2 m/N), m = 2 where the two engines share a noisy reference row
+//! (Mitsuba), else 1: 1.27 for the 432 adding-doubling rows, 1.78 for the 52 exact ones, 2.0
+//! for Mitsuba's, so a bias of about half, 0.9 or 1 standard error shared by most rows fails
+//! even when no single comparison is outside 4σ.
 
 mod common;
 use common::*;
@@ -25,7 +28,6 @@ use strata_bsdf::{Engine, LayerStack, LayeredBsdf};
 
 const DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../validation");
 const K: f64 = 4.0;
-const MEAN_Z2_MAX: f64 = 1.5;
 
 /// One row of a reference CSV, by column name.
 struct Row {
@@ -97,7 +99,10 @@ const ENGINES: [(Engine, u64, &str); 2] = [
 /// Collects comparisons; fails at the end with every failure listed.
 #[derive(Default)]
 struct Tally {
+    /// Per reference row (channels averaged: they share walks, so they are not independent).
     z2: Vec<f64>,
+    /// z² of the current row's channels.
+    row: Vec<f64>,
     failures: Vec<String>,
     worst: f64,
     /// Every comparison as a CSV line, written out when `STRATA_VALIDATION_OUT` names a
@@ -131,7 +136,7 @@ impl Tally {
             "{key},{s:e},{s_err:e},{r:e},{r_err:e},{bound:e},{:.3}",
             (s - r) / sigma.max(f64::MIN_POSITIVE)
         ));
-        self.z2.push(z * z);
+        self.row.push(z * z);
         self.worst = self.worst.max(z);
         if excess > K * sigma {
             self.failures.push(format!(
@@ -140,7 +145,19 @@ impl Tally {
         }
     }
 
-    fn finish(self, name: &str) {
+    /// Closes a reference row: its channels' mean z² is one sample of the file's mean.
+    fn end_row(&mut self) {
+        if !self.row.is_empty() {
+            self.z2
+                .push(self.row.iter().sum::<f64>() / self.row.len() as f64);
+            self.row.clear();
+        }
+    }
+
+    /// `shared`: how many rows may share one reference error (2 where both engines are compared
+    /// with the same noisy reference row, 1 for deterministic references).
+    fn finish(mut self, name: &str, shared: f64) {
+        self.end_row();
         if let Ok(dir) = std::env::var("STRATA_VALIDATION_OUT") {
             let path = format!("{dir}/{name}.strata.csv");
             let text = format!(
@@ -150,22 +167,26 @@ impl Tally {
             std::fs::write(&path, text).unwrap_or_else(|e| panic!("{path}: {e}"));
         }
         let n = self.z2.len();
+        let comparisons = self.lines.len();
         let mean = self.z2.iter().sum::<f64>() / n as f64;
         eprintln!(
-            "{name}: {n} comparisons, mean z² {mean:.3}, worst |z| {:.2}",
+            "{name}: {comparisons} comparisons in {n} rows, mean z² {mean:.3}, worst |z| {:.2}",
             self.worst
         );
         assert!(
             self.failures.is_empty(),
-            "{name}: {} of {n} comparisons outside {K} sigma:\n{}",
+            "{name}: {} of {comparisons} comparisons outside {K} sigma:\n{}",
             self.failures.len(),
             self.failures.join("\n")
         );
-        assert!(n >= 50, "{name}: only {n} comparisons");
+        assert!(n >= 40, "{name}: only {n} rows");
+        // z² has mean 1 and variance 2 per independent comparison; a row's channels may be
+        // fully correlated, so its mean z² has variance at most 2, and the file's mean at most
+        // 2 shared / n: allow 4 of those standard deviations.
+        let max = 1.0 + 4.0 * (2.0 * shared / n as f64).sqrt();
         assert!(
-            mean <= MEAN_Z2_MAX,
-            "{name}: mean z² = {mean:.3} over {n} comparisons (a correct estimator gives 1 ± {:.2})",
-            (2.0 / n as f64).sqrt()
+            mean <= max,
+            "{name}: mean z² = {mean:.3} over {n} rows (a correct estimator: 1, allowed {max:.2})"
         );
     }
 }
@@ -294,9 +315,18 @@ fn point_file(name: &str, walks: u64, cone_dirs: usize) {
                 );
                 tally.check(&key, &what, s[c].0, s[c].1, r[c], rs[c], rb[c]);
             }
+            tally.end_row();
         }
     }
-    tally.finish(name);
+    let shared = if rows
+        .iter()
+        .any(|r| r.rgb("sigma", 0.0).iter().any(|&x| x > 0.0))
+    {
+        2.0
+    } else {
+        1.0
+    };
+    tally.finish(name, shared);
 }
 
 #[test]
@@ -344,6 +374,7 @@ fn iadpython_adding_doubling() {
                 0.0,
                 row.num("quad_err_R"),
             );
+            tally.end_row();
             tally.check(
                 &format!("{label},{case},T,0,,,grey"),
                 &format!("{what} T"),
@@ -353,7 +384,8 @@ fn iadpython_adding_doubling() {
                 0.0,
                 row.num("quad_err_T"),
             );
+            tally.end_row();
         }
     }
-    tally.finish("iad.csv");
+    tally.finish("iad.csv", 1.0);
 }
