@@ -46,12 +46,12 @@ def rgb(v):
     return {"type": "rgb", "value": [float(x) for x in v]}
 
 
-def rough_dielectric(int_ior, ext_ior, alpha):
+def rough_dielectric(int_ior, ext_ior, alpha, distribution="ggx"):
     if alpha == 0:
         return {"type": "dielectric", "int_ior": int_ior, "ext_ior": ext_ior}
     return {
         "type": "roughdielectric",
-        "distribution": "ggx",
+        "distribution": distribution,
         "alpha": alpha,
         "int_ior": int_ior,
         "ext_ior": ext_ior,
@@ -59,10 +59,10 @@ def rough_dielectric(int_ior, ext_ior, alpha):
     }
 
 
-def rough_conductor(eta, k, alpha):
+def rough_conductor(eta, k, alpha, distribution="ggx"):
     return {
         "type": "roughconductor",
-        "distribution": "ggx",
+        "distribution": distribution,
         "alpha": alpha,
         "eta": rgb(eta),
         "k": rgb(k),
@@ -129,6 +129,18 @@ CASES = {
         media=[dict(sigma_t=[0.3, 0.6, 0.9], albedo=0.0, g=0.0),
                dict(sigma_t=1.0, albedo=0.9, g=-0.3)],
         queries=[("R", 0.0), ("R", 45.0), ("f", 30.0, 30.0, 180.0, 4.0), ("f", 0.0, 60.0, 90.0, 4.0)],
+    ),
+}
+
+# Run separately (--only paper_validation1 --out references/mitsuba_validation1.csv): the
+# paper's Fig. 2 "Validation 1" stack, Beckmann, with copper relative to the coat.
+EXTRA = {
+    "paper_validation1": dict(
+        material="paper_validation1.toml",
+        top=rough_dielectric(1.5, 1.0, 0.05, "beckmann"),
+        medium=dict(sigma_t=1.0, albedo=[0.5, 0.7, 0.95], g=0.5),
+        bottom=rough_conductor([e / 1.5 for e in CU_ETA], [k / 1.5 for k in CU_K], 0.05, "beckmann"),
+        queries=[("R", 0.0), ("R", 45.0), ("f", 30.0, 30.0, 180.0, 4.0), ("f", 0.0, 45.0, 90.0, 4.0)],
     ),
 }
 
@@ -243,7 +255,8 @@ def main():
             "geometry": {"half_width": W, "thickness": THICK, "light_distance": D_LIGHT},
             "cases": {}}
     t_all = time.time()
-    for ci, (name, case) in enumerate(CASES.items()):
+    cases = dict(CASES, **EXTRA) if args.only in EXTRA else CASES
+    for ci, (name, case) in enumerate(cases.items()):
         if args.only and name != args.only:
             continue
         meta["cases"][name] = {"material": case["material"]}
