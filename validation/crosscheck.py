@@ -58,8 +58,10 @@ def main():
         for m in csv.DictReader(f):
             if m["case"] != "smooth_coat_lambertian":
                 continue
-            for c in (1, 2):
+            for c in (0, 1, 2):
                 rho = rhos[c]
+                if rho == 0.0 and m["quantity"] != "R":
+                    continue  # f = 0 exactly, and Mitsuba gives exactly 0
                 if m["quantity"] == "R":
                     ref = coat_R(math.cos(math.radians(float(m["theta_i"]))), eta, rho, r, t)
                     q = f"R(θi {float(m['theta_i']):g}°)"
