@@ -135,6 +135,17 @@ CASES = {
 # Run separately (--only paper_validation1 --out references/mitsuba_validation1.csv): the
 # paper's Fig. 2 "Validation 1" stack, Beckmann, with copper relative to the coat.
 EXTRA = {
+    # Run separately (--only rough_slab_from_below --out references/mitsuba_below.csv): the
+    # transmissive slab lit from below (theta_i > 90), reflected and transmitted.
+    "rough_slab_from_below": dict(
+        material="rough_slab_transmissive.toml",
+        top=rough_dielectric(1.5, 1.0, 0.3),
+        medium=dict(sigma_t=0.5, albedo=0.9, g=0.3),
+        bottom=rough_dielectric(1.0, 1.5, 0.2),
+        queries=[("R", 180.0), ("T", 180.0), ("R", 130.0), ("T", 130.0),
+                 ("f", 150.0, 140.0, 180.0, 4.0), ("f", 150.0, 40.0, 0.0, 4.0),
+                 ("f", 180.0, 60.0, 90.0, 4.0)],
+    ),
     "paper_validation1": dict(
         material="paper_validation1.toml",
         top=rough_dielectric(1.5, 1.0, 0.05, "beckmann"),
@@ -187,7 +198,10 @@ def scene_for(case, query, channel=None):
     black = {"type": "diffuse", "reflectance": rgb(0.0)}
     if kind in ("R", "T"):
         d["env"] = {"type": "constant", "radiance": rgb(1.0)}
-        z = bottom_z - 0.5 if kind == "R" else 0.5
+        # block the side the measured light must not come from: below for R from above (and T
+        # from below), above for T from above (and R from below)
+        from_below = query[1] > 90.0
+        z = bottom_z - 0.5 if (kind == "R") != from_below else 0.5
         d["blocker"] = {"type": "rectangle", "bsdf": black,
                         "to_world": mi.ScalarTransform4f().translate([0, 0, z]).scale([1e6, 1e6, 1.0])}
     else:
