@@ -135,6 +135,18 @@ CASES = {
 # Run separately (--only paper_validation1 --out references/mitsuba_validation1.csv): the
 # paper's Fig. 2 "Validation 1" stack, Beckmann, with copper relative to the coat.
 EXTRA = {
+    # Run separately (--only slab_over_glass --out references/mitsuba_glass.csv): exteriors of
+    # different IOR (air above, glass 1.5 below), so transmitted radiance carries strata's n²
+    # factor; the transmitted values are measured directly (light above, camera in the glass),
+    # not by reciprocity. No T albedo (reciprocity would need the n² factor too).
+    "slab_over_glass": dict(
+        material="slab_over_glass.toml",
+        top=rough_dielectric(1.33, 1.0, 0.25),
+        medium=dict(sigma_t=0.8, albedo=0.85, g=0.4),
+        bottom=rough_dielectric(1.5, 1.33, 0.2),  # normal +z: ext = slab (1.33), int = glass 1.5
+        queries=[("R", 0.0), ("R", 50.0), ("f", 30.0, 160.0, 180.0, 4.0),
+                 ("f", 0.0, 140.0, 90.0, 4.0), ("f", 45.0, 120.0, 0.0, 4.0)],
+    ),
     # Run separately (--only rough_slab_from_below --out references/mitsuba_below.csv): the
     # transmissive slab lit from below (theta_i > 90), reflected and transmitted.
     "rough_slab_from_below": dict(
