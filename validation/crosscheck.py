@@ -6,6 +6,8 @@
    closed form over the same cone.
 2. iadpython against the exact absorbing Fresnel slab (a = 0) and against Chandrasekhar's
    H-function (n = 1, optical depth 60).
+3. Mitsuba (mitsuba_smooth.csv) against iadpython on the smooth scattering slab at normal
+   incidence.
 
 Prints a markdown table (docs/validation.md quotes it). Needs numpy and iadpython (+ scipy).
 """
@@ -95,6 +97,21 @@ def main():
             R = 1 - h(1.0) * math.sqrt(1 - a)
             rows.append(("iadpython vs H-function", f"semi-infinite isotropic, a {a}", "R (θi 0°)",
                          f"{float(ur1):.8f}", f"{R:.8f}", f"Δ {abs(float(ur1) - R):.0e}"))
+    # 3. Mitsuba against adding-doubling: the smooth scattering slab at normal incidence.
+    smooth = os.path.join(HERE, "references", "mitsuba_smooth.csv")
+    if os.path.exists(smooth):
+        with open(os.path.join(HERE, "references", "iad.csv")) as f:
+            iad = [r for r in csv.DictReader(f) if (float(r["ior"]), float(r["tau"]), float(r["albedo"]),
+                                                    float(r["g"])) == (1.5, 1.0, 0.9, 0.5)][0]
+        with open(smooth) as f:
+            for m in csv.DictReader(f):
+                if m["quantity"] in ("R", "T") and float(m["theta_i"]) == 0.0:
+                    q = m["quantity"]
+                    val, sig = float(m["ref0"]), float(m["sigma0"])
+                    ref, qerr = float(iad[q]), float(iad["quad_err_" + q])
+                    rows.append(("Mitsuba vs iadpython", "smooth slab n 1.5, τ 1, a 0.9, g 0.5", f"{q} (θi 0°)",
+                                 f"{val:.6f} ± {sig:.1e}", f"{ref:.6f} (quadrature {qerr:.0e})",
+                                 f"{(val - ref) / sig:+.2f}"))
     print("| check | stack | quantity | tested reference | exact | z or Δ |")
     print("|---|---|---|---|---|---|")
     for row in rows:

@@ -135,6 +135,17 @@ CASES = {
 # Run separately (--only paper_validation1 --out references/mitsuba_validation1.csv): the
 # paper's Fig. 2 "Validation 1" stack, Beckmann, with copper relative to the coat.
 EXTRA = {
+    # Run separately (--only smooth_slab_oblique --out references/mitsuba_smooth.csv): a
+    # scattering slab between smooth boundaries at oblique incidence, which iadpython cannot do
+    # (its normal-incidence values of the same slab are in iad.csv: a three-way check).
+    "smooth_slab_oblique": dict(
+        material="smooth_slab_oblique.toml",
+        top=rough_dielectric(1.5, 1.0, 0.0),
+        medium=dict(sigma_t=1.0, albedo=0.9, g=0.5),
+        bottom=rough_dielectric(1.0, 1.5, 0.0),
+        queries=[("R", 0.0), ("T", 0.0), ("R", 40.0), ("T", 40.0), ("R", 70.0), ("T", 70.0),
+                 ("f", 30.0, 50.0, 90.0, 5.0), ("f", 30.0, 140.0, 0.0, 5.0)],
+    ),
     # Run separately (--only slab_over_glass --out references/mitsuba_glass.csv): exteriors of
     # different IOR (air above, glass 1.5 below), so transmitted radiance carries strata's n²
     # factor; the transmitted values are measured directly (light above, camera in the glass),

@@ -17,7 +17,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 DOC = os.path.join(HERE, "..", "docs", "validation.md")
 FILES = [("exact.csv", "exact"), ("mitsuba.csv", "Mitsuba 3.9.1"),
          ("mitsuba_validation1.csv", "Mitsuba 3.9.1"), ("mitsuba_below.csv", "Mitsuba 3.9.1"),
-         ("mitsuba_glass.csv", "Mitsuba 3.9.1"),
+         ("mitsuba_glass.csv", "Mitsuba 3.9.1"), ("mitsuba_smooth.csv", "Mitsuba 3.9.1"),
          ("iad.csv", "iadpython 0.5.3")]
 CHANNEL = {"0": "r", "1": "g", "2": "b", "grey": "grey"}
 

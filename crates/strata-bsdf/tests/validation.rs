@@ -365,6 +365,12 @@ fn mitsuba_exteriors_of_different_ior() {
     point_file("mitsuba_glass.csv", 1 << 20, 512);
 }
 
+/// A scattering slab between smooth boundaries at oblique incidence; its own file.
+#[test]
+fn mitsuba_smooth_slab_oblique() {
+    point_file("mitsuba_smooth.csv", 1 << 20, 512);
+}
+
 #[test]
 fn iadpython_adding_doubling() {
     let rows = read_csv("iad.csv");
