@@ -13,8 +13,8 @@
 //! Every comparison runs on both engines, the scalar reference with seed 1 and the wavefront
 //! with seed 2 (two independent estimates), and passes when
 //! |strata − reference| ≤ 4 σ + bound, σ = sqrt(σ_strata² + σ_reference²) and `bound` the
-//! reference's stated deterministic error (quadrature, truncation). 772 comparisons:
-//! a correct estimator trips one with probability ≈ 772 × 6.3e-5 ≈ 5 % for an arbitrary seed;
+//! reference's stated deterministic error (quadrature, truncation). 788 comparisons:
+//! a correct estimator trips one with probability ≈ 788 × 6.3e-5 ≈ 5 % for an arbitrary seed;
 //! the seeds are fixed, so the outcome is deterministic. Each file also asserts that the mean
 //! of z² (excess over the bound; a row's channels averaged, as they share walks) over its N
 //! rows is at most 1 + 4 sqrt(2 m/N), m = 2 where the two engines share a noisy reference row
