@@ -570,6 +570,7 @@ fn closed_form_agrees_with_the_walks() {
     let mut compared = 0;
     for toml in stacks {
         let exact = bsdf(toml);
+        assert!(exact.eval_is_exact(), "{toml}");
         let walks = bsdf(toml)
             .estimator(Estimator::Unidirectional)
             .samples(1 << 17);
@@ -612,6 +613,7 @@ fn closed_form_agrees_with_the_walks() {
     );
     // A scattering layer or a rough coat has no closed form: walks answer.
     for toml in [SLAB, COATED_COPPER, COATED_SLAB] {
+        assert!(!bsdf(toml).eval_is_exact());
         let e = bsdf(toml)
             .eval(vec3(dir(30.0, 0.0)), vec3(dir(40.0, 180.0)))
             .unwrap();

@@ -1043,3 +1043,98 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
         &["--only", "gpu"],
     );
 }
+
+#[test]
+fn eval_estimator_and_start_flags_choose_how_eval_estimates() {
+    // A clear coat over Lambertian has a closed form: exact (stderr 0) by
+    // default, walks with --estimator uni; a grazing-light pair runs other
+    // walks with --eval-start wi; both agree within their errors.
+    let m = example("clear_coat_lambertian.toml");
+    let q = "{\"wi\":[0.9848077,0,0.17364818],\"wo\":[0,0,1]}\n";
+    let f = |extra: &[&str]| -> ([f64; 3], [f64; 3]) {
+        let mut args = vec!["eval", "--material", m.as_str(), "--samples", "20000"];
+        args.extend_from_slice(extra);
+        let out = assert_ok(&run(&args, q));
+        let v: Value = serde_json::from_str(out.trim()).unwrap();
+        (rgb(&v, "f"), rgb(&v, "stderr"))
+    };
+    let (exact, se0) = f(&[]);
+    assert_eq!(se0, [0.0; 3]);
+    let (walks, se) = f(&["--estimator", "uni"]);
+    let (from_wi, se_wi) = f(&["--estimator", "uni", "--eval-start", "wi"]);
+    assert_ne!(walks, from_wi, "--eval-start wi ran the same walks");
+    for c in 0..3 {
+        assert!(se[c] > 0.0 && se_wi[c] > 0.0);
+        assert!((walks[c] - exact[c]).abs() <= 4.0 * se[c] + 1e-6 * exact[c]);
+        assert!((from_wi[c] - exact[c]).abs() <= 4.0 * se_wi[c] + 1e-6 * exact[c]);
+    }
+    assert_fails_with(
+        &run(&["eval", "--material", &m, "--estimator", "bidir"], q),
+        &["--estimator", "bidir"],
+    );
+    assert_fails_with(
+        &run(&["eval", "--material", &m, "--eval-start", "wo"], q),
+        &["--eval-start", "wo"],
+    );
+}
+
+#[test]
+fn bench_against_pbrt_v4_reports_every_pair() {
+    let out = run(
+        &[
+            "bench",
+            "--against",
+            "pbrt-v4",
+            "--walks",
+            "64",
+            "--reps",
+            "1",
+            "--threads",
+            "1",
+            "--json",
+        ],
+        "",
+    );
+    let lines: Vec<Value> = assert_ok(&out)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // 6 configurations x 21 pairs, one thread.
+    assert_eq!(lines.len(), 126);
+    for l in &lines {
+        assert!(l["f"].as_f64().unwrap() >= 0.0 && l["pbrt_f"].as_f64().unwrap() > 0.0);
+        let exact = l["exact"].as_bool().unwrap();
+        assert_eq!(exact, l["config"] == "coated_diffuse_smooth_alb0", "{l}");
+        if exact {
+            assert_eq!(l["efficiency_ratio"], "exact");
+        } else if l["se"].as_f64().unwrap() > 0.0 {
+            assert!(l["efficiency_ratio"].as_f64().unwrap() > 0.0, "{l}");
+        } else {
+            // 64 walks that all scored 0 beyond the exact first-order term:
+            // no variance measured, no ratio.
+            assert!(l["efficiency_ratio"].is_null(), "{l}");
+        }
+    }
+    let table = assert_ok(&run(
+        &[
+            "bench",
+            "--against",
+            "pbrt-v4",
+            "--walks",
+            "64",
+            "--reps",
+            "1",
+            "--threads",
+            "1",
+        ],
+        "",
+    ));
+    assert!(
+        table.contains("timing_amd_epyc_2026-12-01.csv")
+            && table.contains("coated_conductor_rough_cu_rough0.1")
+    );
+    assert_fails_with(
+        &run(&["bench", "--against", "mitsuba"], ""),
+        &["--against", "mitsuba"],
+    );
+}

@@ -234,6 +234,12 @@ impl LayeredBsdf {
         self
     }
 
+    /// Whether `eval` is answered by a closed form (the stack has one and the
+    /// estimator is [`Estimator::Auto`]): exact values, standard error 0.
+    pub fn eval_is_exact(&self) -> bool {
+        self.estimator == Estimator::Auto && self.exact.is_some()
+    }
+
     /// The transport mode.
     pub fn transport_mode(&self) -> Transport {
         self.transport
@@ -462,8 +468,7 @@ impl LayeredBsdf {
     /// Whether an eval call of `n` queries runs query by query: by the
     /// closed form, or on the scalar engine.
     fn eval_by_query(&self, n: usize, samples: u64) -> bool {
-        (self.estimator == Estimator::Auto && self.exact.is_some())
-            || self.engine.resolve(n, samples) == Engine::Scalar
+        self.eval_is_exact() || self.engine.resolve(n, samples) == Engine::Scalar
     }
 
     /// One query's eval by the closed form or on the scalar engine, from the
