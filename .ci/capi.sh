@@ -13,7 +13,13 @@ export CARGO_TERM_COLOR=never
 crate=crates/strata-capi
 header=$crate/include/strata.h
 
+# The header is what Debian bookworm's cbindgen (0.24.3) makes; another
+# version may format it differently and fail the check below.
 if ! command -v cbindgen >/dev/null 2>&1; then
+  if [ "$(id -u)" != 0 ]; then
+    echo "cbindgen is missing: install it (Debian: apt-get install cbindgen) or run as root" >&2
+    exit 1
+  fi
   echo "== installing cbindgen"
   apt-get update -qq
   apt-get install -y -qq cbindgen >/dev/null
