@@ -78,5 +78,6 @@ pub use api::{
     QueryError, Sample, SampleFlags, SampleRecord, ThreadsError, Transport, Vectors, VectorsMut,
     MAX_THREADS, MAX_WALKS,
 };
+pub use estimator::pdf::{PdfEstimate, PdfKind};
 pub use estimator::{Albedo, Estimate, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, StackError};

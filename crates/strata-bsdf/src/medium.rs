@@ -217,6 +217,38 @@ pub fn sample_free_flight<L: Lane>(
     }
 }
 
+/// A crossing of `dist` without collision, in expectation: the probability
+/// that [`sample_free_flight`] (hero channel `hero`) passes it, and the
+/// throughput factor and channel ratios it then gives (its no-collision
+/// branch).
+#[inline(always)]
+pub fn no_collision<L: Lane>(
+    sigma_t: Rgb<L>,
+    grey: bool,
+    dist: L,
+    hero: L,
+    ratios: Rgb<L>,
+) -> (L, Rgb<L>, Rgb<L>) {
+    if grey {
+        return ((-(sigma_t.r * dist)).exp(), Rgb::one(), ratios);
+    }
+    let sh = hero_sigma(sigma_t, hero);
+    let rel = sigma_t.map(|s| {
+        (-(s - sh) * dist)
+            .clamp(L::splat(-87.0), L::splat(80.0))
+            .exp()
+    });
+    let r = ratios * rel;
+    let s = r.average();
+    let ok = s.gt(L::zero());
+    let inv = L::div_or_zero(L::one(), s, ok);
+    (
+        (-(sh * dist)).exp(),
+        Rgb::select(ok, rel.scale(inv), Rgb::zero()),
+        Rgb::select(ok, r.scale(inv), Rgb::one()),
+    )
+}
+
 /// The density in depth of a collision at distance `t` along a direction with
 /// `|d.z| = mu`: `p̄_s(t) / mu` (method.md §3, the 1/|cos| of the position-free RTE).
 #[inline(always)]

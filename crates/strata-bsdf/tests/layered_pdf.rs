@@ -1,30 +1,26 @@
 //! The approximate pdf of `sample()` (`ScalarEngine::pdf`, method.md §6).
 //!
-//! It is not the density of `sample()` and need not integrate to 1:
-//! * it is an approximation: it ignores the media (scattering and
-//!   attenuation) and keeps only the shortest interface paths, so it misses
-//!   the probability carried by longer paths;
+//! It is an estimate of the density of `sample()`'s walks of at most
+//! `APPROX_EVENTS` events (tests/pdf_density.rs checks the density walk
+//! against `sample()`'s histogram), and need not integrate to 1:
 //! * `sample()` itself is a defective distribution: walks can be absorbed
 //!   (returning `None`) and smooth interfaces put probability into delta lobes,
 //!   which have no density; only the rest can appear in a pdf;
-//! * it is a Monte Carlo estimate from a few short walks, so its value at one
+//! * it is a Monte Carlo estimate from a few walks, so its value at one
 //!   direction is noisy (its expectation is what integrates to ≤ 1);
 //! * it is mixed with a uniform density, pdf = 0.9 p + 0.1 / 4π, so that it
 //!   is positive wherever f can be (on the hemispheres light can leave through).
 //!
-//! Each path it keeps is a sub-event of the walk, so its expected integral is
-//! at most 0.9 + 0.1 = 1; the uniform part alone gives 0.1 on a transmissive
-//! stack. What is checked, per stack and incident direction:
+//! Its expected integral is therefore at most 0.9 + 0.1 = 1; the uniform
+//! part alone gives 0.1 on a transmissive stack. What is checked, per stack
+//! and incident direction:
 //! * over a grid of directions, the pdf is finite and ≥ 0 everywhere, and > 0
 //!   wherever `eval` is > 0 in some channel;
 //! * its integral over the sphere (jittered quadrature, one random point per
 //!   cell; standard error from pairs of neighbouring cells) lies in
 //!   [0.1 - 4σ, 1 + 4σ] (for an opaque stack the uniform part only counts on
 //!   the upper hemisphere; the lower bound still holds because the interface
-//!   paths carry most of the probability). A stack whose interfaces are all
-//!   smooth and whose non-delta part comes from its media alone (the smooth
-//!   slab) gets the uniform part only, 0.1: correct for an approximation that
-//!   ignores media, and a known weakness for renderers' MIS;
+//!   paths carry most of the probability);
 //! * for a lone rough interface it is exactly 0.9 · that interface's density
 //!   plus the uniform part.
 

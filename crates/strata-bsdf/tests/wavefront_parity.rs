@@ -21,7 +21,7 @@ use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8};
 use strata_bsdf::rng::{Stream, WalkRng};
-use strata_bsdf::{LayerStack, Settings};
+use strata_bsdf::{LayerStack, PdfKind, Settings};
 
 /// Every interface kind (smooth and rough, GGX and Beckmann, isotropic and
 /// anisotropic), every medium kind (clear, absorbing, scattering; grey and
@@ -390,9 +390,13 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
         }
         let qs = queries(&st);
         let keys: Vec<u64> = (0..qs.len() as u64).collect();
-        let wp = wf.pdf_batch(&qs, 8, 4, &keys);
-        for (k, &(wi, wo)) in qs.iter().enumerate() {
-            assert_eq!(sc.pdf(wi, wo, 8, 4, keys[k]), wp[k], "{name}: pdf {k}");
+        // Both pdfs: the same density walks, lane by lane.
+        for (kind, walks) in [(PdfKind::Approximate, 8), (PdfKind::Unbiased, 37)] {
+            let wp = wf.pdf_batch(&qs, walks, 4, &keys, kind);
+            for (k, &(wi, wo)) in qs.iter().enumerate() {
+                let sp = sc.pdf_estimate(wi, wo, walks, 4, keys[k], kind);
+                assert_eq!(sp, wp[k], "{name}: {kind:?} pdf {k}");
+            }
         }
     }
 }

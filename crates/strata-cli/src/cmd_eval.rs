@@ -3,7 +3,8 @@
 //! Input: one query per line, `{"wi":[x,y,z],"wo":[x,y,z]}` (local frame, z =
 //! normal, both directions pointing away from the surface; normalized on input;
 //! blank lines are skipped). Output: one line per query,
-//! `{"f":[r,g,b],"stderr":[r,g,b],"pdf":p}`, `f` without the cosine. The first
+//! `{"f":[r,g,b],"stderr":[r,g,b],"pdf":p}`, `f` without the cosine; with
+//! `--pdf unbiased` the line ends with `"pdf_stderr":s`. The first
 //! bad line (malformed JSON, a missing or extra field, not three numbers, a zero
 //! or non-finite direction) stops the run with an error naming its line number;
 //! the answers to the lines before it have already been printed.
@@ -17,7 +18,7 @@ use serde::Serialize;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 use strata_bsdf::query::parse_query_vectors;
-use strata_bsdf::LayeredBsdf;
+use strata_bsdf::{LayeredBsdf, PdfKind};
 
 /// Arguments of `strata eval`.
 #[derive(clap::Args)]
@@ -39,9 +40,21 @@ pub struct Args {
     /// normal (normal, the default) or always from wi.
     #[arg(long, default_value = "normal")]
     eval_start: strata_bsdf::EvalStart,
+    /// Which pdf of sample(): approx (what `strata sample` reports, the
+    /// default) or unbiased (the density of sample()'s directions, with its
+    /// standard error; slow).
+    #[arg(long, default_value = "approx")]
+    pdf: strata_bsdf::PdfKind,
+    /// Density walks per pdf (default: the library's for approx, 4096 for
+    /// unbiased).
+    #[arg(long, value_parser = crate::common::walks)]
+    pdf_samples: Option<u64>,
     #[command(flatten)]
     engine: EngineArgs,
 }
+
+/// Density walks per unbiased pdf unless `--pdf-samples` says otherwise.
+const UNBIASED_PDF_SAMPLES: u64 = 4096;
 
 /// Queries evaluated together (the wavefront engine batches them).
 const CHUNK: usize = 1024;
@@ -52,12 +65,19 @@ struct Answer {
     f: [f64; 3],
     stderr: [f64; 3],
     pdf: f32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pdf_stderr: Option<f32>,
 }
 
 /// Runs `strata eval`.
 pub fn run(args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
-    let bsdf = LayeredBsdf::new(stack)
+    let mut bsdf = LayeredBsdf::new(stack);
+    if let (PdfKind::Approximate, Some(n)) = (args.pdf, args.pdf_samples) {
+        let n = u32::try_from(n).map_err(|_| format!("--pdf-samples: {n} is too many for approx"))?;
+        bsdf = bsdf.pdf_samples(n);
+    }
+    let bsdf = bsdf
         .seed(args.seed)
         .estimator(args.estimator)
         .eval_start(args.eval_start);
@@ -143,12 +163,28 @@ fn answer(
     let f = bsdf
         .eval_batch_keyed(pairs, args.samples, &keys)
         .map_err(fail)?;
-    let p = bsdf.pdf_batch(pairs).map_err(fail)?;
-    for (e, p) in f.iter().zip(p) {
+    let p: Vec<(f32, Option<f32>)> = match args.pdf {
+        PdfKind::Approximate => bsdf
+            .pdf_batch(pairs)
+            .map_err(fail)?
+            .into_iter()
+            .map(|p| (p, None))
+            .collect(),
+        PdfKind::Unbiased => {
+            let n = args.pdf_samples.unwrap_or(UNBIASED_PDF_SAMPLES);
+            bsdf.pdf_unbiased_batch(pairs, n)
+                .map_err(fail)?
+                .into_iter()
+                .map(|p| (p.value as f32, Some(p.stderr as f32)))
+                .collect()
+        }
+    };
+    for (e, (pdf, pdf_stderr)) in f.iter().zip(p) {
         let line = Answer {
             f: e.value,
             stderr: e.stderr,
-            pdf: p,
+            pdf,
+            pdf_stderr,
         };
         let line = serde_json::to_string(&line).map_err(|e| Err(format!("cannot format: {e}")))?;
         writeln!(out, "{line}").map_err(stdout_failure)?;

@@ -545,6 +545,69 @@ fn sample_lines_carry_the_pdf_eval_reports() {
 }
 
 #[test]
+fn eval_reports_the_unbiased_pdf_with_its_standard_error() {
+    // The unbiased pdf (many density walks) and the approximate one (its
+    // mean over seeds, unmixed) estimate the same density; --pdf unbiased
+    // adds pdf_stderr and approx lines do not carry it.
+    let m = example("scattering_slab.toml");
+    let q = "{\"wi\":[0.5,0,0.8660254],\"wo\":[-0.3,0.1,0.9486833]}\n";
+    let unbiased = |seed: &str| {
+        let out = assert_ok(&run(
+            &[
+                "eval",
+                "--material",
+                &m,
+                "--samples",
+                "1",
+                "--seed",
+                seed,
+                "--pdf",
+                "unbiased",
+                "--pdf-samples",
+                "20000",
+            ],
+            q,
+        ));
+        let v: Value = serde_json::from_str(out.trim()).unwrap();
+        (
+            v["pdf"].as_f64().unwrap(),
+            v["pdf_stderr"].as_f64().unwrap(),
+        )
+    };
+    let (p, se) = unbiased("1");
+    assert!(p > 0.0 && se > 0.0 && se < 0.2 * p, "{p} ± {se}");
+    let floor = 0.1 / (4.0 * std::f64::consts::PI);
+    let approx: Vec<f64> = (0..64)
+        .map(|s| {
+            let out = assert_ok(&run(
+                &[
+                    "eval",
+                    "--material",
+                    &m,
+                    "--samples",
+                    "1",
+                    "--seed",
+                    &s.to_string(),
+                ],
+                q,
+            ));
+            let v: Value = serde_json::from_str(out.trim()).unwrap();
+            assert!(v.get("pdf_stderr").is_none(), "{out}");
+            (v["pdf"].as_f64().unwrap() - floor) / 0.9
+        })
+        .collect();
+    let (mean, mean_se) = mean_se(&approx);
+    let combined = (se * se + mean_se * mean_se).sqrt();
+    assert!(
+        (mean - p).abs() <= 4.0 * combined,
+        "approx {mean} ± {mean_se} vs unbiased {p} ± {se}"
+    );
+    let bad = run(&["eval", "--material", &m, "--pdf", "exact"], q);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("approx or unbiased"));
+}
+
+#[test]
 fn importance_transport_is_the_adjoint_across_different_exteriors() {
     // Glass below, air above: importance eval is radiance eval times
     // (n_i / n_o)^2 for transmission, and the same for reflection.

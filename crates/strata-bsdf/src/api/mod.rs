@@ -23,6 +23,7 @@ pub use strategy::{Estimator, EvalStart};
 pub use transport::Transport;
 
 use crate::estimator::closed_form::SmoothCoatLambertian;
+use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS};
 use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
@@ -167,8 +168,8 @@ pub struct LayeredBsdf {
 impl LayeredBsdf {
     /// Default number of walks per `eval`.
     pub const DEFAULT_SAMPLES: u64 = 256;
-    /// Default number of short walks per `pdf`.
-    pub const DEFAULT_PDF_SAMPLES: u32 = 4;
+    /// Default number of density walks per approximate `pdf`.
+    pub const DEFAULT_PDF_SAMPLES: u32 = 8;
 
     /// A BSDF over `stack` with default settings.
     pub fn new(stack: LayerStack) -> Self {
@@ -200,7 +201,7 @@ impl LayeredBsdf {
         self
     }
 
-    /// Sets the number of short walks per `pdf` (at least 1).
+    /// Sets the number of density walks per approximate `pdf` (at least 1).
     pub fn pdf_samples(mut self, n: u32) -> Self {
         self.pdf_samples = n.max(1);
         self
@@ -351,6 +352,21 @@ impl LayeredBsdf {
         Ok(self.pdf_batch(&[(wi, wo)]).map_err(|e| e.error)?[0])
     }
 
+    /// The unbiased pdf of `wo` for `sample(wi)`: the density of
+    /// `sample()`'s directions, estimated by `samples` density walks with its
+    /// standard error (see [`crate::estimator::density`]). Slow; for
+    /// references and tests. Keyed by the directions, like [`LayeredBsdf::pdf`].
+    pub fn pdf_unbiased(
+        &self,
+        wi: Vec3,
+        wo: Vec3,
+        samples: u64,
+    ) -> Result<PdfEstimate, QueryError> {
+        Ok(self
+            .pdf_unbiased_batch(&[(wi, wo)], samples)
+            .map_err(|e| e.error)?[0])
+    }
+
     /// Reflected and transmitted fractions of light from `wi`, from `n` walks.
     pub fn albedo(&self, wi: Vec3, n: u64) -> Result<Albedo, QueryError> {
         Ok(self
@@ -411,6 +427,17 @@ impl LayeredBsdf {
     /// the one a later `pdf` call gives, whatever the length of the vectors.
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
         Ok(self.pdf_validated(&directions2(pairs)?))
+    }
+
+    /// [`LayeredBsdf::pdf_unbiased`] for every pair.
+    pub fn pdf_unbiased_batch(
+        &self,
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+    ) -> Result<Vec<PdfEstimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        walk_count("samples", samples).map_err(BatchError::call)?;
+        Ok(self.pdf_unbiased_validated(&dirs, samples))
     }
 
     /// Directional albedo of every incident direction, `n` walks each; keys
@@ -593,10 +620,35 @@ impl LayeredBsdf {
         }
         let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
         let p = self.install_if(dirs.len() > PDF_CHUNK, || {
-            self.wave
-                .pdf_batch(dirs, self.pdf_samples, self.seed, &keys)
+            self.wave.pdf_batch(
+                dirs,
+                self.pdf_samples as u64,
+                self.seed,
+                &keys,
+                PdfKind::Approximate,
+            )
         });
-        p.into_iter().map(|x| x as f32).collect()
+        p.into_iter().map(|x| x.value as f32).collect()
+    }
+
+    /// The unbiased pdf of validated pairs, `samples` density walks each,
+    /// keyed by the directions.
+    fn pdf_unbiased_validated(&self, dirs: &[Pair], samples: u64) -> Vec<PdfEstimate> {
+        let kind = PdfKind::Unbiased;
+        if self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
+            return dirs
+                .iter()
+                .map(|&(a, b)| {
+                    let key = pdf_key(a, b);
+                    self.scalar
+                        .pdf_estimate(a, b, samples, self.seed, key, kind)
+                })
+                .collect();
+        }
+        let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
+        self.install(dirs.len(), samples, || {
+            self.wave.pdf_batch(dirs, samples, self.seed, &keys, kind)
+        })
     }
 
     /// Albedos of validated directions; the transmitted fraction follows the

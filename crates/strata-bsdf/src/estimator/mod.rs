@@ -4,7 +4,8 @@
 //!   reference) and `f64` (the accuracy oracle).
 //! * [`events`]: the event kernels both engines call, written once over lanes.
 //! * [`layout`]: the stack's topology as the walks see it.
-//! * [`pdf`]: the fast approximate pdf of `sample`.
+//! * [`density`]: the density walk, the density of `sample` at a direction.
+//! * [`pdf`]: the approximate and unbiased pdfs of `sample` from it.
 //! * [`closed_form`]: the stacks whose BSDF has one.
 //!
 //! Both follow `docs/method.md`; the differences from the paper and from the
@@ -12,6 +13,7 @@
 
 mod accumulate;
 pub mod closed_form;
+pub mod density;
 pub mod events;
 pub mod layout;
 mod orient;

@@ -1,36 +1,28 @@
-//! The fast approximate pdf of `sample()` (method.md §6).
+//! The pdfs of `sample()` (method.md §6), both from the density walk of
+//! [`super::density`]:
 //!
-//! What it keeps:
-//! * the entrance lobe exactly (`pdf` of the entrance interface for `wo` when
-//!   the entrance is also the exit);
-//! * the interior by short media-free walks: the entrance is sampled in full
-//!   (so reflections there, already counted, add nothing to the interior), then
-//!   interfaces are sampled, ignoring every medium, until the walk arrives back
-//!   at the exit from inside. A rough exit adds its own density of refracting
-//!   towards `wo`. A smooth exit is handled from the other side: the walk's
-//!   vertex on the interface across the exit layer adds its density of the one
-//!   direction that refracts to `wo`, times the refraction's solid-angle
-//!   Jacobian and the exit's transmittance `1 - F`.
-//!
-//! What it neglects: media (scattering and attenuation), paths longer than
-//! `2 n + 1` interface events, and (for a smooth exit) paths whose last non-delta
-//! event lies deeper than the interface across the exit layer: where that
-//! interface is smooth too (a smooth coat over another smooth interface), the
-//! interior gets no density at all and the pdf is the uniform floor alone. It is therefore
-//! not the density of `sample()`: it is mixed with a uniform density,
-//! `pdf = 0.9 p + 0.1 / 4π`, so it is positive wherever `f` can be.
-//!
-//! The walk is written once over lanes ([`pdf_walk`]): the scalar engine runs
-//! it on one lane, the wavefront engine on one query-sample pair per lane.
+//! * **approximate** (what `pdf()` and `sample()` return): the mean of a few
+//!   density walks, each stopped after [`APPROX_EVENTS`] events, mixed with
+//!   a uniform density, `pdf = 0.9 p + 0.1 / 4π`, so that it is positive
+//!   wherever `f` can be. It is deterministic for a pair of directions (the
+//!   walks are keyed by them). What it neglects: paths longer than the bound,
+//!   and the noise of a few walks (it is an unbiased estimate of the density
+//!   of walks of at most [`APPROX_EVENTS`] events, then mixed);
+//! * **unbiased**: the mean of many unbounded density walks, with its
+//!   standard error: the density of `sample()`'s directions, for references
+//!   and tests.
 
+use super::density::DensityWalk;
 use super::scalar::{v3, Scalar, ScalarEngine};
-use crate::fresnel;
-use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, V3};
 use crate::rng::{query_prefix, Stream, WalkRng};
 
-/// Weight of the uniform density in the mixture.
+/// Weight of the uniform density in the approximate pdf's mixture.
 pub const UNIFORM_FRACTION: f64 = 0.1;
+
+/// The approximate pdf's bound on a density walk's events: more than any
+/// stack of the examples needs for 99 % of its density, and a bound on the
+/// cost of a pdf in stacks whose walks are long (a white medium).
+pub const APPROX_EVENTS: u32 = 64;
 
 /// Mixes the estimated density `p` with the uniform one.
 pub fn mix_uniform(p: f64) -> f64 {
@@ -43,110 +35,144 @@ pub fn mix_uniform(p: f64) -> f64 {
     }
 }
 
-/// One short media-free walk per lane (see the module docs): its estimate of
-/// the interior's density of `wo` given `wi`. Lane `j` enters at interface
-/// `e_in[j]` and leaves through `e_out[j]` (indices as lane values) of a stack
-/// of `n >= 2` interfaces, each one's parameters splatted over the lanes in
-/// `table`; `u3` gives three uniforms per event.
-pub fn pdf_walk<L: Lane>(
-    table: &[InterfaceLanes<L>],
-    wi: V3<L>,
-    wo: V3<L>,
-    e_in: L,
-    e_out: L,
-    mut u3: impl FnMut() -> (L, L, L),
-) -> L {
-    let n = table.len();
-    let zero = L::zero();
-    // Lane j takes interface i[j]: a select per interface present (n is small).
-    let at = |i: L| {
-        let mut it = table[0];
-        for (k, t) in table.iter().enumerate().skip(1) {
-            let here = i.eq(L::splat(k as f64));
-            if here.any() {
-                it = InterfaceLanes::select(here, t, &it);
-            }
-        }
-        it
-    };
-    let exit = at(e_out);
-    let top_exit = e_out.eq(zero);
-    // The interface across the exit layer.
-    let k0 = L::select(top_exit, L::one(), L::splat(n as f64 - 2.0));
-    // For a smooth exit: the one interior direction that leaves towards wo,
-    // as a travel direction u0, and the density conversion to wo.
-    let link = exit.sample(wo, zero, zero, zero, L::Mask::splat(true));
-    let dp = link.b;
-    let (n_o, n_in) = exit.sides(wo);
-    let f = fresnel::dielectric(wo.z, exit.n_below / exit.n_above);
-    let link_ok = exit.smooth & link.valid & dp.z.abs().gt(zero);
-    // dω_in / dω_out for refraction, times the exit's transmittance.
-    let conv = L::div_or_zero(
-        (n_o / n_in).sqr() * wo.z.abs() * (L::one() - f),
-        dp.z.abs(),
-        link_ok,
-    );
-    let u0 = -dp;
+/// Which pdf of `sample()`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PdfKind {
+    /// Bounded walks mixed with a uniform density (the default; what
+    /// `sample()` returns).
+    #[default]
+    Approximate,
+    /// Unbounded walks, no mixture: the density itself, with its standard
+    /// error.
+    Unbiased,
+}
 
-    let mut p = zero;
-    let mut alive = L::Mask::splat(true);
-    let mut i = e_in;
-    let mut a = wi;
-    for _ in 0..2 * n + 1 {
-        let it = at(i);
-        // A smooth exit: the vertex across the exit layer adds its density of
-        // the one direction that leaves towards wo. In a transmission query
-        // through two interfaces that vertex is the entrance (event 0).
-        let done = alive & link_ok & i.eq(k0);
-        let v = (it.pdf(a, u0, L::Mask::splat(false)) * conv).max(zero);
-        p = L::select(done, v, p);
-        alive = alive & !done;
-        let (us, u1, u2) = u3();
-        let s = it.sample(a, us, u1, u2, L::Mask::splat(false));
-        alive = alive & s.valid;
-        let d = s.b;
-        let up = d.z.gt(zero);
-        let out = L::select(up, i, L::splat(n as f64 - 1.0) - i).eq(zero);
-        alive = alive & !out;
-        i = L::select(up, i - L::one(), i + L::one());
-        let i_safe = L::select(alive, i, zero);
-        i = i_safe;
-        a = -d;
-        let reach = alive & i.eq(e_out);
-        let v = exit.pdf(a, wo, L::Mask::splat(false)).max(zero);
-        p = L::select(reach & !exit.smooth, v, p);
-        alive = alive & !reach;
-        if !alive.any() {
-            break;
+impl std::str::FromStr for PdfKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "approx" => Ok(PdfKind::Approximate),
+            "unbiased" => Ok(PdfKind::Unbiased),
+            _ => Err(format!("unknown pdf {s:?} (expected approx or unbiased)")),
         }
     }
-    p
+}
+
+impl PdfKind {
+    /// The density walk's bound on events.
+    pub fn max_events(self) -> Option<u32> {
+        match self {
+            PdfKind::Approximate => Some(APPROX_EVENTS),
+            PdfKind::Unbiased => None,
+        }
+    }
+}
+
+/// A pdf estimate: the mean of density walks and its standard error.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PdfEstimate {
+    /// The density (solid angle, stack frame).
+    pub value: f64,
+    /// The standard error of `value` (0 for an exact one).
+    pub stderr: f64,
+    /// Number of walks.
+    pub samples: u64,
+}
+
+/// Sums of density walks, in walk order (so that engines agree bit for bit).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DensitySums {
+    sum: f64,
+    sum_sq: f64,
+    n: u64,
+}
+
+impl DensitySums {
+    /// Adds one walk's density.
+    #[inline]
+    pub fn push(&mut self, x: f64) {
+        self.sum += x;
+        self.sum_sq += x * x;
+        self.n += 1;
+    }
+
+    /// Adds `x` to every walk's density (an exact part, no variance).
+    pub fn estimate_plus(&self, x: f64) -> PdfEstimate {
+        if self.n == 0 {
+            return PdfEstimate {
+                value: x,
+                ..PdfEstimate::default()
+            };
+        }
+        let n = self.n as f64;
+        let mean = self.sum / n;
+        let var = if self.n > 1 {
+            ((self.sum_sq - n * mean * mean) / (n - 1.0)).max(0.0)
+        } else {
+            0.0
+        };
+        PdfEstimate {
+            value: x + mean,
+            stderr: (var / n).sqrt(),
+            samples: self.n,
+        }
+    }
+
+    /// The pdf of this kind from these sums.
+    pub fn finish(&self, kind: PdfKind) -> PdfEstimate {
+        let e = self.estimate_plus(0.0);
+        match kind {
+            PdfKind::Unbiased => e,
+            PdfKind::Approximate => PdfEstimate {
+                value: mix_uniform(e.value),
+                stderr: (1.0 - UNIFORM_FRACTION) * e.stderr,
+                samples: e.samples,
+            },
+        }
+    }
 }
 
 impl<S: Scalar> ScalarEngine<S> {
-    /// The approximate pdf of `wo` for `sample(wi)`, from `samples` short walks.
+    /// The approximate pdf of `wo` for `sample(wi)`, from `samples` walks.
     pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3], samples: u32, seed: u64, query: u64) -> f64 {
+        self.pdf_estimate(wi, wo, samples as u64, seed, query, PdfKind::Approximate)
+            .value
+    }
+
+    /// A pdf of `wo` for `sample(wi)` from `samples` density walks.
+    pub fn pdf_estimate(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        samples: u64,
+        seed: u64,
+        query: u64,
+        kind: PdfKind,
+    ) -> PdfEstimate {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
-            return 0.0;
+            return PdfEstimate::default();
         };
         let wi = v3::<S>(o.wi);
         let wo = v3::<S>(o.apply(wo));
-        let e_in = self.layout.outer(wi.z > S::zero());
-        let e_out = self.layout.outer(wo.z > S::zero());
-        let mut p = 0.0;
-        if e_in == e_out {
-            p += self.ifaces[e_in].pdf(wi, wo, false).lane(0);
+        let walk = DensityWalk {
+            ifaces: &self.ifaces,
+            media: &self.media,
+            settings: &self.settings,
+            max_events: kind.max_events(),
+        };
+        let prefix = query_prefix(seed, query);
+        let mut sums = DensitySums::default();
+        for k in 0..samples {
+            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Pdf);
+            let draw = |m: bool| {
+                if m {
+                    S::splat(rng.uniform() as f64)
+                } else {
+                    S::zero()
+                }
+            };
+            sums.push(walk.run(wi, wo, draw).lane(0));
         }
-        if self.layout.n >= 2 && samples > 0 {
-            let mut sum = 0.0;
-            let prefix = query_prefix(seed, query);
-            for k in 0..samples {
-                let mut rng = WalkRng::from_prefix(prefix, k as u64, Stream::Pdf);
-                let (a, b) = (S::splat(e_in as f64), S::splat(e_out as f64));
-                sum += pdf_walk(&self.ifaces, wi, wo, a, b, || Self::u3(&mut rng)).lane(0);
-            }
-            p += sum / samples as f64;
-        }
-        mix_uniform(p)
+        sums.finish(kind)
     }
 }

@@ -100,8 +100,8 @@ pub struct ScalarEngine<S: Scalar> {
     pub(super) stack: LayerStack,
     pub(super) layout: Layout,
     pub(super) ifaces: Vec<InterfaceLanes<S>>,
-    media: Vec<MediumLanes<S>>,
-    settings: Settings,
+    pub(super) media: Vec<MediumLanes<S>>,
+    pub(super) settings: Settings,
 }
 
 /// What `eval` adds to a walk: the connections to the viewer (method.md §4).

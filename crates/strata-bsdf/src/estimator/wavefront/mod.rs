@@ -43,6 +43,7 @@ pub mod walks;
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
+use super::pdf::{PdfEstimate, PdfKind};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
@@ -711,15 +712,16 @@ impl<W: Wide> Wavefront<W> {
         (res, stats)
     }
 
-    /// The approximate pdf of every `(wi, wo)` pair (see [`crate::estimator::pdf`]),
-    /// `samples` short walks each, one query-sample pair per lane.
+    /// A pdf of every `(wi, wo)` pair (see [`crate::estimator::pdf`]),
+    /// `samples` density walks each, one query-walk pair per lane.
     pub fn pdf_batch(
         &self,
         pairs: &[([f64; 3], [f64; 3])],
-        samples: u32,
+        samples: u64,
         seed: u64,
         keys: &[u64],
-    ) -> Vec<f64> {
+        kind: PdfKind,
+    ) -> Vec<PdfEstimate> {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
@@ -730,10 +732,10 @@ impl<W: Wide> Wavefront<W> {
         let idx: Vec<usize> = (0..pairs.len()).collect();
         if idx.len() <= PDF_CHUNK {
             // One chunk: on the calling thread (see `SERIAL_WALKS`).
-            return self.pdf_queries(&queries, &idx, samples);
+            return self.pdf_queries(&queries, &idx, samples, kind);
         }
         idx.par_chunks(PDF_CHUNK)
-            .flat_map_iter(|qs| self.pdf_queries(&queries, qs, samples))
+            .flat_map_iter(|qs| self.pdf_queries(&queries, qs, samples, kind))
             .collect()
     }
 }

@@ -8,14 +8,15 @@
 use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
+use crate::estimator::density::DensityWalk;
 use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes, Next,
 };
-use crate::estimator::pdf::{mix_uniform, pdf_walk};
+use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, V3};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::medium;
 use crate::rng::{seed_state_from, LaneRng, Stream};
 
@@ -744,51 +745,54 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
-    /// Approximate pdfs of queries `qs`, one query per lane.
-    pub(super) fn pdf_queries(&self, q: &Queries, qs: &[usize], samples: u32) -> Vec<f64> {
-        let mut res = vec![0.0f64; qs.len()];
-        let mut sums = vec![0.0f64; qs.len()];
-        if self.layout.n >= 2 && samples > 0 {
-            for chunk_start in (0..qs.len()).step_by(W::LANES) {
-                let chunk = &qs[chunk_start..(chunk_start + W::LANES).min(qs.len())];
-                let lq = lane_ids(chunk, |q| q as u32);
-                let lq = &lq[..W::LANES];
-                let g = |col: &[f32]| W::gather(col, lq);
-                let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
-                let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
-                let e_in = W::from_fn(|j| q.e_in[lq[j] as usize] as f64);
-                let e_out = g(&q.e_out);
-                for k in 0..samples {
-                    let mut rng = LaneRng::<W>::from_states(|j| {
-                        seed_state_from(q.prefix[lq[j] as usize], k as u64, Stream::Pdf)
-                    });
-                    let all = W::Mask::splat(true);
-                    let p = pdf_walk(&self.ifaces, wi, wo, e_in, e_out, || {
-                        (rng.uniform(all), rng.uniform(all), rng.uniform(all))
-                    });
-                    for j in 0..chunk.len() {
-                        sums[chunk_start + j] += p.lane(j);
-                    }
+    /// Pdfs of queries `qs` from `samples` density walks each: lane by
+    /// lane over the query-walk pairs in order (walk `k` of query `qs[i]` is
+    /// pair `i · samples + k`), so that one query of many walks fills the
+    /// lanes as well as many queries of a few, and each query's sum runs in
+    /// walk order, as the scalar engine's does.
+    pub(super) fn pdf_queries(
+        &self,
+        q: &Queries,
+        qs: &[usize],
+        samples: u64,
+        kind: PdfKind,
+    ) -> Vec<PdfEstimate> {
+        let walk = DensityWalk {
+            ifaces: &self.ifaces,
+            media: &self.media,
+            settings: &self.settings,
+            max_events: kind.max_events(),
+        };
+        let mut sums = vec![DensitySums::default(); qs.len()];
+        let pairs = qs.len() as u64 * samples;
+        for first in (0..pairs).step_by(W::LANES) {
+            let lanes = (pairs - first).min(W::LANES as u64) as usize;
+            // Lanes past the last pair repeat it (their results are dropped).
+            let pair = |j: usize| first + j.min(lanes - 1) as u64;
+            let query = |j: usize| qs[(pair(j) / samples) as usize];
+            let ids: [u32; MAX_LANES] = std::array::from_fn(|j| query(j) as u32);
+            let lq = &ids[..W::LANES];
+            let g = |col: &[f32]| W::gather(col, lq);
+            let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
+            let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
+            let mut rng = LaneRng::<W>::from_states(|j| {
+                seed_state_from(q.prefix[query(j)], pair(j) % samples, Stream::Pdf)
+            });
+            let p = walk.run(wi, wo, |m| rng.uniform(m));
+            for j in 0..lanes {
+                sums[(pair(j) / samples) as usize].push(p.lane(j));
+            }
+        }
+        sums.iter()
+            .zip(qs)
+            .map(|(s, &qi)| {
+                if q.valid[qi] {
+                    s.finish(kind)
+                } else {
+                    PdfEstimate::default()
                 }
-            }
-        }
-        for (k, &qi) in qs.iter().enumerate() {
-            if !q.valid[qi] {
-                continue;
-            }
-            let wi = V3::new(q.wi[0][qi], q.wi[1][qi], q.wi[2][qi]);
-            let wo = V3::new(q.wo[0][qi], q.wo[1][qi], q.wo[2][qi]);
-            let e_in = q.e_in[qi] as usize;
-            let mut p = 0.0;
-            if e_in == q.e_out[qi] as usize {
-                p += self.table[e_in].pdf(wi, wo, false).lane(0);
-            }
-            if self.layout.n >= 2 && samples > 0 {
-                p += sums[k] / samples as f64;
-            }
-            res[k] = mix_uniform(p);
-        }
-        res
+            })
+            .collect()
     }
 }
 
