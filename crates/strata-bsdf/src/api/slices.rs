@@ -70,13 +70,6 @@ impl<'a> Vectors<'a> {
         }
         Ok(self.len())
     }
-
-    /// Every vector, validated as a direction of query `i`.
-    fn directions(&self, argument: &'static str) -> Result<Vec<[f64; 3]>, BatchError> {
-        (0..self.len())
-            .map(|i| direction_at(argument, i, self.get(i)))
-            .collect()
-    }
 }
 
 /// Output 3-vectors (values per RGB channel, or directions), in either layout.
@@ -371,24 +364,24 @@ impl LayeredBsdf {
         let m = wi.count("wi")?;
         one_each("out", out.len(), m)?;
         walk_count("n", n).map_err(BatchError::call)?;
-        let dirs = wi.directions("wi")?;
-        let keys = match keys {
-            Some(k) => {
-                one_each("keys", k.len(), m)?;
-                k.to_vec()
-            }
-            None => (0..m)
-                .map(|i| direction_key(wi.get(i), wi.get(i)))
-                .collect(),
+        for k in 0..m {
+            direction_at("wi", k, wi.get(k))?;
+        }
+        if let Some(k) = keys {
+            one_each("keys", k.len(), m)?;
+        }
+        let query = |k: usize| {
+            let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
+            (dir_at(&wi, k), key)
         };
-        for (o, a) in out.iter_mut().zip(self.albedo_validated(&dirs, n, &keys)) {
-            *o = AlbedoRecord {
+        self.albedo_each(m, n, query, |k, a| {
+            out[k] = AlbedoRecord {
                 reflected: f32x3(a.reflected.value),
                 transmitted: f32x3(a.transmitted.value),
                 reflected_stderr: f32x3(a.reflected.stderr),
                 transmitted_stderr: f32x3(a.transmitted.stderr),
             };
-        }
+        });
         Ok(())
     }
 
@@ -401,14 +394,14 @@ impl LayeredBsdf {
 
     /// The eval of every pair, handed to `out` in query order once every
     /// input is known to be valid. Calls that run query by query (the
-    /// scalar engine, a closed form) allocate nothing; wavefront batches
-    /// allocate their engine's working memory.
+    /// scalar engine, a closed form) allocate nothing, nor do serial
+    /// wavefront batches on a warm thread; parallel ones allocate in rayon.
     fn evals(
         &self,
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
-        mut out: impl FnMut(usize, &Estimate),
+        mut out: impl FnMut(usize, &Estimate) + Send,
     ) -> Result<(), BatchError> {
         let n = wi.len();
         walk_count("samples", self.samples).map_err(BatchError::call)?;
@@ -417,28 +410,15 @@ impl LayeredBsdf {
             one_each("keys", k.len(), n)?;
         }
         let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
-        if self.eval_by_query(n, self.samples) {
-            for k in 0..n {
-                let (a, b) = pair_at(wi, wo, k);
-                out(k, &self.eval_one(a, b, self.samples, key(k)));
-            }
-            return Ok(());
-        }
-        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
-        let keys: Vec<u64> = (0..n).map(key).collect();
-        for (k, e) in self
-            .eval_validated(&pairs, self.samples, &keys)
-            .iter()
-            .enumerate()
-        {
-            out(k, e);
-        }
+        let query = |k: usize| (pair_at(wi, wo, k), key(k));
+        self.eval_each(n, self.samples, query, |k, e| out(k, &e));
         Ok(())
     }
 
     /// The sample of every query, handed to `out` in query order: unkeyed
     /// queries draw sample index `k` of their direction's key, keyed ones
-    /// sample index 0 of their key. Allocates nothing on the scalar engine.
+    /// sample index 0 of their key. Allocates nothing on the scalar engine,
+    /// nor serially on a warm thread.
     fn samples_of(
         &self,
         wi: &Vectors,
@@ -456,22 +436,11 @@ impl LayeredBsdf {
             Some(x) => (x[k], 0),
             None => (direction_key(wi.get(k), wi.get(k)), k as u64),
         };
-        if self.engine.resolve(n, 1) == Engine::Scalar {
-            for k in 0..n {
-                let (key, index) = stream(k);
-                out(k, self.sample_one(dir_at(wi, k), key, index).as_ref());
-            }
-            return Ok(());
-        }
-        let dirs: Vec<[f64; 3]> = (0..n).map(|k| dir_at(wi, k)).collect();
-        let (keys, index): (Vec<u64>, Vec<u64>) = (0..n).map(stream).unzip();
-        for (k, s) in self
-            .sample_validated(&dirs, &keys, &index)
-            .iter()
-            .enumerate()
-        {
-            out(k, s.as_ref());
-        }
+        let query = |k: usize| {
+            let (key, index) = stream(k);
+            (dir_at(wi, k), key, index)
+        };
+        self.sample_each(n, query, |k, s| out(k, s.as_ref()));
         Ok(())
     }
 }

@@ -56,6 +56,27 @@ pub(super) struct Wave<'a> {
     stats: Stats,
 }
 
+/// The buffers of a task that outlive it: a thread keeps one set and
+/// reuses it task after task (grow-only, cleared per task).
+#[derive(Default)]
+pub(super) struct TaskBuffers {
+    free: Vec<u32>,
+    next: Vec<Vec<u32>>,
+    launched: Vec<(u32, u64)>,
+    queues: Vec<Vec<u32>>,
+    deferred: Deferred,
+}
+
+/// `nkeys` empty queues with room for `slots` walks each (a queue never
+/// holds more walks than the wave has slots), reusing what `v` holds.
+fn reset_queues(v: &mut Vec<Vec<u32>>, nkeys: usize, slots: usize) {
+    v.resize_with(nkeys, Vec::new);
+    for queue in v.iter_mut() {
+        queue.clear();
+        queue.reserve(slots);
+    }
+}
+
 impl Wave<'_> {
     /// Ends the walk in `slot` with `o` and frees the slot.
     #[inline(always)]
@@ -93,13 +114,15 @@ fn rgb_lane<W: Wide>(c: Rgb<W>, j: usize) -> Rgb<f32> {
 
 impl<W: Wide> Wavefront<W> {
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
-    /// task order.
+    /// task order. The task's queues and deferred rows live in `tb`, kept by
+    /// the caller between tasks so that a warm thread allocates nothing.
     pub(super) fn run_task(
         &self,
         q: &Queries,
         task: &[Unit],
         ws: &mut Walks,
         out: &mut Vec<WalkOut>,
+        tb: &mut TaskBuffers,
     ) -> Stats {
         let total: usize = task.iter().map(|u| u.count as usize).sum();
         out.clear();
@@ -112,23 +135,32 @@ impl<W: Wide> Wavefront<W> {
         let defers = q.mode == Mode::Eval
             && self.settings.mis
             && (self.exits.iter()).any(|&(_, l, _)| self.media[l].kind == LayerKind::Scattering);
+        let mut free = std::mem::take(&mut tb.free);
+        free.clear();
+        free.extend((0..slots as u32).rev());
+        let mut deferred = std::mem::take(&mut tb.deferred);
+        deferred.reset(self.exits.len(), if defers { total } else { 0 }, W::LANES);
         let mut wave = Wave {
             ws,
             out,
-            free: (0..slots as u32).rev().collect(),
+            free,
             live: 0,
             draining: false,
-            next: vec![Vec::with_capacity(slots); nkeys],
-            deferred: Deferred::new(self.exits.len(), if defers { total } else { 0 }, W::LANES),
+            next: std::mem::take(&mut tb.next),
+            deferred,
             stats: Stats {
                 walks: total as u64,
                 ..Stats::default()
             },
         };
-        let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
-        let mut launched: Vec<(u32, u64)> = Vec::with_capacity(slots);
+        reset_queues(&mut wave.next, nkeys, slots);
+        let mut launched = std::mem::take(&mut tb.launched);
+        launched.clear();
+        launched.reserve(slots);
         // This round's queues (the previous round's `next`).
-        let mut queues: Vec<Vec<u32>> = vec![Vec::with_capacity(slots); nkeys];
+        let mut queues = std::mem::take(&mut tb.queues);
+        reset_queues(&mut queues, nkeys, slots);
+        let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
         loop {
             // Refill free slots with the next walks.
             launched.clear();
@@ -187,6 +219,14 @@ impl<W: Wide> Wavefront<W> {
             let values = wave.out.iter_mut().map(|o| &mut o.value);
             wave.deferred.add_sums(values);
         }
+        // The buffers go back for the thread's next task.
+        *tb = TaskBuffers {
+            free: wave.free,
+            next: wave.next,
+            launched,
+            queues,
+            deferred: wave.deferred,
+        };
         wave.stats
     }
 
