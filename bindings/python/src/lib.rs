@@ -214,7 +214,7 @@ fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> 
     }
     let a = as_array(name, obj)?;
     checked::<f32>(name, a, "float32", 2, "(N, 3)")?;
-    Ok(VecIn::Aos(a.cast::<numpy::PyArray2<f32>>()?.readonly()))
+    Ok(VecIn::Aos(borrow(name, a.cast::<numpy::PyArray2<f32>>()?)?))
 }
 
 /// Parses an optional `keys` argument: a contiguous uint64 array of shape `(N,)`.
