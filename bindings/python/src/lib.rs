@@ -19,8 +19,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
-    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, MaterialError as StackMaterialError,
-    Transport, Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf,
+    MaterialError as StackMaterialError, Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -342,11 +342,7 @@ fn build(
     transport: &str,
     pdf_samples: u32,
 ) -> PyResult<Bsdf> {
-    if samples == 0 || samples > MAX_WALKS {
-        return Err(PyValueError::new_err(format!(
-            "samples = {samples}: give from 1 to {MAX_WALKS} walks per eval"
-        )));
-    }
+    check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
     if pdf_samples == 0 {
         return Err(PyValueError::new_err(
             "pdf_samples = 0: at least one walk per pdf is needed",

@@ -25,8 +25,8 @@ use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
-    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, QueryError, SampleRecord, Transport,
-    Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf, SampleRecord, Transport,
+    Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -404,16 +404,10 @@ unsafe fn text<'a>(name: &str, s: *const c_char) -> Result<&'a str, Failure> {
 
 // ------------------------------------------------------------ construction
 
-/// Checks a walk count argument: 1 to 2^40 (the library's `MAX_WALKS`).
+/// Checks a walk count argument: 1 to 2^40 (the library's `MAX_WALKS`), by
+/// the library's own check, as an invalid-argument failure.
 fn walk_count(argument: &'static str, n: u64) -> Result<(), Failure> {
-    let e = if n == 0 {
-        QueryError::NoSamples { argument }
-    } else if n > MAX_WALKS {
-        QueryError::TooManySamples { argument, value: n }
-    } else {
-        return Ok(());
-    };
-    Err(Failure::invalid(e.to_string()))
+    check_walks(argument, n).map_err(|e| Failure::invalid(e.to_string()))
 }
 
 /// Builds a BSDF over `stack` and stores it in `*out`.

@@ -17,7 +17,9 @@ pub mod slices;
 mod strategy;
 mod transport;
 
-pub use error::{BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS};
+pub use error::{
+    check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
+};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
 pub use strategy::{Estimator, EvalStart};
 pub use transport::Transport;
@@ -367,7 +369,7 @@ impl LayeredBsdf {
             Direction::new("wi", wi)?.get(),
             Direction::new("wo", wo)?.get(),
         );
-        walk_count("samples", samples)?;
+        check_walks("samples", samples)?;
         Ok(self.eval_validated(&[pair], samples, &[query])[0])
     }
 
@@ -410,7 +412,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Estimate>, BatchError> {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
-        walk_count("samples", samples).map_err(BatchError::call)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
         Ok(self.eval_validated(&dirs, samples, keys))
     }
 
@@ -463,7 +465,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Albedo>, BatchError> {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
-        walk_count("n", n).map_err(BatchError::call)?;
+        check_walks("n", n).map_err(BatchError::call)?;
         Ok(self.albedo_validated(&dirs, n, keys))
     }
 
@@ -729,17 +731,6 @@ struct SampleBuffers {
 thread_local! {
     /// The buffers of this thread's wavefront sample calls.
     static SAMPLES: RefCell<Option<SampleBuffers>> = const { RefCell::new(None) };
-}
-
-/// A walk count from 1 to [`MAX_WALKS`].
-fn walk_count(argument: &'static str, n: u64) -> Result<(), QueryError> {
-    if n == 0 {
-        Err(QueryError::NoSamples { argument })
-    } else if n > MAX_WALKS {
-        Err(QueryError::TooManySamples { argument, value: n })
-    } else {
-        Ok(())
-    }
 }
 
 /// One entry of a per-query argument for every query.

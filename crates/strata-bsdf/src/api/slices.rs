@@ -15,7 +15,7 @@
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
 use super::{
-    direction_at, direction_key, one_each, walk_count, BatchError, Direction, Engine, Estimate,
+    check_walks, direction_at, direction_key, one_each, BatchError, Direction, Engine, Estimate,
     LayeredBsdf, Pair,
 };
 use glam::Vec3;
@@ -363,7 +363,7 @@ impl LayeredBsdf {
     ) -> Result<(), BatchError> {
         let m = wi.count("wi")?;
         one_each("out", out.len(), m)?;
-        walk_count("n", n).map_err(BatchError::call)?;
+        check_walks("n", n).map_err(BatchError::call)?;
         for k in 0..m {
             direction_at("wi", k, wi.get(k))?;
         }
@@ -404,7 +404,7 @@ impl LayeredBsdf {
         mut out: impl FnMut(usize, &Estimate) + Send,
     ) -> Result<(), BatchError> {
         let n = wi.len();
-        walk_count("samples", self.samples).map_err(BatchError::call)?;
+        check_walks("samples", self.samples).map_err(BatchError::call)?;
         check_pairs(wi, wo)?;
         if let Some(k) = keys {
             one_each("keys", k.len(), n)?;
