@@ -358,13 +358,6 @@ fn build(
     })
 }
 
-fn transport_name(t: Transport) -> &'static str {
-    match t {
-        Transport::Radiance => "radiance",
-        Transport::Importance => "importance",
-    }
-}
-
 #[pymethods]
 impl Bsdf {
     /// A BSDF from a TOML material description (docs/materials.md).
@@ -590,7 +583,7 @@ impl Bsdf {
     /// "radiance" or "importance".
     #[getter]
     fn transport(&self) -> &'static str {
-        transport_name(self.inner.transport_mode())
+        self.inner.transport_mode().as_str()
     }
 
     /// The material's description text, if it has one.
@@ -657,7 +650,7 @@ impl Bsdf {
             "Bsdf({what:?}, samples={}, seed={}, transport={:?})",
             self.inner.samples_per_eval(),
             self.inner.seed_value(),
-            transport_name(self.inner.transport_mode())
+            self.inner.transport_mode().as_str()
         )
     }
 }
