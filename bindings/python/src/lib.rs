@@ -19,8 +19,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
-    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, MaterialError as StackMaterialError,
-    Transport, Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf,
+    MaterialError as StackMaterialError, Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -214,7 +214,7 @@ fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> 
     }
     let a = as_array(name, obj)?;
     checked::<f32>(name, a, "float32", 2, "(N, 3)")?;
-    Ok(VecIn::Aos(a.cast::<numpy::PyArray2<f32>>()?.readonly()))
+    Ok(VecIn::Aos(borrow(name, a.cast::<numpy::PyArray2<f32>>()?)?))
 }
 
 /// Parses an optional `keys` argument: a contiguous uint64 array of shape `(N,)`.
@@ -342,11 +342,7 @@ fn build(
     transport: &str,
     pdf_samples: u32,
 ) -> PyResult<Bsdf> {
-    if samples == 0 || samples > MAX_WALKS {
-        return Err(PyValueError::new_err(format!(
-            "samples = {samples}: give from 1 to {MAX_WALKS} walks per eval"
-        )));
-    }
+    check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
     if pdf_samples == 0 {
         return Err(PyValueError::new_err(
             "pdf_samples = 0: at least one walk per pdf is needed",
@@ -360,13 +356,6 @@ fn build(
             .pdf_samples(pdf_samples)
             .transport(transport),
     })
-}
-
-fn transport_name(t: Transport) -> &'static str {
-    match t {
-        Transport::Radiance => "radiance",
-        Transport::Importance => "importance",
-    }
 }
 
 #[pymethods]
@@ -531,6 +520,30 @@ impl Bsdf {
         Ok(pdf.into_pyarray(py))
     }
 
+    /// The unbiased pdf of each pair from `samples` density walks:
+    /// `(pdf, stderr)`, float32 arrays of shape (N,), the density of
+    /// `sample`'s directions with its standard error. Slow: for references.
+    fn pdf_unbiased<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+        samples: u64,
+    ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
+        let wi = vectors_in("wi", wi)?;
+        let wo = vectors_in("wo", wo)?;
+        let mut pdf = vec![0.0f32; wi.len()];
+        let mut stderr = vec![0.0f32; wi.len()];
+        {
+            let (wiv, wov) = (wi.vectors(), wo.vectors());
+            let (p, s) = (&mut pdf[..], &mut stderr[..]);
+            let bsdf = &self.inner;
+            py.detach(|| bsdf.pdf_unbiased_into(wiv, wov, samples, p, s))
+                .map_err(|e| batch_err(py, e))?;
+        }
+        Ok((pdf.into_pyarray(py), stderr.into_pyarray(py)))
+    }
+
     /// Directional albedo from `n` walks per direction:
     /// `(R, T, R_stderr, T_stderr)`, reflected and transmitted fractions per
     /// channel with their standard errors, each in the layout of `wi`.
@@ -594,7 +607,7 @@ impl Bsdf {
     /// "radiance" or "importance".
     #[getter]
     fn transport(&self) -> &'static str {
-        transport_name(self.inner.transport_mode())
+        self.inner.transport_mode().as_str()
     }
 
     /// The material's description text, if it has one.
@@ -661,7 +674,7 @@ impl Bsdf {
             "Bsdf({what:?}, samples={}, seed={}, transport={:?})",
             self.inner.samples_per_eval(),
             self.inner.seed_value(),
-            transport_name(self.inner.transport_mode())
+            self.inner.transport_mode().as_str()
         )
     }
 }

@@ -89,6 +89,27 @@ def test_eval_and_pdf_bit_identical_to_cli(strata_cli, materials, material, lowe
     assert np.all(f >= 0) and np.any(f > 0)
 
 
+@pytest.mark.parametrize("material", ["coated_copper.toml", "scattering_slab.toml"])
+def test_unbiased_pdf_bit_identical_to_cli(strata_cli, materials, material):
+    path = materials / material
+    rng = np.random.default_rng(11)
+    n, walks, seed = 12, 64, 5
+    wi = fixed_directions(n, rng)
+    wo = fixed_directions(n, rng, False)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    args = ["eval", "--material", str(path), "--samples", "1", "--seed", str(seed)]
+    cli = run_cli(strata_cli, args + ["--pdf", "unbiased", "--pdf-samples", str(walks)], lines)
+    bsdf = Bsdf.from_path(path, samples=1, seed=seed)
+    pdf, se = bsdf.pdf_unbiased(wi, wo, walks)
+    np.testing.assert_array_equal(pdf, np.array([c["pdf"] for c in cli], dtype=np.float64).astype(np.float32))
+    np.testing.assert_array_equal(se, np.array([c["pdf_stderr"] for c in cli], dtype=np.float64).astype(np.float32))
+    assert np.all(pdf >= 0) and np.any(se > 0)
+    with pytest.raises(ValueError, match="samples = 0"):
+        bsdf.pdf_unbiased(wi, wo, 0)
+
+
 @pytest.mark.parametrize("material", ["coated_copper.toml", "scattering_slab.toml", "clear_coat_lambertian.toml"])
 def test_sample_bit_identical_to_cli(strata_cli, materials, material):
     path = materials / material

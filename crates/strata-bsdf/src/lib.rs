@@ -74,9 +74,9 @@ pub mod rng;
 pub mod stack;
 
 pub use api::{
-    AlbedoRecord, BatchError, Direction, Engine, Estimator, EvalRecord, EvalStart, LayeredBsdf,
-    QueryError, Sample, SampleFlags, SampleRecord, ThreadsError, Transport, Vectors, VectorsMut,
-    MAX_THREADS, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Direction, Engine, Estimator, EvalRecord, EvalStart,
+    LayeredBsdf, QueryError, Sample, SampleFlags, SampleRecord, ThreadsError, Transport, Vectors,
+    VectorsMut, MAX_THREADS, MAX_WALKS,
 };
 pub use estimator::pdf::{PdfEstimate, PdfKind};
 pub use estimator::{Albedo, Estimate, Settings};

@@ -1,12 +1,15 @@
 //! The slice calls allocate nothing when they run query by query (on the
 //! scalar engine, which `Engine::Auto` picks for calls of fewer walks than
-//! the wavefront has lanes, or by a closed form): counted by a global
-//! allocator, after a first call has set up the thread's buffers. Wavefront
-//! batches allocate their engine's working memory per call (docs/embedding.md).
+//! the wavefront has lanes, or by a closed form), nor as serial wavefront
+//! batches (`threads(1)`): counted by a global allocator, after a first call
+//! has set up the thread's buffers. Parallel batches allocate inside rayon
+//! (docs/embedding.md).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use strata_bsdf::{Engine, EvalRecord, LayeredBsdf, SampleRecord, Transport, Vectors, VectorsMut};
+use strata_bsdf::{
+    AlbedoRecord, Engine, EvalRecord, LayeredBsdf, SampleRecord, Transport, Vectors, VectorsMut,
+};
 
 struct Counting;
 
@@ -36,7 +39,7 @@ fn allocations(f: impl FnOnce()) -> usize {
 
 // One test function: the counter is global, so nothing else may run at once.
 #[test]
-fn query_by_query_calls_allocate_nothing() {
+fn slice_calls_allocate_nothing() {
     let coated = include_str!("../materials/coated_copper.toml");
     let slab = include_str!("../materials/scattering_slab.toml");
     let clear = include_str!("../materials/clear_coat_lambertian.toml");
@@ -103,8 +106,130 @@ fn query_by_query_calls_allocate_nothing() {
     };
     one();
     assert_eq!(allocations(&mut one), 0);
-    // The wavefront engine allocates per call: the count is not zero (so
-    // the counter counts), and does not grow with the batch in proportion.
+    // Serial wavefront batches: nothing after a first call as large, for
+    // every slice call, on every material and in both modes.
+    let n = 4096;
+    let wi: Vec<[f32; 3]> = (0..n)
+        .map(|i| {
+            let t = i as f32 / n as f32;
+            // Some queries lit from below (opaque stacks: no light enters).
+            let z = if i % 3 == 2 { -0.9 } else { 0.9 };
+            [0.6 * t - 0.3, 0.2, z]
+        })
+        .collect();
+    let wo: Vec<[f32; 3]> = (0..n)
+        .map(|i| {
+            let t = i as f32 / n as f32;
+            let z = if i % 5 == 4 { -0.9 } else { 0.9 };
+            [0.1, 0.5 * t - 0.2, z]
+        })
+        .collect();
+    let keys: Vec<u64> = (0..n as u64).collect();
+    let mut f = vec![[0.0f32; 3]; n];
+    let mut rec = vec![EvalRecord::default(); n];
+    let mut s = vec![SampleRecord::default(); n];
+    let (mut so, mut sw) = (vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n]);
+    let (mut sp, mut sf) = (vec![0.0f32; n], vec![0u32; n]);
+    let mut a = vec![AlbedoRecord::default(); n];
+    let mut pd = vec![0.0f32; n];
+    for toml in [coated, slab, clear] {
+        for transport in [Transport::Radiance, Transport::Importance] {
+            let stack = strata_bsdf::LayerStack::from_toml_str(toml).unwrap();
+            let b = LayeredBsdf::new(stack)
+                .samples(64)
+                .engine(Engine::Wavefront)
+                .transport(transport)
+                .threads(1)
+                .unwrap();
+            // eval_into, eval_records, sample_records, sample_into, albedo_records, pdf_into.
+            let mut calls = |m: usize| {
+                [
+                    allocations(|| {
+                        b.eval_into(
+                            Vectors::Aos(&wi[..m]),
+                            Vectors::Aos(&wo[..m]),
+                            None,
+                            VectorsMut::Aos(&mut f[..m]),
+                            None,
+                        )
+                        .unwrap()
+                    }),
+                    allocations(|| {
+                        b.eval_records(
+                            Vectors::Aos(&wi[..m]),
+                            Vectors::Aos(&wo[..m]),
+                            Some(&keys[..m]),
+                            &mut rec[..m],
+                        )
+                        .unwrap()
+                    }),
+                    allocations(|| {
+                        b.sample_records(Vectors::Aos(&wi[..m]), None, &mut s[..m])
+                            .unwrap()
+                    }),
+                    allocations(|| {
+                        b.sample_into(
+                            Vectors::Aos(&wi[..m]),
+                            Some(&keys[..m]),
+                            VectorsMut::Aos(&mut so[..m]),
+                            VectorsMut::Aos(&mut sw[..m]),
+                            &mut sp[..m],
+                            &mut sf[..m],
+                        )
+                        .unwrap()
+                    }),
+                    allocations(|| {
+                        b.albedo_records(Vectors::Aos(&wi[..m]), 64, None, &mut a[..m])
+                            .unwrap()
+                    }),
+                    allocations(|| {
+                        b.pdf_into(Vectors::Aos(&wi[..m]), Vectors::Aos(&wo[..m]), &mut pd[..m])
+                            .unwrap()
+                    }),
+                ]
+            };
+            let what = format!("{transport:?}, {toml}");
+            // A first call sets up the thread's buffers; the second allocates
+            // nothing, and neither does a smaller batch after a larger one.
+            calls(64);
+            assert_eq!(calls(64), [0; 6], "64 queries, {what}");
+            calls(4096);
+            assert_eq!(calls(4096), [0; 6], "4096 queries, {what}");
+            assert_eq!(calls(64), [0; 6], "64 after 4096 queries, {what}");
+            assert!(f.iter().flatten().any(|&x| x > 0.0));
+            assert!(s.iter().any(|r| r.flags != 0) && sf.iter().any(|&x| x != 0));
+            assert!(a.iter().any(|r| r.reflected[0] > 0.0));
+            assert!(pd.iter().all(|&p| p >= 0.0) && pd.iter().any(|&p| p > 0.0));
+        }
+    }
+    // A wavefront call of at most 256 walks runs on the calling thread
+    // whatever the pool: nothing either.
+    let stack = strata_bsdf::LayerStack::from_toml_str(slab).unwrap();
+    let b = LayeredBsdf::new(stack)
+        .engine(Engine::Wavefront)
+        .samples(64);
+    let mut small = || {
+        [
+            allocations(|| {
+                let (wi, wo) = (Vectors::Aos(&wi[..4]), Vectors::Aos(&wo[..4]));
+                b.eval_records(wi, wo, None, &mut rec[..4]).unwrap()
+            }),
+            allocations(|| {
+                b.sample_records(Vectors::Aos(&wi[..64]), None, &mut s[..64])
+                    .unwrap()
+            }),
+            allocations(|| {
+                b.albedo_records(Vectors::Aos(&wi[..4]), 64, None, &mut a[..4])
+                    .unwrap()
+            }),
+        ]
+    };
+    small();
+    assert_eq!(small(), [0; 3], "eval, sample and albedo of 256 walks");
+    // Parallel batches allocate inside rayon: the count is not zero (so the
+    // counter counts), and does not grow with the batch in proportion.
+    let stack = strata_bsdf::LayerStack::from_toml_str(coated).unwrap();
+    let b = LayeredBsdf::new(stack);
     let b = b.engine(Engine::Wavefront).samples(64).threads(2).unwrap();
     let (wi4, wo4) = (vec![wi[0]; 4096], vec![wo[0]; 4096]);
     let mut f = vec![[0.0f32; 3]; 4096];

@@ -264,7 +264,8 @@ fn unbiased_pdf_checks_its_arguments() {
 #[ignore]
 fn approximate_pdf_ratios() {
     let wi = glam::Vec3::from(dir(25.0, 0.0));
-    for (name, toml) in STACKS {
+    let extra = [("smooth coat / rough copper", "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n[[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.2 }\n")];
+    for (name, toml) in STACKS.into_iter().chain(extra) {
         let b = bsdf(toml);
         // θ from 5° to 75° in steps of 10°, φ in steps of 45°.
         let mut dirs = vec![];

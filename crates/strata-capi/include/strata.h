@@ -232,8 +232,9 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
  * Runs the BSDF's large batches on a pool of `threads` threads of its own
  * (0: one per core; at most 1024). By default they run on a pool shared by
  * every BSDF of the process, one thread per core. Calls of a few walks
- * (n = 1 samples, small evals) run on the calling thread whatever the pool;
- * results never depend on it. A large batch runs on the pool while its
+ * (n = 1 samples, small evals) run on the calling thread whatever the pool,
+ * and `threads = 1` builds no pool: every batch runs on the calling thread,
+ * allocation-free once that thread is warm; results never depend on it. A large batch runs on the pool while its
  * caller waits, so a pool of its own bounds how many cores a BSDF's batches
  * use; calls from several threads share it. Configure a BSDF before sharing
  * it: this call must not run while another thread uses `b`.
@@ -242,7 +243,8 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
  * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
  * thread uses during the call.
  */
-int32_t strata_bsdf_set_threads(struct StrataBsdf *b, size_t threads);
+int32_t strata_bsdf_set_threads(struct StrataBsdf *b,
+                                size_t threads);
 
 /**
  * Writes what the stack is to `*out` (see `StrataStackInfo`).
@@ -387,6 +389,25 @@ int32_t strata_pdf_batch(const struct StrataBsdf *b,
                          const float *wi,
                          const float *wo,
                          float *pdf_out);
+
+/**
+ * The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
+ * each): the density of the sampler's directions from `walks` density walks
+ * (1 to 2^40), into `pdf_out`, with its standard error in `stderr_out` (`n`
+ * floats each). Slow: for references and tests. n = 0 does nothing.
+ *
+ * # Safety
+ * `wi`, `wo` hold at least `3 n` floats, `pdf_out` and `stderr_out` `n`;
+ * the outputs overlap neither the inputs nor each other (checked); `b` is
+ * NULL or live.
+ */
+int32_t strata_pdf_unbiased_batch(const struct StrataBsdf *b,
+                                  size_t n,
+                                  const float *wi,
+                                  const float *wo,
+                                  uint64_t walks,
+                                  float *pdf_out,
+                                  float *stderr_out);
 
 /**
  * The directional albedo of each incident direction `wi[k]` (`3 n` floats)

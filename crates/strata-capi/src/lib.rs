@@ -25,8 +25,8 @@ use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
-    AlbedoRecord, BatchError, LayerStack, LayeredBsdf, QueryError, SampleRecord, Transport,
-    Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf, SampleRecord, Transport,
+    Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -404,16 +404,10 @@ unsafe fn text<'a>(name: &str, s: *const c_char) -> Result<&'a str, Failure> {
 
 // ------------------------------------------------------------ construction
 
-/// Checks a walk count argument: 1 to 2^40 (the library's `MAX_WALKS`).
+/// Checks a walk count argument: 1 to 2^40 (the library's `MAX_WALKS`), by
+/// the library's own check, as an invalid-argument failure.
 fn walk_count(argument: &'static str, n: u64) -> Result<(), Failure> {
-    let e = if n == 0 {
-        QueryError::NoSamples { argument }
-    } else if n > MAX_WALKS {
-        QueryError::TooManySamples { argument, value: n }
-    } else {
-        return Ok(());
-    };
-    Err(Failure::invalid(e.to_string()))
+    check_walks(argument, n).map_err(|e| Failure::invalid(e.to_string()))
 }
 
 /// Builds a BSDF over `stack` and stores it in `*out`.
@@ -558,8 +552,9 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
 /// Runs the BSDF's large batches on a pool of `threads` threads of its own
 /// (0: one per core; at most 1024). By default they run on a pool shared by
 /// every BSDF of the process, one thread per core. Calls of a few walks
-/// (n = 1 samples, small evals) run on the calling thread whatever the pool;
-/// results never depend on it. A large batch runs on the pool while its
+/// (n = 1 samples, small evals) run on the calling thread whatever the pool,
+/// and `threads = 1` builds no pool: every batch runs on the calling thread,
+/// allocation-free once that thread is warm; results never depend on it. A large batch runs on the pool while its
 /// caller waits, so a pool of its own bounds how many cores a BSDF's batches
 /// use; calls from several threads share it. Configure a BSDF before sharing
 /// it: this call must not run while another thread uses `b`.
@@ -1023,6 +1018,52 @@ pub unsafe extern "C" fn strata_pdf_batch(
             let wo = input("wo", wo, 3, n)?;
             let pdf = output("pdf_out", pdf_out, 1, n)?;
             bsdf.pdf_into(Vectors::Aos(triples(wi)), Vectors::Aos(triples(wo)), pdf)?;
+        }
+        Ok(())
+    })
+}
+
+/// The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
+/// each): the density of the sampler's directions from `walks` density walks
+/// (1 to 2^40), into `pdf_out`, with its standard error in `stderr_out` (`n`
+/// floats each). Slow: for references and tests. n = 0 does nothing.
+///
+/// # Safety
+/// `wi`, `wo` hold at least `3 n` floats, `pdf_out` and `stderr_out` `n`;
+/// the outputs overlap neither the inputs nor each other (checked); `b` is
+/// NULL or live.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf_unbiased_batch(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    walks: u64,
+    pdf_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_pdf_unbiased_batch", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let bsdf = unsafe { bsdf_ref(b)? };
+        if n == 0 {
+            return Ok(());
+        }
+        walk_count("walks", walks)?;
+        disjoint(&[
+            span("wi", wi, 3, n, false, false)?,
+            span("wo", wo, 3, n, false, false)?,
+            span("pdf_out", pdf_out, 1, n, true, false)?,
+            span("stderr_out", stderr_out, 1, n, true, false)?,
+        ])?;
+        // SAFETY: the caller guarantees the arrays' lengths and that inputs
+        // are not written during the call; the outputs were checked disjoint.
+        unsafe {
+            let wi = input("wi", wi, 3, n)?;
+            let wo = input("wo", wo, 3, n)?;
+            let pdf = output("pdf_out", pdf_out, 1, n)?;
+            let se = output("stderr_out", stderr_out, 1, n)?;
+            let (wi, wo) = (Vectors::Aos(triples(wi)), Vectors::Aos(triples(wo)));
+            bsdf.pdf_unbiased_into(wi, wo, walks, pdf, se)?;
         }
         Ok(())
     })

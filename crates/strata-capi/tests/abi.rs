@@ -310,6 +310,69 @@ fn sample_is_the_rust_apis_bit_for_bit_in_both_layouts() {
 }
 
 #[test]
+fn the_unbiased_pdf_is_the_rust_apis() {
+    let c = Capi::toml(COATED_COPPER, 16, 5);
+    let r = rust(COATED_COPPER, 16, 5);
+    let wi = directions(N, 6, false);
+    let wo = directions(N, 7, false);
+    let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+    let (mut pdf, mut se) = (vec![0.0f32; N], vec![0.0f32; N]);
+    // SAFETY: wi, wo hold 3 N floats, pdf and se N each.
+    let status = unsafe {
+        strata_pdf_unbiased_batch(
+            c.0,
+            N,
+            wi_f.as_ptr(),
+            wo_f.as_ptr(),
+            64,
+            pdf.as_mut_ptr(),
+            se.as_mut_ptr(),
+        )
+    };
+    assert_eq!(status, STRATA_OK, "{}", last_error());
+    let (mut want, mut want_se) = (vec![0.0f32; N], vec![0.0f32; N]);
+    r.pdf_unbiased_into(
+        Vectors::Aos(&wi),
+        Vectors::Aos(&wo),
+        64,
+        &mut want,
+        &mut want_se,
+    )
+    .unwrap();
+    assert_eq!(bits(&pdf), bits(&want));
+    assert_eq!(bits(&se), bits(&want_se));
+    assert!(pdf.iter().all(|&p| p >= 0.0 && p.is_finite()) && se.iter().any(|&s| s > 0.0));
+    // No walks, and outputs that overlap, are errors naming the argument.
+    // SAFETY: as above; the second call passes one buffer as both outputs.
+    let status = unsafe {
+        strata_pdf_unbiased_batch(
+            c.0,
+            N,
+            wi_f.as_ptr(),
+            wo_f.as_ptr(),
+            0,
+            pdf.as_mut_ptr(),
+            se.as_mut_ptr(),
+        )
+    };
+    assert_ne!(status, STRATA_OK);
+    assert!(last_error().contains("walks = 0"), "{}", last_error());
+    let status = unsafe {
+        strata_pdf_unbiased_batch(
+            c.0,
+            N,
+            wi_f.as_ptr(),
+            wo_f.as_ptr(),
+            8,
+            pdf.as_mut_ptr(),
+            pdf.as_mut_ptr(),
+        )
+    };
+    assert_ne!(status, STRATA_OK);
+    assert!(last_error().contains("stderr_out"), "{}", last_error());
+}
+
+#[test]
 fn a_samples_pdf_is_what_pdf_batch_gives_and_pdf_is_the_rust_apis() {
     let c = Capi::toml(COATED_COPPER, 16, 5);
     let r = rust(COATED_COPPER, 16, 5);

@@ -147,6 +147,26 @@ impl std::error::Error for BatchError {}
 /// a batch could overflow, and a query would run for weeks anyway.
 pub const MAX_WALKS: u64 = 1 << 40;
 
+/// Checks a walk count passed as `argument` (`"samples"`, `"n"`): from 1 to
+/// [`MAX_WALKS`]. The one check behind every call that takes a walk count,
+/// for bindings to apply (and word) the same way before they build a BSDF.
+///
+/// ```
+/// use strata_bsdf::{check_walks, MAX_WALKS};
+/// assert!(check_walks("samples", 1).is_ok() && check_walks("samples", MAX_WALKS).is_ok());
+/// let e = check_walks("samples", 0).unwrap_err();
+/// assert_eq!(e.to_string(), "samples = 0: at least one walk is needed");
+/// ```
+pub fn check_walks(argument: &'static str, n: u64) -> Result<(), QueryError> {
+    if n == 0 {
+        Err(QueryError::NoSamples { argument })
+    } else if n > MAX_WALKS {
+        Err(QueryError::TooManySamples { argument, value: n })
+    } else {
+        Ok(())
+    }
+}
+
 /// The largest thread pool [`LayeredBsdf::threads`] builds: more threads
 /// than cores never helps, and each one reserves a stack.
 pub const MAX_THREADS: usize = 1024;

@@ -17,7 +17,9 @@ pub mod slices;
 mod strategy;
 mod transport;
 
-pub use error::{BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS};
+pub use error::{
+    check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
+};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
 pub use strategy::{Estimator, EvalStart};
 pub use transport::Transport;
@@ -25,12 +27,15 @@ pub use transport::Transport;
 use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::scalar::ScalarEngine;
-use crate::estimator::wavefront::{DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS};
+use crate::estimator::wavefront::{
+    with_kept, DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS,
+};
 use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
 use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::LayerStack;
 use glam::Vec3;
+use std::cell::RefCell;
 use std::sync::Arc;
 
 /// One sampled direction, with the pdf a renderer's MIS needs.
@@ -162,7 +167,19 @@ pub struct LayeredBsdf {
     eval_start: EvalStart,
     estimator: Estimator,
     exact: Option<SmoothCoatLambertian>,
-    pool: Option<Arc<rayon::ThreadPool>>,
+    threads: Threads,
+}
+
+/// Where the wavefront engine's large batches run.
+#[derive(Clone, Debug, Default)]
+enum Threads {
+    /// rayon's current pool (the global one, unless the caller runs in another).
+    #[default]
+    Current,
+    /// The calling thread, every batch ([`LayeredBsdf::threads`]`(1)`).
+    Calling,
+    /// A pool of the BSDF's own.
+    Pool(Arc<rayon::ThreadPool>),
 }
 
 impl LayeredBsdf {
@@ -190,7 +207,7 @@ impl LayeredBsdf {
             eval_start: EvalStart::default(),
             estimator: Estimator::default(),
             exact: SmoothCoatLambertian::of(&stack, &settings),
-            pool: None,
+            threads: Threads::Current,
         }
     }
 
@@ -264,18 +281,26 @@ impl LayeredBsdf {
 
     /// Runs the wavefront engine's batches on a pool of `n` threads (by
     /// default, rayon's global pool; `n = 0` also means one thread per
-    /// core). Calls of at most [`SERIAL_WALKS`] walks (and pdf batches of at
-    /// most [`PDF_CHUNK`] queries) run on the calling thread whatever the
-    /// pool. Results do not depend on it. At most [`MAX_THREADS`].
+    /// core). `n = 1` builds no pool: every batch runs on the calling thread
+    /// (a pool of one would only add a hand-over while the caller waits),
+    /// where the slice calls allocate nothing once the thread has made a call
+    /// as large (docs/embedding.md, *Memory*). Calls of at most
+    /// [`SERIAL_WALKS`] walks (and pdf batches of at most [`PDF_CHUNK`]
+    /// queries) run on the calling thread whatever the pool. Results do not
+    /// depend on it. At most [`MAX_THREADS`].
     pub fn threads(mut self, n: usize) -> Result<Self, ThreadsError> {
         if n > MAX_THREADS {
             return Err(ThreadsError::TooMany(n));
+        }
+        if n == 1 {
+            self.threads = Threads::Calling;
+            return Ok(self);
         }
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
             .map_err(ThreadsError::Pool)?;
-        self.pool = Some(Arc::new(pool));
+        self.threads = Threads::Pool(Arc::new(pool));
         Ok(self)
     }
 
@@ -309,9 +334,20 @@ impl LayeredBsdf {
 
     /// Runs `f` on this BSDF's pool, if it has one and `parallel` is set.
     fn install_if<R: Send>(&self, parallel: bool, f: impl FnOnce() -> R + Send) -> R {
-        match &self.pool {
-            Some(p) if parallel => p.install(f),
+        match &self.threads {
+            Threads::Pool(p) if parallel && p.current_num_threads() > 1 => p.install(f),
             _ => f(),
+        }
+    }
+
+    /// Whether the wavefront's batches run serially on the calling thread
+    /// (`threads(1)`, or a pool of one thread), where they allocate nothing
+    /// once the thread is warm.
+    pub(super) fn serial(&self) -> bool {
+        match &self.threads {
+            Threads::Calling => true,
+            Threads::Pool(p) => p.current_num_threads() == 1,
+            Threads::Current => rayon::current_num_threads() == 1,
         }
     }
 
@@ -334,7 +370,7 @@ impl LayeredBsdf {
             Direction::new("wi", wi)?.get(),
             Direction::new("wo", wo)?.get(),
         );
-        walk_count("samples", samples)?;
+        check_walks("samples", samples)?;
         Ok(self.eval_validated(&[pair], samples, &[query])[0])
     }
 
@@ -392,7 +428,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Estimate>, BatchError> {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
-        walk_count("samples", samples).map_err(BatchError::call)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
         Ok(self.eval_validated(&dirs, samples, keys))
     }
 
@@ -436,7 +472,7 @@ impl LayeredBsdf {
         samples: u64,
     ) -> Result<Vec<PdfEstimate>, BatchError> {
         let dirs = directions2(pairs)?;
-        walk_count("samples", samples).map_err(BatchError::call)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
         Ok(self.pdf_unbiased_validated(&dirs, samples))
     }
 
@@ -456,7 +492,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<Albedo>, BatchError> {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
-        walk_count("n", n).map_err(BatchError::call)?;
+        check_walks("n", n).map_err(BatchError::call)?;
         Ok(self.albedo_validated(&dirs, n, keys))
     }
 
@@ -465,31 +501,48 @@ impl LayeredBsdf {
     /// Eval of validated pairs on the engine the call resolves to, in the
     /// BSDF's transport mode.
     fn eval_validated(&self, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
-        if self.eval_by_query(dirs.len(), samples) {
-            return dirs
-                .iter()
-                .zip(keys)
-                .map(|(&(a, b), &k)| self.eval_one(a, b, samples, k))
-                .collect();
+        let mut est = Vec::with_capacity(dirs.len());
+        self.eval_each(
+            dirs.len(),
+            samples,
+            |k| (dirs[k], keys[k]),
+            |_, e| est.push(e),
+        );
+        est
+    }
+
+    /// Eval of the `n` validated queries `query(k) = (pair, key)`, handed to
+    /// `out` in query order, in the transport mode. Allocates nothing when
+    /// the call runs query by query, or serially on a warm thread.
+    fn eval_each(
+        &self,
+        n: usize,
+        samples: u64,
+        query: impl Fn(usize) -> (Pair, u64) + Sync,
+        mut out: impl FnMut(usize, Estimate) + Send,
+    ) {
+        if self.eval_by_query(n, samples) {
+            for k in 0..n {
+                let ((a, b), key) = query(k);
+                out(k, self.eval_one(a, b, samples, key));
+            }
+            return;
         }
         // Each query's walks start from the side `eval_start` chooses.
-        let swapped: Vec<bool> = dirs
-            .iter()
-            .map(|(a, b)| self.eval_start.swaps(a[2], b[2]))
-            .collect();
-        let walked: Vec<Pair> = dirs
-            .iter()
-            .zip(&swapped)
-            .map(|(&(a, b), &s)| if s { (b, a) } else { (a, b) })
-            .collect();
-        let est = self.install(dirs.len(), samples, || {
-            self.wave.eval_batch(&walked, samples, self.seed, keys).0
+        let walked = |k: usize| {
+            let ((a, b), key) = query(k);
+            let s = self.eval_start.swaps(a[2], b[2]);
+            (if s { (b, a) } else { (a, b) }, key)
+        };
+        let finish = |k: usize, e: Estimate| {
+            let ((a, b), _) = query(k);
+            out(k, self.scaled(e, a, b, self.eval_start.swaps(a[2], b[2])));
+        };
+        let serial = self.serial();
+        self.install(n, samples, || {
+            self.wave
+                .eval_each(n, walked, samples, self.seed, serial, finish)
         });
-        est.into_iter()
-            .zip(dirs)
-            .zip(&swapped)
-            .map(|((e, &(a, b)), &s)| self.scaled(e, a, b, s))
-            .collect()
     }
 
     /// Whether an eval call of `n` queries runs query by query: by the
@@ -547,40 +600,68 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Vec<Option<Sample>> {
-        if self.engine.resolve(dirs.len(), 1) == Engine::Scalar {
-            return dirs
-                .iter()
-                .zip(keys.iter().zip(sample_index))
-                .map(|(&a, (&k, &i))| self.sample_one(a, k, i))
-                .collect();
+        let mut res = Vec::with_capacity(dirs.len());
+        let query = |k: usize| (dirs[k], keys[k], sample_index[k]);
+        self.sample_each(dirs.len(), query, |_, s| res.push(s));
+        res
+    }
+
+    /// The samples of the `n` validated queries `query(k) = (wi, key, sample
+    /// index)`, each with the pdf [`LayeredBsdf::pdf`] gives for its
+    /// direction, handed to `out` in query order. Allocates nothing on the
+    /// scalar engine, or serially on a warm thread.
+    fn sample_each(
+        &self,
+        n: usize,
+        query: impl Fn(usize) -> ([f64; 3], u64, u64) + Sync,
+        mut out: impl FnMut(usize, Option<Sample>),
+    ) {
+        if self.engine.resolve(n, 1) == Engine::Scalar {
+            for k in 0..n {
+                let (a, key, index) = query(k);
+                out(k, self.sample_one(a, key, index));
+            }
+            return;
         }
-        let walks = self.install(dirs.len(), 1, || {
-            self.wave
-                .sample_batch(dirs, self.seed, keys, sample_index)
-                .0
-        });
-        // The pdf of each sampled direction, as `pdf(wi, wo)` computes it
-        // (0 for a direction that is not one, as on the scalar path).
-        let pair = |w: &Option<WalkSample>, a: [f64; 3]| {
-            Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get()))
-        };
-        let pairs: Vec<Pair> = walks
-            .iter()
-            .zip(dirs)
-            .filter_map(|(w, &a)| pair(w, a))
-            .collect();
-        let mut pdfs = self.pdf_validated(&pairs).into_iter();
-        walks
-            .into_iter()
-            .zip(dirs)
-            .map(|(w, &a)| {
+        with_kept(&SAMPLES, |b| {
+            let serial = self.serial();
+            let walks = &mut b.walks;
+            walks.clear();
+            self.install(n, 1, || {
+                let push = |_, w| walks.push(w);
+                self.wave.sample_each(n, &query, self.seed, serial, push)
+            });
+            // The pdf of each sampled direction, as `pdf(wi, wo)` computes it
+            // (0 for a direction that is not one, as on the scalar path).
+            let pair = |w: &Option<WalkSample>, a: [f64; 3]| {
+                Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get()))
+            };
+            b.pairs.clear();
+            let pairs = (b.walks.iter().enumerate()).filter_map(|(k, w)| pair(w, query(k).0));
+            b.pairs.extend(pairs);
+            b.pdf.clear();
+            if serial || b.pairs.len() <= PDF_CHUNK {
+                // On this thread (where `pdf_validated` would run them too),
+                // lane for lane its numbers, from buffers the thread keeps.
+                let (pairs, pdf) = (&b.pairs, &mut b.pdf);
+                let keyed = |j: usize| (pairs[j], pdf_key(pairs[j].0, pairs[j].1));
+                let push = |_, p: PdfEstimate| pdf.push(p.value as f32);
+                let (n, walks) = (pairs.len(), self.pdf_samples as u64);
+                let kind = PdfKind::Approximate;
+                (self.wave).pdf_each(n, keyed, walks, self.seed, kind, push);
+            } else {
+                b.pdf.extend(self.pdf_validated(&b.pairs));
+            }
+            let mut pdfs = b.pdf.iter();
+            for (k, &w) in b.walks.iter().enumerate() {
+                let a = query(k).0;
                 let pdf = match pair(&w, a) {
-                    Some(_) => pdfs.next().unwrap_or(0.0),
+                    Some(_) => pdfs.next().copied().unwrap_or(0.0),
                     None => 0.0,
                 };
-                Some(self.finish_sample(w?, a, pdf))
-            })
-            .collect()
+                out(k, w.map(|w| self.finish_sample(w, a, pdf)));
+            }
+        })
     }
 
     /// One sample on the scalar engine, with its pdf; allocates nothing.
@@ -633,7 +714,7 @@ impl LayeredBsdf {
 
     /// The unbiased pdf of validated pairs, `samples` density walks each,
     /// keyed by the directions.
-    fn pdf_unbiased_validated(&self, dirs: &[Pair], samples: u64) -> Vec<PdfEstimate> {
+    pub(super) fn pdf_unbiased_validated(&self, dirs: &[Pair], samples: u64) -> Vec<PdfEstimate> {
         let kind = PdfKind::Unbiased;
         if self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
             return dirs
@@ -654,36 +735,56 @@ impl LayeredBsdf {
     /// Albedos of validated directions; the transmitted fraction follows the
     /// transport mode.
     fn albedo_validated(&self, dirs: &[[f64; 3]], n: u64, keys: &[u64]) -> Vec<Albedo> {
-        let mut res: Vec<Albedo> = match self.engine.resolve(dirs.len(), n) {
-            Engine::Scalar => dirs
-                .iter()
-                .zip(keys)
-                .map(|(&a, &k)| self.scalar.albedo(a, n, self.seed, k))
-                .collect(),
-            _ => self.install(dirs.len(), n, || {
-                self.wave.albedo_batch(dirs, n, self.seed, keys).0
-            }),
-        };
-        for (r, a) in res.iter_mut().zip(dirs) {
+        let mut res = Vec::with_capacity(dirs.len());
+        self.albedo_each(dirs.len(), n, |k| (dirs[k], keys[k]), |_, a| res.push(a));
+        res
+    }
+
+    /// The albedos of the `m` validated queries `query(k) = (wi, key)`, `n`
+    /// walks each, handed to `out` in query order; the transmitted fraction
+    /// follows the transport mode. Allocates nothing on the scalar engine,
+    /// or serially on a warm thread.
+    fn albedo_each(
+        &self,
+        m: usize,
+        n: u64,
+        query: impl Fn(usize) -> ([f64; 3], u64) + Sync,
+        mut out: impl FnMut(usize, Albedo) + Send,
+    ) {
+        let mut finish = |k: usize, mut r: Albedo| {
+            let a = query(k).0;
             if let Some(s) = self.transport.factor(self.stack(), a[2], -a[2]) {
                 let t = &mut r.transmitted;
                 t.value = t.value.map(|v| v * s);
                 t.stderr = t.stderr.map(|v| v * s);
             }
+            out(k, r);
+        };
+        if self.engine.resolve(m, n) == Engine::Scalar {
+            for k in 0..m {
+                let (a, key) = query(k);
+                finish(k, self.scalar.albedo(a, n, self.seed, key));
+            }
+            return;
         }
-        res
+        let serial = self.serial();
+        self.install(m, n, || {
+            (self.wave).albedo_each(m, &query, n, self.seed, serial, finish)
+        });
     }
 }
 
-/// A walk count from 1 to [`MAX_WALKS`].
-fn walk_count(argument: &'static str, n: u64) -> Result<(), QueryError> {
-    if n == 0 {
-        Err(QueryError::NoSamples { argument })
-    } else if n > MAX_WALKS {
-        Err(QueryError::TooManySamples { argument, value: n })
-    } else {
-        Ok(())
-    }
+/// What a wavefront sample call keeps between calls on its thread.
+#[derive(Default)]
+struct SampleBuffers {
+    walks: Vec<Option<WalkSample>>,
+    pairs: Vec<Pair>,
+    pdf: Vec<f32>,
+}
+
+thread_local! {
+    /// The buffers of this thread's wavefront sample calls.
+    static SAMPLES: RefCell<Option<SampleBuffers>> = const { RefCell::new(None) };
 }
 
 /// One entry of a per-query argument for every query.

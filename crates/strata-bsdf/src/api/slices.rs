@@ -15,9 +15,11 @@
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
 use super::{
-    direction_at, direction_key, one_each, walk_count, BatchError, Direction, Engine, Estimate,
-    LayeredBsdf, Pair,
+    check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Engine,
+    Estimate, LayeredBsdf, Pair,
 };
+use crate::estimator::pdf::{PdfEstimate, PdfKind};
+use crate::estimator::wavefront::PDF_CHUNK;
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -69,13 +71,6 @@ impl<'a> Vectors<'a> {
             }
         }
         Ok(self.len())
-    }
-
-    /// Every vector, validated as a direction of query `i`.
-    fn directions(&self, argument: &'static str) -> Result<Vec<[f64; 3]>, BatchError> {
-        (0..self.len())
-            .map(|i| direction_at(argument, i, self.get(i)))
-            .collect()
     }
 }
 
@@ -354,8 +349,49 @@ impl LayeredBsdf {
             }
             return Ok(());
         }
+        if self.serial() || n <= PDF_CHUNK {
+            // On this thread, from the buffers it keeps: allocates nothing
+            // once warm (the numbers of `pdf_validated`, lane for lane).
+            let keyed = |k: usize| {
+                let (a, b) = pair_at(&wi, &wo, k);
+                ((a, b), pdf_key(a, b))
+            };
+            let (walks, kind) = (self.pdf_samples as u64, PdfKind::Approximate);
+            let put = |k: usize, e: PdfEstimate| pdf[k] = e.value as f32;
+            self.wave.pdf_each(n, keyed, walks, self.seed, kind, put);
+            return Ok(());
+        }
         let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
         pdf.copy_from_slice(&self.pdf_validated(&pairs));
+        Ok(())
+    }
+
+    /// The unbiased pdf of every pair from `samples` density walks each,
+    /// written to `pdf` with its standard error in `stderr` (keyed by the
+    /// directions, as [`LayeredBsdf::pdf_unbiased`]).
+    pub fn pdf_unbiased_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        samples: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> Result<(), BatchError> {
+        let n = self.pairs_count(&wi, &wo)?;
+        one_each("pdf", pdf.len(), n)?;
+        one_each("stderr", stderr.len(), n)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
+        check_pairs(&wi, &wo)?;
+        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
+        for ((e, p), s) in self
+            .pdf_unbiased_validated(&pairs, samples)
+            .iter()
+            .zip(pdf.iter_mut())
+            .zip(stderr.iter_mut())
+        {
+            *p = e.value as f32;
+            *s = e.stderr as f32;
+        }
         Ok(())
     }
 
@@ -370,25 +406,25 @@ impl LayeredBsdf {
     ) -> Result<(), BatchError> {
         let m = wi.count("wi")?;
         one_each("out", out.len(), m)?;
-        walk_count("n", n).map_err(BatchError::call)?;
-        let dirs = wi.directions("wi")?;
-        let keys = match keys {
-            Some(k) => {
-                one_each("keys", k.len(), m)?;
-                k.to_vec()
-            }
-            None => (0..m)
-                .map(|i| direction_key(wi.get(i), wi.get(i)))
-                .collect(),
+        check_walks("n", n).map_err(BatchError::call)?;
+        for k in 0..m {
+            direction_at("wi", k, wi.get(k))?;
+        }
+        if let Some(k) = keys {
+            one_each("keys", k.len(), m)?;
+        }
+        let query = |k: usize| {
+            let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
+            (dir_at(&wi, k), key)
         };
-        for (o, a) in out.iter_mut().zip(self.albedo_validated(&dirs, n, &keys)) {
-            *o = AlbedoRecord {
+        self.albedo_each(m, n, query, |k, a| {
+            out[k] = AlbedoRecord {
                 reflected: f32x3(a.reflected.value),
                 transmitted: f32x3(a.transmitted.value),
                 reflected_stderr: f32x3(a.reflected.stderr),
                 transmitted_stderr: f32x3(a.transmitted.stderr),
             };
-        }
+        });
         Ok(())
     }
 
@@ -401,44 +437,31 @@ impl LayeredBsdf {
 
     /// The eval of every pair, handed to `out` in query order once every
     /// input is known to be valid. Calls that run query by query (the
-    /// scalar engine, a closed form) allocate nothing; wavefront batches
-    /// allocate their engine's working memory.
+    /// scalar engine, a closed form) allocate nothing, nor do serial
+    /// wavefront batches on a warm thread; parallel ones allocate in rayon.
     fn evals(
         &self,
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
-        mut out: impl FnMut(usize, &Estimate),
+        mut out: impl FnMut(usize, &Estimate) + Send,
     ) -> Result<(), BatchError> {
         let n = wi.len();
-        walk_count("samples", self.samples).map_err(BatchError::call)?;
+        check_walks("samples", self.samples).map_err(BatchError::call)?;
         check_pairs(wi, wo)?;
         if let Some(k) = keys {
             one_each("keys", k.len(), n)?;
         }
         let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
-        if self.eval_by_query(n, self.samples) {
-            for k in 0..n {
-                let (a, b) = pair_at(wi, wo, k);
-                out(k, &self.eval_one(a, b, self.samples, key(k)));
-            }
-            return Ok(());
-        }
-        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
-        let keys: Vec<u64> = (0..n).map(key).collect();
-        for (k, e) in self
-            .eval_validated(&pairs, self.samples, &keys)
-            .iter()
-            .enumerate()
-        {
-            out(k, e);
-        }
+        let query = |k: usize| (pair_at(wi, wo, k), key(k));
+        self.eval_each(n, self.samples, query, |k, e| out(k, &e));
         Ok(())
     }
 
     /// The sample of every query, handed to `out` in query order: unkeyed
     /// queries draw sample index `k` of their direction's key, keyed ones
-    /// sample index 0 of their key. Allocates nothing on the scalar engine.
+    /// sample index 0 of their key. Allocates nothing on the scalar engine,
+    /// nor serially on a warm thread.
     fn samples_of(
         &self,
         wi: &Vectors,
@@ -456,22 +479,11 @@ impl LayeredBsdf {
             Some(x) => (x[k], 0),
             None => (direction_key(wi.get(k), wi.get(k)), k as u64),
         };
-        if self.engine.resolve(n, 1) == Engine::Scalar {
-            for k in 0..n {
-                let (key, index) = stream(k);
-                out(k, self.sample_one(dir_at(wi, k), key, index).as_ref());
-            }
-            return Ok(());
-        }
-        let dirs: Vec<[f64; 3]> = (0..n).map(|k| dir_at(wi, k)).collect();
-        let (keys, index): (Vec<u64>, Vec<u64>) = (0..n).map(stream).unzip();
-        for (k, s) in self
-            .sample_validated(&dirs, &keys, &index)
-            .iter()
-            .enumerate()
-        {
-            out(k, s.as_ref());
-        }
+        let query = |k: usize| {
+            let (key, index) = stream(k);
+            (dir_at(wi, k), key, index)
+        };
+        self.sample_each(n, query, |k, s| out(k, s.as_ref()));
         Ok(())
     }
 }

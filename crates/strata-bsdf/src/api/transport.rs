@@ -35,6 +35,21 @@ pub enum Transport {
 }
 
 impl Transport {
+    /// The mode's name, as [`str::parse`] reads it and the CLI and the
+    /// bindings print it: `"radiance"` or `"importance"`.
+    ///
+    /// ```
+    /// use strata_bsdf::Transport;
+    /// let t = Transport::Importance;
+    /// assert_eq!(t.as_str().parse::<Transport>(), Ok(t));
+    /// ```
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Transport::Radiance => "radiance",
+            Transport::Importance => "importance",
+        }
+    }
+
     /// The factor that turns the radiance BSDF from `wi` to `wo` (given by
     /// the z of each) into this mode's, or `None` where it is 1 (radiance,
     /// reflection, equal exteriors), so that those results are untouched.

@@ -42,14 +42,15 @@ pub(super) struct Deferred {
 }
 
 impl Deferred {
-    /// Empty, for a task of `walks` walks on an engine of `lanes` lanes with
-    /// `exits` rough exits.
-    pub(super) fn new(exits: usize, walks: usize, lanes: usize) -> Self {
-        Deferred {
-            pending: vec![Vec::new(); exits],
-            lanes,
-            sums: vec![[0.0; 3]; walks],
-        }
+    /// Empties it for a task of `walks` walks on an engine of `lanes` lanes
+    /// with `exits` rough exits, keeping its memory (a thread reuses one
+    /// task after task).
+    pub(super) fn reset(&mut self, exits: usize, walks: usize, lanes: usize) {
+        self.pending.resize_with(exits, Vec::new);
+        self.pending.iter_mut().for_each(Vec::clear);
+        self.lanes = lanes;
+        self.sums.clear();
+        self.sums.resize(walks, [0.0; 3]);
     }
 
     /// Defers the continuation toward exit `x` of lanes `lanes` (a bitmask),

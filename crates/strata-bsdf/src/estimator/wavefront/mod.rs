@@ -28,7 +28,13 @@
 //!   that tasks cost alike whatever the order of the queries; rayon runs the
 //!   tasks. Each task owns its wave: no shared mutable state, and memory
 //!   bounded by the wave and task sizes. Which blocks share a task does not
-//!   change any result.
+//!   change any result. A serial call (one thread) runs its tasks in order
+//!   on the calling thread.
+//! * **Memory.** A thread keeps its waves, its tasks' queues and its calls'
+//!   query columns and reducers between calls (grow-only, cleared per call),
+//!   so that the `*_each` calls of a warm thread allocate nothing when they
+//!   run serially (`tests/alloc_free.rs`). A call that finds its thread's
+//!   buffers in use (re-entered) runs on fresh ones.
 //! * **Pay for what the stack uses** ([`Plan`]): clear and absorbing layers are
 //!   crossed inside the interface stage (transmittance, never free flight),
 //!   grey media skip spectral MIS, smooth interfaces skip microfacet code, and
@@ -43,12 +49,15 @@ pub mod walks;
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
-use super::pdf::{PdfEstimate, PdfKind};
+use super::pdf::{DensitySums, PdfEstimate, PdfKind};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use rayon::prelude::*;
+use stages::TaskBuffers;
+use std::cell::RefCell;
+use std::thread::LocalKey;
 use walks::Walks;
 
 /// The lane type of the wavefront engine: the one place the width is set.
@@ -110,15 +119,17 @@ impl Stats {
 }
 
 /// What the walks of a batch compute.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(crate) enum Mode {
     /// Unidirectional eval: walks connect to `wo`.
     Eval,
-    /// Analog walks (sample, albedo).
+    /// Analog walks (sample, albedo); the mode of an empty [`Queries`].
+    #[default]
     Sample,
 }
 
 /// The queries of a batch, oriented and in f32 columns.
+#[derive(Default)]
 pub(crate) struct Queries {
     pub mode: Mode,
     /// Seeding prefix per query (`rng::query_prefix(seed, key)`).
@@ -146,14 +157,44 @@ pub(crate) struct Queries {
 impl Queries {
     /// The indices of the queries light can enter.
     fn valid_ids(&self) -> Vec<u32> {
-        (0..self.valid.len() as u32)
-            .filter(|&q| self.valid[q as usize])
-            .collect()
+        let mut v = Vec::new();
+        self.valid_ids_into(&mut v);
+        v
+    }
+
+    /// [`Queries::valid_ids`] into `v` (cleared first).
+    fn valid_ids_into(&self, v: &mut Vec<u32>) {
+        v.clear();
+        v.extend((0..self.valid.len() as u32).filter(|&q| self.valid[q as usize]));
+    }
+
+    /// Empties the columns for `m` queries of `mode` (every query invalid
+    /// until `prepare_into` fills it), keeping their memory.
+    fn reset(&mut self, mode: Mode, m: usize) {
+        fn refill<T: Clone>(v: &mut Vec<T>, m: usize, x: T) {
+            v.clear();
+            v.resize(m, x);
+        }
+        self.mode = mode;
+        self.prefix.clear();
+        self.prefix.reserve(m);
+        refill(&mut self.valid, m, false);
+        refill(&mut self.flipped, m, false);
+        for c in self.wi.iter_mut().chain(&mut self.wo) {
+            refill(c, m, 0.0);
+        }
+        refill(&mut self.e_in, m, 0);
+        refill(&mut self.e_out, m, 0.0);
+        refill(&mut self.fixed, m, false);
+        refill(&mut self.link0, m, [0.0; 16]);
     }
 }
 
 /// One query as given: `(wi, wo for eval, seeding key)`.
 type QuerySpec = ([f64; 3], Option<[f64; 3]>, u64);
+
+/// A validated `(wi, wo)` pair.
+pub(crate) type Pair = ([f64; 3], [f64; 3]);
 
 /// A run of consecutive samples of one query.
 #[derive(Clone, Copy, Debug)]
@@ -179,18 +220,66 @@ pub(crate) struct WalkOut {
 }
 
 thread_local! {
-    /// Waves kept for reuse by this thread (a few, of the sizes last used).
-    static WAVES: std::cell::RefCell<Vec<Walks>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Waves kept for reuse by this thread (a few: one per call or task it
+    /// runs at once, which work stealing can nest).
+    static WAVES: RefCell<Vec<Walks>> = const { RefCell::new(Vec::new()) };
+    /// The buffers of this thread's calls (query columns, reducers).
+    static CALLS: RefCell<Option<CallBuffers>> = const { RefCell::new(None) };
+    /// The buffers of the tasks this thread runs (units, walk outputs, queues).
+    static TASKS: RefCell<Option<TaskScratch>> = const { RefCell::new(None) };
 }
 
-/// Runs `f` on a wave of `slots` slots, reusing one this thread kept.
+/// What a call keeps between calls on its thread.
+#[derive(Default)]
+struct CallBuffers {
+    queries: Queries,
+    valid: Vec<u32>,
+    /// Sample: each query's sample index.
+    index: Vec<u64>,
+    red: Vec<BlockReducer>,
+    red2: Vec<(BlockReducer, BlockReducer)>,
+    /// Pdf: each query's sums of density walks.
+    sums: Vec<DensitySums>,
+}
+
+/// What a task keeps between tasks on its thread.
+#[derive(Default)]
+struct TaskScratch {
+    ids: Vec<usize>,
+    units: Vec<Unit>,
+    out: Vec<WalkOut>,
+    bufs: TaskBuffers,
+}
+
+/// Runs `f` on the buffers this thread keeps in `key`, taken out while `f`
+/// runs: a call nested in `f` (work stealing, or a sink that calls the
+/// engine) finds none and starts from empty ones, which it then keeps.
+pub(crate) fn with_kept<T: Default + 'static, R>(
+    key: &'static LocalKey<RefCell<Option<T>>>,
+    f: impl FnOnce(&mut T) -> R,
+) -> R {
+    let mut b = key.with(|c| c.borrow_mut().take()).unwrap_or_default();
+    let r = f(&mut b);
+    key.with(|c| *c.borrow_mut() = Some(b));
+    r
+}
+
+/// Runs `f` on a wave of `slots` slots, reusing one this thread kept: the
+/// smallest that holds `slots` without growing, else the largest (which
+/// grows), so that a warm thread serves any batch up to its largest so far
+/// without allocating. (Results do not depend on the wave.)
 fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
     let kept = WAVES.with(|w| {
         let mut w = w.borrow_mut();
-        let i = w.iter().position(|x| x.slots() == slots)?;
+        let cap = |i: &usize| w[*i].capacity();
+        let i = (0..w.len())
+            .filter(|i| cap(i) >= slots)
+            .min_by_key(cap)
+            .or_else(|| (0..w.len()).max_by_key(cap))?;
         Some(w.swap_remove(i))
     });
     let mut ws = kept.unwrap_or_else(|| Walks::new(slots));
+    ws.set_slots(slots);
     let r = f(&mut ws);
     WAVES.with(|w| {
         let mut w = w.borrow_mut();
@@ -202,15 +291,15 @@ fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
     r
 }
 
-/// Units per task for a batch of `count` units of `walks_per_unit` walks:
-/// all of them for a batch of at most [`SERIAL_WALKS`] walks, else at most
-/// [`TASK_WALKS`] walks' worth and small enough that each thread gets several
-/// tasks (for balance).
-fn units_per_task(count: usize, walks_per_unit: u64) -> usize {
+/// Units per task for a batch of `count` units of `walks_per_unit` walks
+/// over `threads` threads: all of them for a batch of at most
+/// [`SERIAL_WALKS`] walks, else at most [`TASK_WALKS`] walks' worth and small
+/// enough that each thread gets several tasks (for balance).
+fn units_per_task(count: usize, walks_per_unit: u64, threads: usize) -> usize {
     if (count as u64).saturating_mul(walks_per_unit) <= SERIAL_WALKS {
         return count;
     }
-    let threads = rayon::current_num_threads().max(1);
+    let threads = threads.max(1);
     ((TASK_WALKS / walks_per_unit).max(1) as usize)
         .min(count.div_ceil(4 * threads))
         .max(1)
@@ -349,21 +438,24 @@ impl<W: Wide> Wavefront<W> {
     }
 
     fn prepare(&self, mode: Mode, seed: u64, pairs: &[QuerySpec]) -> Queries {
-        let m = pairs.len();
-        let f3 = || [vec![0.0f32; m], vec![0.0f32; m], vec![0.0f32; m]];
-        let mut q = Queries {
-            mode,
-            prefix: Vec::with_capacity(m),
-            valid: vec![false; m],
-            flipped: vec![false; m],
-            wi: f3(),
-            wo: f3(),
-            e_in: vec![0; m],
-            e_out: vec![0.0; m],
-            fixed: vec![false; m],
-            link0: vec![[0.0; 16]; m],
-        };
-        for (k, &(wi, wo, key)) in pairs.iter().enumerate() {
+        let mut q = Queries::default();
+        self.prepare_into(&mut q, mode, seed, pairs.len(), |k| pairs[k]);
+        q
+    }
+
+    /// [`Wavefront::prepare`] of the `m` queries `spec(0..m)` (called once
+    /// each, in order) into `q`, reusing its memory.
+    fn prepare_into(
+        &self,
+        q: &mut Queries,
+        mode: Mode,
+        seed: u64,
+        m: usize,
+        mut spec: impl FnMut(usize) -> QuerySpec,
+    ) {
+        q.reset(mode, m);
+        for k in 0..m {
+            let (wi, wo, key) = spec(k);
             q.prefix.push(crate::rng::query_prefix(seed, key));
             let Some(o) = super::orient(&self.stack, wi, wo) else {
                 continue;
@@ -388,7 +480,6 @@ impl<W: Wide> Wavefront<W> {
                 }
             }
         }
-        q
     }
 
     /// The one link of the fixed adjoint chain from exit `e` towards `wo`,
@@ -411,10 +502,13 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// Runs the walks of `units` (an indexable sequence of `count` units)
-    /// cut into tasks of whole units over rayon. Each unit's walk outputs (in
-    /// sample order) are condensed by `per_unit` (a block's mean and variance,
-    /// or a sample); `sink` receives the results in unit order. Tasks run a
-    /// window at a time, so memory is bounded by the window, not the batch.
+    /// cut into tasks of whole units over rayon, or (`serial`, or a pool of
+    /// one thread) in order on the calling thread. Each unit's walk outputs
+    /// (in sample order) are condensed by `per_unit` (a block's mean and
+    /// variance, or a sample); `sink` receives the results in unit order.
+    /// Tasks run a window at a time, so memory is bounded by the window, not
+    /// the batch. A serial run on a warm thread allocates nothing.
+    #[allow(clippy::too_many_arguments)]
     fn run<R: Send>(
         &self,
         queries: &Queries,
@@ -422,21 +516,51 @@ impl<W: Wide> Wavefront<W> {
         unit: impl Fn(usize) -> Unit + Sync,
         per_unit: impl Fn(&[WalkOut]) -> R + Sync,
         mut sink: impl FnMut(Unit, R),
+        serial: bool,
     ) -> Stats {
         if count == 0 {
             return Stats::default();
         }
+        let serial = serial || rayon::current_num_threads() == 1;
+        let threads = if serial {
+            1
+        } else {
+            rayon::current_num_threads()
+        };
         // Results do not depend on which units share a task: a unit's walks
         // and their reduction are its own, and units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
-        let per_task = units_per_task(count, walks_per_unit);
+        let per_task = units_per_task(count, walks_per_unit, threads);
         let tasks = count.div_ceil(per_task);
         let largest = (per_task.min(count) as u64).saturating_mul(walks_per_unit) as usize;
         let slots = self
             .slots
             .min(largest.div_ceil(W::LANES) * W::LANES)
             .max(W::LANES);
-        let window = 4 * rayon::current_num_threads().max(1);
+        if serial || tasks == 1 {
+            // Tasks of consecutive units, one after the other: their results
+            // are in unit order as they come, and every buffer is reused.
+            return with_kept(&TASKS, |t| {
+                let mut stats = Stats::default();
+                for first in (0..count).step_by(per_task) {
+                    t.units.clear();
+                    t.units
+                        .extend((first..count.min(first + per_task)).map(&unit));
+                    let st = with_wave(slots, |ws| {
+                        self.run_task(queries, &t.units, ws, &mut t.out, &mut t.bufs)
+                    });
+                    stats.add(&st);
+                    let mut at = 0;
+                    for u in &t.units {
+                        let o = &t.out[at..at + u.count as usize];
+                        at += u.count as usize;
+                        sink(*u, per_unit(o));
+                    }
+                }
+                stats
+            });
+        }
+        let window = 4 * threads;
         let mut stats = Stats::default();
         for w0 in (0..tasks).step_by(window) {
             // The window's units are dealt to its tasks in turn (task j takes
@@ -445,18 +569,21 @@ impl<W: Wide> Wavefront<W> {
             let first = w0 * per_task;
             let end = count.min((w0 + window) * per_task);
             let nt = (end - first).div_ceil(per_task);
+            // Each worker reuses its own buffers; the results cross threads
+            // in vectors of their own.
             let task = |j: usize| {
-                let ids: Vec<usize> = (first + j..end).step_by(nt).collect();
-                let units: Vec<Unit> = ids.iter().map(|&i| unit(i)).collect();
-                with_wave(slots, |ws| {
-                    let mut out = Vec::new();
-                    let st = self.run_task(queries, &units, ws, &mut out);
+                with_kept(&TASKS, |t| {
+                    t.ids.clear();
+                    t.ids.extend((first + j..end).step_by(nt));
+                    t.units.clear();
+                    t.units.extend(t.ids.iter().map(|&i| unit(i)));
+                    let st = with_wave(slots, |ws| {
+                        self.run_task(queries, &t.units, ws, &mut t.out, &mut t.bufs)
+                    });
                     let mut at = 0;
-                    let res: Vec<(usize, Unit, R)> = ids
-                        .iter()
-                        .zip(&units)
+                    let res: Vec<(usize, Unit, R)> = (t.ids.iter().zip(&t.units))
                         .map(|(&i, u)| {
-                            let o = &out[at..at + u.count as usize];
+                            let o = &t.out[at..at + u.count as usize];
                             at += u.count as usize;
                             (i, *u, per_unit(o))
                         })
@@ -507,37 +634,43 @@ impl<W: Wide> Wavefront<W> {
         })
     }
 
-    /// The estimate of each query from its walks' values, reduced in block order.
+    /// The sum of each query's walks' values, reduced in block order, handed
+    /// to `out` in query order; the reducers live in `red`, the valid
+    /// queries' ids in `valid`.
+    #[allow(clippy::too_many_arguments)]
     fn estimates(
         &self,
         queries: &Queries,
+        valid: &mut Vec<u32>,
+        red: &mut Vec<BlockReducer>,
         samples: u64,
         value: impl Fn(&WalkOut) -> [f64; 3] + Sync,
-    ) -> (Vec<MeanVar>, Stats) {
-        let valid = queries.valid_ids();
-        let mut red = vec![BlockReducer::new(); queries.valid.len()];
-        let (count, unit) = Self::block_unit(&valid, samples);
+        serial: bool,
+        mut out: impl FnMut(usize, MeanVar),
+    ) -> Stats {
+        queries.valid_ids_into(valid);
+        red.clear();
+        red.resize(queries.valid.len(), BlockReducer::new());
+        let (count, unit) = Self::block_unit(valid, samples);
         // A block's walks in sample order, as the scalar engine pushes them.
         let block = |o: &[WalkOut]| {
             let mut b = MeanVar::new();
             o.iter().for_each(|o| b.push(value(o)));
             b
         };
-        let stats = self.run(queries, count, unit, block, |u, b| {
-            red[u.query as usize].push_block(&b)
-        });
-        let sums = red
-            .into_iter()
-            .enumerate()
-            .map(|(q, r)| {
+        let sink = |u: Unit, b: MeanVar| red[u.query as usize].push_block(&b);
+        let stats = self.run(queries, count, unit, block, sink, serial);
+        for (q, r) in red.iter().enumerate() {
+            out(
+                q,
                 if queries.valid[q] {
                     r.finish()
                 } else {
                     zero_sum(samples)
-                }
-            })
-            .collect();
-        (sums, stats)
+                },
+            );
+        }
+        stats
     }
 
     /// Unidirectional eval of every `(wi, wo)` pair with `samples` walks each;
@@ -549,28 +682,52 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> (Vec<Estimate>, Stats) {
-        let queries = self.eval_queries(pairs, seed, keys);
-        let (sums, stats) = self.estimates(&queries, samples, |o| o.value.map(|x| x as f64));
-        let est = sums
-            .iter()
-            .enumerate()
-            .map(|(q, sum)| {
-                if !queries.valid[q] {
-                    return sum.estimate();
-                }
-                let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
-                let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
-                let e_in = queries.e_in[q] as usize;
-                // First-order term: the entrance alone, when it is also the exit.
-                let direct = if e_in == queries.e_out[q] as usize {
-                    super::scalar::rgb_f64(self.table[e_in].eval(wi, wo))
-                } else {
-                    [0.0; 3]
-                };
-                sum.estimate_plus(direct)
-            })
-            .collect();
+        assert_eq!(pairs.len(), keys.len(), "one key per query");
+        let mut est = Vec::with_capacity(pairs.len());
+        let query = |k: usize| (pairs[k], keys[k]);
+        let stats = self.eval_each(pairs.len(), query, samples, seed, false, |_, e| est.push(e));
         (est, stats)
+    }
+
+    /// [`Wavefront::eval_batch`] of the `m` queries `query(k) = (pair, key)`
+    /// (each called once, in order), handed to `out` in query order: serial
+    /// (see [`Wavefront::run`]) on a warm thread, it allocates nothing.
+    pub(crate) fn eval_each(
+        &self,
+        m: usize,
+        mut query: impl FnMut(usize) -> (Pair, u64),
+        samples: u64,
+        seed: u64,
+        serial: bool,
+        mut out: impl FnMut(usize, Estimate),
+    ) -> Stats {
+        with_kept(&CALLS, |c| {
+            self.prepare_into(&mut c.queries, Mode::Eval, seed, m, |k| {
+                let ((wi, wo), key) = query(k);
+                (wi, Some(wo), key)
+            });
+            let q = &c.queries;
+            let value = |o: &WalkOut| o.value.map(|x| x as f64);
+            let finish = |k: usize, sum: MeanVar| out(k, self.eval_estimate(q, k, sum));
+            self.estimates(q, &mut c.valid, &mut c.red, samples, value, serial, finish)
+        })
+    }
+
+    /// Query `k`'s estimate from the sum of its walks: with the first-order
+    /// term (the entrance alone, when it is also the exit).
+    fn eval_estimate(&self, queries: &Queries, q: usize, sum: MeanVar) -> Estimate {
+        if !queries.valid[q] {
+            return sum.estimate();
+        }
+        let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
+        let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
+        let e_in = queries.e_in[q] as usize;
+        let direct = if e_in == queries.e_out[q] as usize {
+            super::scalar::rgb_f64(self.table[e_in].eval(wi, wo))
+        } else {
+            [0.0; 3]
+        };
+        sum.estimate_plus(direct)
     }
 
     /// Each walk's value of the unidirectional estimator (without the
@@ -600,15 +757,9 @@ impl<W: Wide> Wavefront<W> {
         let values = |o: &[WalkOut]| -> Vec<[f64; 3]> {
             o.iter().map(|o| o.value.map(|x| x as f64)).collect()
         };
-        self.run(&queries, count, unit, values, |u, x| {
-            v[u.query as usize].extend(x)
-        });
+        let sink = |u: Unit, x: Vec<[f64; 3]>| v[u.query as usize].extend(x);
+        self.run(&queries, count, unit, values, sink, false);
         v
-    }
-
-    fn sample_queries(&self, wis: &[[f64; 3]], seed: u64, keys: &[u64]) -> Queries {
-        let spec: Vec<_> = wis.iter().zip(keys).map(|(&w, &k)| (w, None, k)).collect();
-        self.prepare(Mode::Sample, seed, &spec)
     }
 
     fn eval_queries(&self, pairs: &[([f64; 3], [f64; 3])], seed: u64, keys: &[u64]) -> Queries {
@@ -630,42 +781,147 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
     ) -> (Vec<Albedo>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
-        let queries = self.sample_queries(wis, seed, keys);
-        // Reflected and transmitted fractions share the walks: reduce both at once.
-        let valid = queries.valid_ids();
-        let mut red = vec![(BlockReducer::new(), BlockReducer::new()); wis.len()];
-        let (count, unit) = Self::block_unit(&valid, samples);
-        let block = |o: &[WalkOut]| {
-            let (mut r, mut t) = (MeanVar::new(), MeanVar::new());
-            for o in o {
-                let w = o.value.map(|x| x as f64);
-                let (refl, trans) = (o.exited && o.reflection, o.exited && !o.reflection);
-                r.push(if refl { w } else { [0.0; 3] });
-                t.push(if trans { w } else { [0.0; 3] });
-            }
-            (r, t)
-        };
-        let stats = self.run(&queries, count, unit, block, |u, (r, t)| {
-            let q = &mut red[u.query as usize];
-            q.0.push_block(&r);
-            q.1.push_block(&t);
-        });
-        let res = red
-            .into_iter()
-            .enumerate()
-            .map(|(q, (r, t))| {
+        let mut res = Vec::with_capacity(wis.len());
+        let query = |k: usize| (wis[k], keys[k]);
+        let stats = self.albedo_each(wis.len(), query, samples, seed, false, |_, a| res.push(a));
+        (res, stats)
+    }
+
+    /// [`Wavefront::albedo_batch`] of the `m` queries `query(k) = (wi, key)`
+    /// (each called once, in order), handed to `out` in query order: serial
+    /// on a warm thread, it allocates nothing.
+    pub(crate) fn albedo_each(
+        &self,
+        m: usize,
+        mut query: impl FnMut(usize) -> ([f64; 3], u64),
+        samples: u64,
+        seed: u64,
+        serial: bool,
+        mut out: impl FnMut(usize, Albedo),
+    ) -> Stats {
+        with_kept(&CALLS, |c| {
+            self.prepare_into(&mut c.queries, Mode::Sample, seed, m, |k| {
+                let (wi, key) = query(k);
+                (wi, None, key)
+            });
+            let queries = &c.queries;
+            // Reflected and transmitted fractions share the walks: reduce both at once.
+            queries.valid_ids_into(&mut c.valid);
+            let red = &mut c.red2;
+            red.clear();
+            red.resize(m, (BlockReducer::new(), BlockReducer::new()));
+            let (count, unit) = Self::block_unit(&c.valid, samples);
+            let block = |o: &[WalkOut]| {
+                let (mut r, mut t) = (MeanVar::new(), MeanVar::new());
+                for o in o {
+                    let w = o.value.map(|x| x as f64);
+                    let (refl, trans) = (o.exited && o.reflection, o.exited && !o.reflection);
+                    r.push(if refl { w } else { [0.0; 3] });
+                    t.push(if trans { w } else { [0.0; 3] });
+                }
+                (r, t)
+            };
+            let sink = |u: Unit, (r, t): (MeanVar, MeanVar)| {
+                let q = &mut red[u.query as usize];
+                q.0.push_block(&r);
+                q.1.push_block(&t);
+            };
+            let stats = self.run(queries, count, unit, block, sink, serial);
+            for (q, (r, t)) in red.iter().enumerate() {
                 let (r, t) = if queries.valid[q] {
                     (r.finish(), t.finish())
                 } else {
                     (zero_sum(samples), zero_sum(samples))
                 };
-                Albedo {
+                let a = Albedo {
                     reflected: r.estimate(),
                     transmitted: t.estimate(),
+                };
+                out(q, a);
+            }
+            stats
+        })
+    }
+
+    /// [`Wavefront::sample_batch`] of the `m` queries `query(k) = (wi, key,
+    /// sample index)` (each called once, in order), handed to `out` in query
+    /// order (`None`: absorbed, or no light enters): serial on a warm thread,
+    /// it allocates nothing.
+    pub(crate) fn sample_each(
+        &self,
+        m: usize,
+        mut query: impl FnMut(usize) -> ([f64; 3], u64, u64),
+        seed: u64,
+        serial: bool,
+        mut out: impl FnMut(usize, Option<WalkSample>),
+    ) -> Stats {
+        with_kept(&CALLS, |c| {
+            c.index.clear();
+            let index = &mut c.index;
+            self.prepare_into(&mut c.queries, Mode::Sample, seed, m, |k| {
+                let (wi, key, i) = query(k);
+                index.push(i);
+                (wi, None, key)
+            });
+            let queries = &c.queries;
+            queries.valid_ids_into(&mut c.valid);
+            let (valid, index) = (&c.valid, &c.index);
+            let unit = |u: usize| Unit {
+                query: valid[u],
+                first: index[valid[u] as usize],
+                count: 1,
+            };
+            // Queries without a walk (no light enters) are handed over as
+            // absorbed, in order, as the walks that skip them end.
+            let mut next = 0;
+            let sink = |u: Unit, o: WalkOut| {
+                let q = u.query as usize;
+                for k in next..q {
+                    out(k, None);
                 }
-            })
-            .collect();
-        (res, stats)
+                next = q + 1;
+                let s = o.exited.then(|| {
+                    let mut d = o.dir;
+                    if queries.flipped[q] {
+                        d[2] = -d[2];
+                    }
+                    WalkSample {
+                        wo: glam::Vec3::from(d),
+                        weight: o.value,
+                        reflection: o.reflection,
+                        specular: o.specular,
+                    }
+                });
+                out(q, s);
+            };
+            let stats = self.run(queries, valid.len(), unit, |o| o[0], sink, serial);
+            for k in next..m {
+                out(k, None);
+            }
+            stats
+        })
+    }
+
+    /// A pdf of the `m` pairs `query(k) = (pair, key)` (each called once,
+    /// in order), `samples` density walks each, handed to `out` in query
+    /// order, on the calling thread, from buffers this thread keeps (a warm
+    /// thread allocates nothing): the numbers of [`Wavefront::pdf_batch`].
+    pub(crate) fn pdf_each(
+        &self,
+        m: usize,
+        mut query: impl FnMut(usize) -> (Pair, u64),
+        samples: u64,
+        seed: u64,
+        kind: PdfKind,
+        out: impl FnMut(usize, PdfEstimate),
+    ) {
+        with_kept(&CALLS, |c| {
+            self.prepare_into(&mut c.queries, Mode::Eval, seed, m, |k| {
+                let ((wi, wo), key) = query(k);
+                (wi, Some(wo), key)
+            });
+            self.pdf_range(&c.queries, 0..m, samples, kind, &mut c.sums, out);
+        })
     }
 
     /// One analog walk per query: query `q` is light from `wis[q]`, seeded by
@@ -679,36 +935,9 @@ impl<W: Wide> Wavefront<W> {
     ) -> (Vec<Option<WalkSample>>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         assert_eq!(wis.len(), sample_index.len(), "one sample index per query");
-        let queries = self.sample_queries(wis, seed, keys);
-        let valid = queries.valid_ids();
-        let unit = |u: usize| Unit {
-            query: valid[u],
-            first: sample_index[valid[u] as usize],
-            count: 1,
-        };
-        let mut res = vec![None; wis.len()];
-        let stats = self.run(
-            &queries,
-            valid.len(),
-            unit,
-            |o| o[0],
-            |u, o| {
-                let q = u.query as usize;
-                if !o.exited {
-                    return;
-                }
-                let mut d = o.dir;
-                if queries.flipped[q] {
-                    d[2] = -d[2];
-                }
-                res[q] = Some(WalkSample {
-                    wo: glam::Vec3::from(d),
-                    weight: o.value,
-                    reflection: o.reflection,
-                    specular: o.specular,
-                });
-            },
-        );
+        let mut res = Vec::with_capacity(wis.len());
+        let query = |k: usize| (wis[k], keys[k], sample_index[k]);
+        let stats = self.sample_each(wis.len(), query, seed, false, |_, s| res.push(s));
         (res, stats)
     }
 
@@ -729,13 +958,21 @@ impl<W: Wide> Wavefront<W> {
             .map(|(&(wi, wo), &k)| (wi, Some(wo), k))
             .collect();
         let queries = self.prepare(Mode::Eval, seed, &spec);
-        let idx: Vec<usize> = (0..pairs.len()).collect();
-        if idx.len() <= PDF_CHUNK {
+        let n = pairs.len();
+        let chunk = |qs: std::ops::Range<usize>| {
+            let mut res = Vec::with_capacity(qs.len());
+            self.pdf_range(&queries, qs, samples, kind, &mut Vec::new(), |_, e| {
+                res.push(e)
+            });
+            res
+        };
+        if n <= PDF_CHUNK {
             // One chunk: on the calling thread (see `SERIAL_WALKS`).
-            return self.pdf_queries(&queries, &idx, samples, kind);
+            return chunk(0..n);
         }
-        idx.par_chunks(PDF_CHUNK)
-            .flat_map_iter(|qs| self.pdf_queries(&queries, qs, samples, kind))
+        (0..n.div_ceil(PDF_CHUNK))
+            .into_par_iter()
+            .flat_map_iter(|c| chunk(c * PDF_CHUNK..((c + 1) * PDF_CHUNK).min(n)))
             .collect()
     }
 }

@@ -57,6 +57,27 @@ pub(super) struct Wave<'a> {
     stats: Stats,
 }
 
+/// The buffers of a task that outlive it: a thread keeps one set and
+/// reuses it task after task (grow-only, cleared per task).
+#[derive(Default)]
+pub(super) struct TaskBuffers {
+    free: Vec<u32>,
+    next: Vec<Vec<u32>>,
+    launched: Vec<(u32, u64)>,
+    queues: Vec<Vec<u32>>,
+    deferred: Deferred,
+}
+
+/// `nkeys` empty queues with room for `slots` walks each (a queue never
+/// holds more walks than the wave has slots), reusing what `v` holds.
+fn reset_queues(v: &mut Vec<Vec<u32>>, nkeys: usize, slots: usize) {
+    v.resize_with(nkeys, Vec::new);
+    for queue in v.iter_mut() {
+        queue.clear();
+        queue.reserve(slots);
+    }
+}
+
 impl Wave<'_> {
     /// Ends the walk in `slot` with `o` and frees the slot.
     #[inline(always)]
@@ -94,13 +115,15 @@ fn rgb_lane<W: Wide>(c: Rgb<W>, j: usize) -> Rgb<f32> {
 
 impl<W: Wide> Wavefront<W> {
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
-    /// task order.
+    /// task order. The task's queues and deferred rows live in `tb`, kept by
+    /// the caller between tasks so that a warm thread allocates nothing.
     pub(super) fn run_task(
         &self,
         q: &Queries,
         task: &[Unit],
         ws: &mut Walks,
         out: &mut Vec<WalkOut>,
+        tb: &mut TaskBuffers,
     ) -> Stats {
         let total: usize = task.iter().map(|u| u.count as usize).sum();
         out.clear();
@@ -113,23 +136,32 @@ impl<W: Wide> Wavefront<W> {
         let defers = q.mode == Mode::Eval
             && self.settings.mis
             && (self.exits.iter()).any(|&(_, l, _)| self.media[l].kind == LayerKind::Scattering);
+        let mut free = std::mem::take(&mut tb.free);
+        free.clear();
+        free.extend((0..slots as u32).rev());
+        let mut deferred = std::mem::take(&mut tb.deferred);
+        deferred.reset(self.exits.len(), if defers { total } else { 0 }, W::LANES);
         let mut wave = Wave {
             ws,
             out,
-            free: (0..slots as u32).rev().collect(),
+            free,
             live: 0,
             draining: false,
-            next: vec![Vec::with_capacity(slots); nkeys],
-            deferred: Deferred::new(self.exits.len(), if defers { total } else { 0 }, W::LANES),
+            next: std::mem::take(&mut tb.next),
+            deferred,
             stats: Stats {
                 walks: total as u64,
                 ..Stats::default()
             },
         };
-        let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
-        let mut launched: Vec<(u32, u64)> = Vec::with_capacity(slots);
+        reset_queues(&mut wave.next, nkeys, slots);
+        let mut launched = std::mem::take(&mut tb.launched);
+        launched.clear();
+        launched.reserve(slots);
         // This round's queues (the previous round's `next`).
-        let mut queues: Vec<Vec<u32>> = vec![Vec::with_capacity(slots); nkeys];
+        let mut queues = std::mem::take(&mut tb.queues);
+        reset_queues(&mut queues, nkeys, slots);
+        let (mut unit, mut offset, mut w) = (0usize, 0u32, 0u32);
         loop {
             // Refill free slots with the next walks.
             launched.clear();
@@ -188,6 +220,14 @@ impl<W: Wide> Wavefront<W> {
             let values = wave.out.iter_mut().map(|o| &mut o.value);
             wave.deferred.add_sums(values);
         }
+        // The buffers go back for the thread's next task.
+        *tb = TaskBuffers {
+            free: wave.free,
+            next: wave.next,
+            launched,
+            queues,
+            deferred: wave.deferred,
+        };
         wave.stats
     }
 
@@ -745,31 +785,35 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
-    /// Pdfs of queries `qs` from `samples` density walks each: lane by
-    /// lane over the query-walk pairs in order (walk `k` of query `qs[i]` is
+    /// Pdfs of queries `qs` (a range of query indices) from `samples`
+    /// density walks each, handed to `out` in query order: lane by lane over
+    /// the query-walk pairs in order (walk `k` of query `qs.start + i` is
     /// pair `i · samples + k`), so that one query of many walks fills the
     /// lanes as well as many queries of a few, and each query's sum runs in
-    /// walk order, as the scalar engine's does.
-    pub(super) fn pdf_queries(
+    /// walk order, as the scalar engine's does. `sums` is working memory.
+    pub(super) fn pdf_range(
         &self,
         q: &Queries,
-        qs: &[usize],
+        qs: std::ops::Range<usize>,
         samples: u64,
         kind: PdfKind,
-    ) -> Vec<PdfEstimate> {
+        sums: &mut Vec<DensitySums>,
+        mut out: impl FnMut(usize, PdfEstimate),
+    ) {
         let walk = DensityWalk {
             ifaces: &self.ifaces,
             media: &self.media,
             settings: &self.settings,
             max_events: kind.max_events(),
         };
-        let mut sums = vec![DensitySums::default(); qs.len()];
+        sums.clear();
+        sums.resize(qs.len(), DensitySums::default());
         let pairs = qs.len() as u64 * samples;
         for first in (0..pairs).step_by(W::LANES) {
             let lanes = (pairs - first).min(W::LANES as u64) as usize;
             // Lanes past the last pair repeat it (their results are dropped).
             let pair = |j: usize| first + j.min(lanes - 1) as u64;
-            let query = |j: usize| qs[(pair(j) / samples) as usize];
+            let query = |j: usize| qs.start + (pair(j) / samples) as usize;
             let ids: [u32; MAX_LANES] = std::array::from_fn(|j| query(j) as u32);
             let lq = &ids[..W::LANES];
             let g = |col: &[f32]| W::gather(col, lq);
@@ -783,16 +827,14 @@ impl<W: Wide> Wavefront<W> {
                 sums[(pair(j) / samples) as usize].push(p.lane(j));
             }
         }
-        sums.iter()
-            .zip(qs)
-            .map(|(s, &qi)| {
-                if q.valid[qi] {
-                    s.finish(kind)
-                } else {
-                    PdfEstimate::default()
-                }
-            })
-            .collect()
+        for (s, qi) in sums.iter().zip(qs) {
+            let e = if q.valid[qi] {
+                s.finish(kind)
+            } else {
+                PdfEstimate::default()
+            };
+            out(qi, e);
+        }
     }
 }
 

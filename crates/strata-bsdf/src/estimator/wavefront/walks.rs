@@ -169,6 +169,9 @@ pub struct Walks {
     rec: Vec<Record>,
     /// The adjoint chain's links after the first (smooth exits only).
     pub chain: Vec<Vec<Link>>,
+    /// Slots in use: the columns may be longer, kept from a larger wave
+    /// this thread ran before ([`Walks::set_slots`]).
+    slots: usize,
 }
 
 impl Walks {
@@ -183,11 +186,32 @@ impl Walks {
             query: vec![0; slots],
             rec: vec![Record(rec); slots],
             chain: vec![Vec::new(); slots],
+            slots,
         }
     }
 
     /// Number of slots.
     pub fn slots(&self) -> usize {
+        self.slots
+    }
+
+    /// Uses `slots` slots: a wave kept for reuse serves a smaller one
+    /// without reallocating, and keeps its columns (and the capacity of its
+    /// chains) for a larger one later. Grows the columns if they are short.
+    pub fn set_slots(&mut self, slots: usize) {
+        if slots > self.key.len() {
+            let more = Walks::new(slots - self.key.len());
+            self.key.extend(more.key);
+            self.walk.extend(more.walk);
+            self.query.extend(more.query);
+            self.rec.extend(more.rec);
+            self.chain.extend(more.chain);
+        }
+        self.slots = slots;
+    }
+
+    /// Slots the columns hold, in use or not.
+    pub fn capacity(&self) -> usize {
         self.key.len()
     }
 
