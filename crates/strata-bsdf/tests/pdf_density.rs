@@ -170,10 +170,10 @@ fn histogram(b: &LayeredBsdf, wi: glam::Vec3, n: usize) -> Vec<u64> {
 
 /// `sample()`'s histogram against the unbiased pdf: a chi-square test whose
 /// variance per cell is the Poisson one plus that of the expected count.
-/// The density walks of a smooth coat over two rough interfaces are heavy
-/// tailed (a rough interface's peaked lobe evaluated at random arrivals):
-/// with 128 walks per point the spread of 16 points underestimates their
-/// error and the test fails on that stack; 2048 walks make it hold.
+/// 2048 walks per point keep the error of the expected counts below their
+/// Poisson noise; the spread of 16 points underestimates that error when the
+/// walks are heavy tailed (it did, at 128 walks, on the smooth coat over two
+/// rough interfaces before the inner connection).
 #[test]
 fn unbiased_pdf_is_the_density_of_sample() {
     let wi = glam::Vec3::from(dir(WI_DEG, 0.0));
@@ -264,7 +264,11 @@ fn unbiased_pdf_checks_its_arguments() {
 #[ignore]
 fn approximate_pdf_ratios() {
     let wi = glam::Vec3::from(dir(25.0, 0.0));
-    let extra = [("smooth coat / rough copper", "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n[[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.2 }\n")];
+    let extra = [(
+        "smooth coat / rough copper",
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
+         [[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.2 }\n",
+    )];
     for (name, toml) in STACKS.into_iter().chain(extra) {
         let b = bsdf(toml);
         // θ from 5° to 75° in steps of 10°, φ in steps of 45°.

@@ -37,6 +37,15 @@
 //! from outside (the entrance reflection), adds its density of `wo` with
 //! weight 1.
 //!
+//! A smooth exit over a rough interface (a clear coat over a rough base) has
+//! the same two ways one interface deeper: the rough interface `k` across
+//! the exit's layer scatters light into the one direction `u_w` that leaves
+//! along `wo`. The walk's own visits to `k` evaluate `k`'s density of `u_w`
+//! at their arrival direction (a peaked lobe at a random argument: heavy
+//! tailed); the *inner connection* samples the arrival at `k` from `u_w` by
+//! `k`'s own lobe and connects the vertices below (or above) to it, so the
+//! vertex's density is evaluated instead; the power heuristic combines them.
+//!
 //! The chain itself is `sample()`'s: the same kernels, hero channel, Russian
 //! roulette and settings, on its own random stream. So each walk's sum is an
 //! unbiased estimate of the density of `sample()` (the "unbiased, slow" pdf);
@@ -78,33 +87,96 @@ struct State<L: Lane> {
     events: L,
 }
 
-/// A vertex's connection to the exit ([`DensityWalk::connection`]).
-#[derive(Clone, Copy)]
-struct Connection<L: Lane> {
-    /// The direction the candidate's continuation must leave the smooth
-    /// interfaces along: `wo`, or the sampled travel direction at a rough exit.
-    target: V3<L>,
-    /// The index of the region `target` lies in.
-    n_target: L,
-    /// Lanes with a connection.
-    ok: L::Mask,
-    /// Lanes whose exit is rough.
-    rough: L::Mask,
-    /// The rough exit's density of `wo` for light arriving along `target`.
-    pe: L,
-    /// The density `target` was sampled with.
-    q: L,
+/// Where the walk's density goes out, per lane: fixed for a walk.
+struct Goal<L: Lane> {
+    wo: V3<L>,
+    /// The exit interface, its index, the IOR outside it.
+    exit: InterfaceLanes<L>,
+    e_out: L,
+    n_out: L,
+    /// The exit's layer; the interface across it, `k`, and the depth there.
+    layer: L,
+    k: L,
+    inner: InterfaceLanes<L>,
+    z_k: L,
+    /// Lanes with an inner connection (smooth exit, rough `k`), and the
+    /// direction `u_w` leaving `k` towards the exit that leaves along `wo`,
+    /// with the Jacobian `dω_w / dω_o`.
+    inner_on: L::Mask,
+    u_w: V3<L>,
+    j_w: L,
 }
 
-impl<L: Lane> Connection<L> {
-    /// The connection's share of the density, for a vertex that samples
-    /// `target` with density `pv` (in `target`'s solid angle): `pv` itself
-    /// through a smooth exit; through a rough one, `pv · pe / q` weighted by
-    /// the power heuristic against the walk's own arrival.
+/// A non-delta vertex of the walk.
+enum Vertex<'a, L: Lane> {
+    /// An event at interface `i`, arriving from `a`.
+    Surface {
+        it: &'a InterfaceLanes<L>,
+        a: V3<L>,
+        i: L,
+    },
+    /// A collision at depth `z` of layer `l`, travelling along `d`.
+    Collision { g: L, d: V3<L>, l: L, z: L },
+}
+
+impl<L: Lane> Vertex<'_, L> {
+    /// The vertex's sampling density of the travel direction `u`, and the
+    /// throughput factor `sample()` gives that direction.
+    fn density(&self, u: V3<L>) -> (L, Rgb<L>) {
+        match self {
+            Vertex::Surface { it, a, .. } => {
+                let pv = it.pdf(*a, u, L::Mask::splat(false));
+                let ok = pv.gt(L::zero());
+                (pv, it.eval(*a, u).scale(L::div_or_zero(u.z.abs(), pv, ok)))
+            }
+            Vertex::Collision { g, d, .. } => (medium::hg_eval_dirs(*g, *d, u), Rgb::one()),
+        }
+    }
+}
+
+/// A sampled target of a connection: a travel direction `t` in the region
+/// of IOR `n_t`, sampled with density `q` by a rough interface, whose own
+/// density of what follows is `pe`.
+#[derive(Clone, Copy)]
+struct Target<L: Lane> {
+    t: V3<L>,
+    n_t: L,
+    q: L,
+    pe: L,
+    ok: L::Mask,
+}
+
+impl<L: Lane> Target<L> {
+    /// A rough interface `it`'s connection from the travel direction `leave`
+    /// (leaving it): the arrival sampled by its lobe from `leave`, and its
+    /// density of `leave` for that arrival.
+    fn sample(
+        it: &InterfaceLanes<L>,
+        leave: V3<L>,
+        transmit_only: L::Mask,
+        m: L::Mask,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> Self {
+        let zero = L::zero();
+        let (u0, u1, u2) = (draw(m), draw(m), draw(m));
+        let s = it.sample(leave, u0, u1, u2, transmit_only);
+        let b = s.b; // the arrival, pointing away from the interface
+        let ok = m & s.valid & s.pdf.gt(zero);
+        Target {
+            t: -b,
+            n_t: L::select(b.z.gt(zero), it.n_above, it.n_below),
+            q: L::select(ok, s.pdf, zero),
+            pe: L::select(ok, it.pdf(b, leave, L::Mask::splat(false)), zero),
+            ok,
+        }
+    }
+
+    /// The share of a vertex that reaches `t` with density `pv` (in `t`'s
+    /// solid angle): `pv · pe / q`, by the power heuristic against the
+    /// walk's own arrival.
     fn value(&self, pv: L) -> L {
-        let ok = self.q.gt(L::zero());
-        let rough = L::div_or_zero(pv * self.pe, self.q, ok) * events::power_heuristic(self.q, pv);
-        L::select(self.rough, rough, pv)
+        let ok = self.ok & self.q.gt(L::zero());
+        L::div_or_zero(pv * self.pe, self.q, ok) * events::power_heuristic(self.q, pv)
     }
 }
 
@@ -136,6 +208,44 @@ impl<L: Lane> DensityWalk<'_, L> {
         it
     }
 
+    /// The thickness of layer `l` (per lane) in depth units.
+    fn thickness(&self, l: L) -> L {
+        let mut h = L::zero();
+        for (k, m) in self.media.iter().enumerate() {
+            h = L::select(l.eq(L::splat(k as f64)), m.thickness, h);
+        }
+        h
+    }
+
+    fn goal(&self, wo: V3<L>) -> Goal<L> {
+        let n = self.n();
+        let zero = L::zero();
+        let last = L::splat(n as f64 - 1.0);
+        let top = wo.z.gt(zero);
+        let e_out = L::select(top, zero, last);
+        let exit = self.at(e_out);
+        let two = n >= 2;
+        let layer = L::select(top, zero, L::splat(n as f64 - 2.0).max(zero));
+        let k = L::select(top, L::one().min(last), L::splat(n as f64 - 2.0).max(zero));
+        let inner = self.at(k);
+        let n_out = L::select(top, exit.n_above, exit.n_below);
+        let on = L::Mask::splat(two) & exit.smooth & !inner.smooth;
+        let (u_w, j_w, ok) = self.candidate(layer, top, wo, n_out, on);
+        Goal {
+            wo,
+            exit,
+            e_out,
+            n_out,
+            layer,
+            k,
+            z_k: L::select(top, self.thickness(layer), zero),
+            inner,
+            inner_on: ok,
+            u_w,
+            j_w,
+        }
+    }
+
     /// One walk per lane from `wi` (stack frame, pointing away from the
     /// stack): its estimate of the density of `wo` (see the module docs).
     /// `draw(m)` returns a uniform for every lane of `m`.
@@ -143,12 +253,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         let n = self.n();
         let zero = L::zero();
         let last = L::splat(n as f64 - 1.0);
-        let top_exit = wo.z.gt(zero);
-        let e_out = L::select(top_exit, zero, last);
-        let exit = self.at(e_out);
-        // The index outside wo's side and inside the exit, for the Jacobians.
-        let n_out = L::select(top_exit, exit.n_above, exit.n_below);
-        let n_in = L::select(top_exit, exit.n_below, exit.n_above);
+        let goal = self.goal(wo);
 
         let mut p = zero;
         let mut alive = L::Mask::splat(true);
@@ -161,8 +266,8 @@ impl<L: Lane> DensityWalk<'_, L> {
         let mut order = zero;
         // The walk's density of its current direction since its last
         // non-delta vertex, carried through delta events in their solid
-        // angle (0 before the first one): the weight of its arrival at a
-        // rough exit against the connections.
+        // angle (0 before the first one): the weight of its own arrival at a
+        // rough exit, or at k, against the connections.
         let mut rho = zero;
         let mut i = L::select(wi.z.gt(zero), zero, last);
         let mut a = wi;
@@ -171,39 +276,16 @@ impl<L: Lane> DensityWalk<'_, L> {
             let rough = alive & !it.smooth;
             // Arriving at a rough exit: its density of wo, weighted against
             // the connection that sampled this direction from wo.
-            let direct = rough & i.eq(e_out);
+            let direct = rough & i.eq(goal.e_out);
             if direct.any() {
                 let v = it.pdf(a, wo, L::Mask::splat(false)).max(zero);
-                let q = exit.pdf(wo, a, L::Mask::splat(true));
+                let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
                 let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
                 p += L::select(direct, v * w, zero);
             }
-            // A rough vertex connects to the exit through smooth interfaces.
             if rough.any() {
-                let c = self.connection(wo, &exit, n_out, n_in, rough, &mut draw);
-                for up in [true, false] {
-                    // The layer the candidate enters: above i (up) or below it.
-                    let has = if up { i.gt(zero) } else { i.lt(last) };
-                    let l = if up { i - L::one() } else { i };
-                    let m = rough & has & c.ok;
-                    if !m.any() {
-                        continue;
-                    }
-                    let (u, jac, ok) = self.candidate(l, up, c.target, c.n_target, m);
-                    let pv = it.pdf(a, u, L::Mask::splat(false));
-                    let m = ok & pv.gt(zero);
-                    if !m.any() {
-                        continue;
-                    }
-                    let w = it.eval(a, u).scale(L::div_or_zero(u.z.abs(), pv, m));
-                    let s = State {
-                        beta: st.beta * w,
-                        ..st
-                    };
-                    let z = if up { self.thickness(l) } else { zero };
-                    let pe = self.delta_exit(l, z, u, s, e_out, m, &mut draw);
-                    p += L::select(m, c.value(pv * jac) * pe, zero);
-                }
+                let v = Vertex::Surface { it: &it, a, i };
+                p += self.connect(&goal, &v, st, rho, rough, &mut draw);
             }
             // The interface event of sample()'s walk.
             let (us, u1, u2) = (draw(alive), draw(alive), draw(alive));
@@ -273,21 +355,8 @@ impl<L: Lane> DensityWalk<'_, L> {
                             flying = flying & !over;
                             let hit = hit & !over;
                             z = L::select(hit, move_depth(z, d.z, ff.distance, med.thickness), z);
-                            // A collision is a non-delta vertex.
-                            let c = self.connection(wo, &exit, n_out, n_in, hit, &mut draw);
-                            for up in [true, false] {
-                                let m = hit & c.ok;
-                                if !m.any() {
-                                    continue;
-                                }
-                                let (u, jac, ok) = self.candidate(l, up, c.target, c.n_target, m);
-                                if !ok.any() {
-                                    continue;
-                                }
-                                let pv = medium::hg_eval_dirs(med.g, d, u);
-                                let pe = self.delta_exit(l, z, u, st, e_out, ok, &mut draw);
-                                p += L::select(ok, c.value(pv * jac) * pe, zero);
-                            }
+                            let v = Vertex::Collision { g: med.g, d, l, z };
+                            p += self.connect(&goal, &v, st, rho, hit, &mut draw);
                             let dn = medium::hg_sample(med.g, d, draw(hit), draw(hit));
                             rho = L::select(hit, medium::hg_eval_dirs(med.g, d, dn), rho);
                             d = V3::select(hit, dn, d);
@@ -306,42 +375,106 @@ impl<L: Lane> DensityWalk<'_, L> {
         p
     }
 
-    /// Where a vertex's connection to the exit aims (lanes `m`): for a
-    /// smooth exit, `wo` itself; for a rough one, a travel direction towards
-    /// the exit sampled from `wo` (the exit's refraction lobe), with the
-    /// exit's density of `wo` for it and the sampling density, for MIS
-    /// against the walk's own arrival at the exit.
-    fn connection(
+    /// Every connection of a non-delta vertex (lanes `m`, walk state `st`,
+    /// its arrival density `rho`): to the exit through smooth interfaces
+    /// (towards `wo`, or towards a direction sampled by a rough exit), and
+    /// the inner connection through `k`; one candidate heading up and one
+    /// heading down each.
+    fn connect(
         &self,
-        wo: V3<L>,
-        exit: &InterfaceLanes<L>,
-        n_out: L,
-        n_in: L,
+        g: &Goal<L>,
+        v: &Vertex<'_, L>,
+        st: State<L>,
+        rho: L,
         m: L::Mask,
         draw: &mut impl FnMut(L::Mask) -> L,
-    ) -> Connection<L> {
+    ) -> L {
         let zero = L::zero();
-        let rough = m & !exit.smooth;
-        let mut c = Connection {
-            target: wo,
-            n_target: n_out,
-            ok: m,
-            rough,
-            pe: zero,
-            q: zero,
+        let last = L::splat(self.n() as f64 - 1.0);
+        let top = g.wo.z.gt(zero);
+        let rough_exit = m & !g.exit.smooth;
+        let exit_target = Target::sample(&g.exit, g.wo, L::Mask::splat(true), rough_exit, draw);
+        let inner_on = m & g.inner_on;
+        let inner_target = Target::sample(&g.inner, g.u_w, L::Mask::splat(false), inner_on, draw);
+        // The sides a candidate can leave the vertex by: the layer, the
+        // depth it starts from, the lanes where it exists.
+        let sides = match v {
+            Vertex::Surface { i, .. } => [
+                (*i - L::one(), self.thickness(*i - L::one()), i.gt(zero)),
+                (*i, zero, i.lt(last)),
+            ],
+            Vertex::Collision { l, z, .. } => [(*l, *z, m), (*l, *z, m)],
         };
-        if rough.any() {
-            let (u0, u1, u2) = (draw(rough), draw(rough), draw(rough));
-            let s = exit.sample(wo, u0, u1, u2, L::Mask::splat(true));
-            let ok = rough & s.valid & s.pdf.gt(zero);
-            let b = s.b;
-            c.target = V3::select(rough, -b, wo);
-            c.n_target = L::select(rough, n_in, n_out);
-            c.ok = (m & exit.smooth) | ok;
-            c.pe = L::select(ok, exit.pdf(b, wo, L::Mask::splat(false)), zero);
-            c.q = L::select(ok, s.pdf, zero);
+        let mut p = zero;
+        for (side, &(l, z, has)) in sides.iter().enumerate() {
+            let up = side == 0;
+            // To the exit: wo itself (smooth), or the rough exit's target.
+            let (t, n_t) = (
+                V3::select(rough_exit, exit_target.t, g.wo),
+                L::select(rough_exit, exit_target.n_t, g.n_out),
+            );
+            let ok = m & has & (exit_target.ok | g.exit.smooth);
+            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, ok);
+            if ok.any() {
+                let (pv, w) = v.density(u);
+                let ok = ok & pv.gt(zero);
+                let s = State {
+                    beta: st.beta * w,
+                    ..st
+                };
+                let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
+                let share = L::select(rough_exit, exit_target.value(pv * jac), pv * jac);
+                // The walk's own arrival at k, towards u_w: against the inner connection.
+                let at_k = match v {
+                    Vertex::Surface { i, .. } => {
+                        let toward = if up { top } else { !top };
+                        ok & inner_on & i.eq(g.k) & toward
+                    }
+                    Vertex::Collision { .. } => L::Mask::splat(false),
+                };
+                let w_own = match v {
+                    Vertex::Surface { a, .. } if at_k.any() => {
+                        let q = g.inner.pdf(g.u_w, *a, L::Mask::splat(false));
+                        L::select(
+                            at_k & rho.gt(zero),
+                            events::power_heuristic(rho, q),
+                            L::one(),
+                        )
+                    }
+                    _ => L::one(),
+                };
+                p += L::select(ok, share * pe * w_own, zero);
+            }
+            // Through k to u_w: arrive at k along the sampled target.
+            let ok = inner_on & has & inner_target.ok;
+            let t = inner_target.t;
+            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, inner_target.n_t, ok);
+            if ok.any() {
+                let (pv, w) = v.density(u);
+                let ok = ok & pv.gt(zero);
+                let s = State {
+                    beta: st.beta * w,
+                    ..st
+                };
+                let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
+                let ok = ok & p1.gt(zero);
+                if ok.any() {
+                    // k's event towards u_w, then on to wo.
+                    let a_k = -t;
+                    let wk = g.inner.eval(a_k, g.u_w).scale(L::div_or_zero(
+                        g.u_w.z.abs(),
+                        inner_target.pe,
+                        ok,
+                    ));
+                    s1.beta *= wk;
+                    let (p2, _) =
+                        self.delta_exit(g.layer, g.z_k, g.u_w, s1, g.e_out, g.wo.z, ok, draw);
+                    let share = inner_target.value(pv * jac) * g.j_w;
+                    p += L::select(ok, share * p1 * p2, zero);
+                }
+            }
         }
-        c
+        p
     }
 
     /// Russian roulette of `sample()`'s walk (and the approximate pdf's
@@ -356,39 +489,32 @@ impl<L: Lane> DensityWalk<'_, L> {
         m & ok & bounded
     }
 
-    /// The thickness of layer `l` (per lane) in depth units.
-    fn thickness(&self, l: L) -> L {
-        let mut h = L::zero();
-        for (k, m) in self.media.iter().enumerate() {
-            h = L::select(l.eq(L::splat(k as f64)), m.thickness, h);
-        }
-        h
-    }
-
-    /// The travel direction in layer `l` (per lane), heading up or down, that
-    /// smooth interfaces map to `wo`; the Jacobian `dω_u / dω_o`; the lanes
-    /// of `m` where it exists (not evanescent).
-    fn candidate(&self, l: L, up: bool, wo: V3<L>, n_out: L, m: L::Mask) -> (V3<L>, L, L::Mask) {
+    /// The travel direction in layer `l` (per lane), heading up (`up`) or
+    /// down, that smooth interfaces map to the direction `t` in a region of
+    /// IOR `n_t`; the Jacobian `dω_u / dω_t`; the lanes of `m` where it
+    /// exists (not evanescent).
+    fn candidate(&self, l: L, up: L::Mask, t: V3<L>, n_t: L, m: L::Mask) -> (V3<L>, L, L::Mask) {
         let zero = L::zero();
-        let n_l = self.at(l).n_below;
-        let r = L::div_or_zero(n_out, n_l, m & n_l.gt(zero));
-        let (tx, ty) = (wo.x * r, wo.y * r);
+        let n_l = self.at(l.max(zero)).n_below;
+        let r = L::div_or_zero(n_t, n_l, m & n_l.gt(zero));
+        let (tx, ty) = (t.x * r, t.y * r);
         let c2 = L::one() - tx * tx - ty * ty;
         let ok = m & c2.gt(zero);
         let cz = c2.safe_sqrt();
-        let u = V3::new(tx, ty, if up { cz } else { -cz });
-        let jac = L::div_or_zero(r * r * wo.z.abs(), cz, ok);
+        let u = V3::new(tx, ty, L::select(up, cz, -cz));
+        let jac = L::div_or_zero(r * r * t.z.abs(), cz, ok);
         (u, jac, ok)
     }
 
     /// An unbiased estimate, on lanes `m`, of the probability that
     /// `sample()`'s walk at depth `z` of layer `l`, having just sampled the
     /// travel direction `u` (its state `st` before the event's roulette),
-    /// meets only delta events and then leaves through a smooth `e_out` or
-    /// arrives at a rough one. Reflect-or-transmit choices are sampled;
-    /// crossings and Russian roulette are taken in expectation. 0 where the
-    /// continuation meets another rough interface or leaves through the other
-    /// side.
+    /// meets only delta events and then leaves through the smooth outer
+    /// interface `stop`, or arrives at the rough interface `stop` travelling
+    /// with the sign of `toward` in z; and the walk's state there.
+    /// Reflect-or-transmit choices are sampled; crossings and Russian
+    /// roulette are taken in expectation. 0 where the continuation meets
+    /// another rough interface or leaves elsewhere.
     #[allow(clippy::too_many_arguments)]
     fn delta_exit(
         &self,
@@ -396,10 +522,11 @@ impl<L: Lane> DensityWalk<'_, L> {
         z: L,
         u: V3<L>,
         st: State<L>,
-        e_out: L,
+        stop: L,
+        toward: L,
         m: L::Mask,
         draw: &mut impl FnMut(L::Mask) -> L,
-    ) -> L {
+    ) -> (L, State<L>) {
         let zero = L::zero();
         let last = L::splat(self.n() as f64 - 1.0);
         let mut st = st;
@@ -408,6 +535,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         let mut live = m & prob.gt(zero);
         let (mut l, mut z, mut u) = (l, z, u);
         let mut p = zero;
+        let mut end = st;
         while live.any() {
             // Cross the rest of layer l along u.
             let up = u.z.gt(zero);
@@ -435,12 +563,18 @@ impl<L: Lane> DensityWalk<'_, L> {
                 st.beta = Rgb::select(here, st.beta * w, st.beta);
                 st.ratios = Rgb::select(here, r, st.ratios);
             }
-            // The interface it reaches: a rough exit (the end), another delta
+            // The interface it reaches: a rough stop (the end), another delta
             // event, or a rough interface (no delta-only path).
             let j = L::select(up, l, l + L::one());
             let it = self.at(j);
-            let arrived = live & j.eq(e_out) & !it.smooth;
+            let arrived = live & j.eq(stop) & !it.smooth & (u.z * toward).gt(zero);
             p = L::select(arrived, prob, p);
+            end = State {
+                beta: Rgb::select(arrived, st.beta, end.beta),
+                ratios: Rgb::select(arrived, st.ratios, end.ratios),
+                ..end
+            };
+            end.events = L::select(arrived, st.events, end.events);
             live = live & it.smooth & prob.gt(zero);
             if !live.any() {
                 break;
@@ -452,7 +586,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             let b = s.b;
             let b_up = b.z.gt(zero);
             let out = (b_up & j.eq(zero)) | (!b_up & j.eq(last));
-            let reached = live & out & j.eq(e_out);
+            let reached = live & out & j.eq(stop);
             p = L::select(reached, prob, p);
             live = live & !out;
             let q = self.survival(&mut st);
@@ -462,7 +596,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             z = L::select(b_up, self.thickness(l), zero);
             u = b;
         }
-        p
+        (p, end)
     }
 
     /// Russian roulette in expectation: the probability that `sample()`'s
