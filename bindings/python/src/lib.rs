@@ -364,11 +364,11 @@ impl Bsdf {
     ///
     /// `samples` is the number of walks per `eval` query, `seed` seeds every
     /// random stream, `transport` is "radiance" (light flows from `wi` to
-    /// `wo`) or "importance" (the adjoint), `pdf_samples` the short walks
-    /// per `pdf`. Raises `MaterialError` (a ValueError) naming the layer, the
+    /// `wo`) or "importance" (the adjoint), `pdf_samples` the density walks
+    /// per approximate `pdf` (default 8, the library's). Raises `MaterialError` (a ValueError) naming the layer, the
     /// field and the value.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
     fn from_toml(
         text: &str,
         samples: u64,
@@ -382,7 +382,7 @@ impl Bsdf {
 
     /// A BSDF from a JSON material description; arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
     fn from_json(
         text: &str,
         samples: u64,
@@ -397,7 +397,7 @@ impl Bsdf {
     /// A BSDF from a material file (`.json` as JSON, anything else as TOML);
     /// arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=4))]
+    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
     fn from_path(
         path: std::path::PathBuf,
         samples: u64,
@@ -523,6 +523,7 @@ impl Bsdf {
     /// The unbiased pdf of each pair from `samples` density walks:
     /// `(pdf, stderr)`, float32 arrays of shape (N,), the density of
     /// `sample`'s directions with its standard error. Slow: for references.
+    #[allow(clippy::type_complexity)]
     fn pdf_unbiased<'py>(
         &self,
         py: Python<'py>,

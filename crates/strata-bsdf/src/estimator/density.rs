@@ -405,71 +405,60 @@ impl<L: Lane> DensityWalk<'_, L> {
             ],
             Vertex::Collision { l, z, .. } => [(*l, *z, m), (*l, *z, m)],
         };
+        // The candidate leaving into layer l that smooth interfaces map to
+        // t: its direction, its density at the vertex in t's solid angle,
+        // the walk's state after the vertex samples it, the lanes.
+        let leave = |l: L, up: bool, t: V3<L>, n_t: L, ok: L::Mask| {
+            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, ok);
+            let (pv, w) = v.density(u);
+            let s = State {
+                beta: st.beta * w,
+                ..st
+            };
+            (u, pv * jac, s, ok & pv.gt(zero))
+        };
         let mut p = zero;
         for (side, &(l, z, has)) in sides.iter().enumerate() {
             let up = side == 0;
             // To the exit: wo itself (smooth), or the rough exit's target.
-            let (t, n_t) = (
-                V3::select(rough_exit, exit_target.t, g.wo),
-                L::select(rough_exit, exit_target.n_t, g.n_out),
-            );
+            let t = V3::select(rough_exit, exit_target.t, g.wo);
+            let n_t = L::select(rough_exit, exit_target.n_t, g.n_out);
             let ok = m & has & (exit_target.ok | g.exit.smooth);
-            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, ok);
+            let (u, pv, s, ok) = leave(l, up, t, n_t, ok);
             if ok.any() {
-                let (pv, w) = v.density(u);
-                let ok = ok & pv.gt(zero);
-                let s = State {
-                    beta: st.beta * w,
-                    ..st
-                };
                 let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
-                let share = L::select(rough_exit, exit_target.value(pv * jac), pv * jac);
+                let share = L::select(rough_exit, exit_target.value(pv), pv);
                 // The walk's own arrival at k, towards u_w: against the inner connection.
-                let at_k = match v {
-                    Vertex::Surface { i, .. } => {
-                        let toward = if up { top } else { !top };
-                        ok & inner_on & i.eq(g.k) & toward
-                    }
-                    Vertex::Collision { .. } => L::Mask::splat(false),
-                };
                 let w_own = match v {
-                    Vertex::Surface { a, .. } if at_k.any() => {
-                        let q = g.inner.pdf(g.u_w, *a, L::Mask::splat(false));
-                        L::select(
-                            at_k & rho.gt(zero),
-                            events::power_heuristic(rho, q),
-                            L::one(),
-                        )
+                    Vertex::Surface { i, a, .. } => {
+                        let toward = if up { top } else { !top };
+                        let at_k = ok & inner_on & i.eq(g.k) & toward & rho.gt(zero);
+                        if at_k.any() {
+                            let q = g.inner.pdf(g.u_w, *a, L::Mask::splat(false));
+                            L::select(at_k, events::power_heuristic(rho, q), L::one())
+                        } else {
+                            L::one()
+                        }
                     }
-                    _ => L::one(),
+                    Vertex::Collision { .. } => L::one(),
                 };
                 p += L::select(ok, share * pe * w_own, zero);
             }
             // Through k to u_w: arrive at k along the sampled target.
-            let ok = inner_on & has & inner_target.ok;
             let t = inner_target.t;
-            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, inner_target.n_t, ok);
+            let ok = inner_on & has & inner_target.ok;
+            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, ok);
             if ok.any() {
-                let (pv, w) = v.density(u);
-                let ok = ok & pv.gt(zero);
-                let s = State {
-                    beta: st.beta * w,
-                    ..st
-                };
                 let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
                 let ok = ok & p1.gt(zero);
                 if ok.any() {
                     // k's event towards u_w, then on to wo.
-                    let a_k = -t;
-                    let wk = g.inner.eval(a_k, g.u_w).scale(L::div_or_zero(
-                        g.u_w.z.abs(),
-                        inner_target.pe,
-                        ok,
-                    ));
+                    let pe = inner_target.pe;
+                    let wk = (g.inner.eval(-t, g.u_w)).scale(L::div_or_zero(g.u_w.z.abs(), pe, ok));
                     s1.beta *= wk;
                     let (p2, _) =
                         self.delta_exit(g.layer, g.z_k, g.u_w, s1, g.e_out, g.wo.z, ok, draw);
-                    let share = inner_target.value(pv * jac) * g.j_w;
+                    let share = inner_target.value(pv) * g.j_w;
                     p += L::select(ok, share * p1 * p2, zero);
                 }
             }
@@ -514,7 +503,12 @@ impl<L: Lane> DensityWalk<'_, L> {
     /// with the sign of `toward` in z; and the walk's state there.
     /// Reflect-or-transmit choices are sampled; crossings and Russian
     /// roulette are taken in expectation. 0 where the continuation meets
-    /// another rough interface or leaves elsewhere.
+    /// another rough interface or leaves elsewhere. It ends: a lossless loop
+    /// of delta events would need a clear layer whose smooth boundaries both
+    /// reflect `u` totally, and a delta path cannot enter such a layer (the
+    /// direction does not exist beside it), while `u` starts next to a rough
+    /// interface or in a scattering layer, which each pass leaves with
+    /// probability below 1.
     #[allow(clippy::too_many_arguments)]
     fn delta_exit(
         &self,
