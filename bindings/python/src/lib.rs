@@ -365,7 +365,7 @@ impl Bsdf {
     /// `samples` is the number of walks per `eval` query, `seed` seeds every
     /// random stream, `transport` is "radiance" (light flows from `wi` to
     /// `wo`) or "importance" (the adjoint), `pdf_samples` the density walks
-    /// per approximate `pdf` (default 8, the library's). Raises `MaterialError` (a ValueError) naming the layer, the
+    /// per approximate `pdf` (default 4, the library's). Raises `MaterialError` (a ValueError) naming the layer, the
     /// field and the value.
     #[staticmethod]
     #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]

@@ -695,15 +695,6 @@ fn auto_engine_picks_by_walks_per_call() {
         assert_eq!(Engine::Scalar.resolve(queries, walks), Engine::Scalar);
         assert_eq!(Engine::Wavefront.resolve(queries, walks), Engine::Wavefront);
     }
-    for (queries, want) in [
-        (0, Engine::Scalar),
-        (1, Engine::Scalar),
-        (2, Engine::Wavefront),
-    ] {
-        assert_eq!(Engine::Auto.resolve_pdf(queries), want, "{queries} pdfs");
-        assert_eq!(Engine::Scalar.resolve_pdf(queries), Engine::Scalar);
-        assert_eq!(Engine::Wavefront.resolve_pdf(queries), Engine::Wavefront);
-    }
     let stack = strata_bsdf::materials::builtin("three_interfaces").expect("built-in");
     let auto = LayeredBsdf::new(stack).samples(64).seed(5);
     let scalar = auto.clone().engine(Engine::Scalar);

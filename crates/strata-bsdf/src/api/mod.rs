@@ -99,19 +99,6 @@ impl Engine {
             e => e,
         }
     }
-
-    /// The engine that answers a pdf call of `queries` queries. The
-    /// wavefront runs one query per lane, so a single query leaves seven of
-    /// eight lanes idle whatever its walk count; at 4 queries and more it is
-    /// the faster one on every representative stack (docs/performance.md),
-    /// and from 2 on it fills at least two lanes.
-    pub fn resolve_pdf(self, queries: usize) -> Engine {
-        match self {
-            Engine::Auto if queries < 2 => Engine::Scalar,
-            Engine::Auto => Engine::Wavefront,
-            e => e,
-        }
-    }
 }
 
 impl std::str::FromStr for Engine {
@@ -186,7 +173,7 @@ impl LayeredBsdf {
     /// Default number of walks per `eval`.
     pub const DEFAULT_SAMPLES: u64 = 256;
     /// Default number of density walks per approximate `pdf`.
-    pub const DEFAULT_PDF_SAMPLES: u32 = 8;
+    pub const DEFAULT_PDF_SAMPLES: u32 = 4;
 
     /// A BSDF over `stack` with default settings.
     pub fn new(stack: LayerStack) -> Self {
@@ -696,7 +683,7 @@ impl LayeredBsdf {
 
     /// The approximate pdf of validated pairs, keyed by the directions.
     fn pdf_validated(&self, dirs: &[Pair]) -> Vec<f32> {
-        if self.engine.resolve_pdf(dirs.len()) == Engine::Scalar {
+        if self.engine.resolve(dirs.len(), self.pdf_samples as u64) == Engine::Scalar {
             return dirs.iter().map(|&(a, b)| self.pdf_one(a, b)).collect();
         }
         let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();

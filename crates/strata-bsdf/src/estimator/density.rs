@@ -196,8 +196,13 @@ impl<L: Lane> DensityWalk<'_, L> {
         self.ifaces.len()
     }
 
-    /// Lane `j` takes interface `i[j]`.
+    /// Lane `j` takes interface `i[j]` (one lookup when every lane's is the
+    /// same, as on the scalar engine).
     fn at(&self, i: L) -> InterfaceLanes<L> {
+        let i0 = i.lane(0);
+        if i.eq(L::splat(i0)).all() {
+            return self.ifaces[(i0.max(0.0) as usize).min(self.n() - 1)];
+        }
         let mut it = self.ifaces[0];
         for (k, t) in self.ifaces.iter().enumerate().skip(1) {
             let here = i.eq(L::splat(k as f64));
@@ -210,6 +215,13 @@ impl<L: Lane> DensityWalk<'_, L> {
 
     /// The thickness of layer `l` (per lane) in depth units.
     fn thickness(&self, l: L) -> L {
+        let l0 = l.lane(0);
+        if self.media.is_empty() {
+            return L::zero();
+        }
+        if l.eq(L::splat(l0)).all() {
+            return self.media[(l0.max(0.0) as usize).min(self.media.len() - 1)].thickness;
+        }
         let mut h = L::zero();
         for (k, m) in self.media.iter().enumerate() {
             h = L::select(l.eq(L::splat(k as f64)), m.thickness, h);
@@ -408,7 +420,12 @@ impl<L: Lane> DensityWalk<'_, L> {
         // The candidate leaving into layer l that smooth interfaces map to
         // t: its direction, its density at the vertex in t's solid angle,
         // the walk's state after the vertex samples it, the lanes.
-        let leave = |l: L, up: bool, t: V3<L>, n_t: L, ok: L::Mask| {
+        // A candidate whose first interface is rough, and not where it
+        // stops, has no delta-only path: skipped before any work (it would
+        // draw nothing either, so the walk is the same).
+        let leave = |l: L, up: bool, t: V3<L>, n_t: L, ok: L::Mask, stop: L| {
+            let first = if up { l } else { l + L::one() };
+            let ok = ok & (self.at(first).smooth | first.eq(stop));
             let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, ok);
             let (pv, w) = v.density(u);
             let s = State {
@@ -424,7 +441,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             let t = V3::select(rough_exit, exit_target.t, g.wo);
             let n_t = L::select(rough_exit, exit_target.n_t, g.n_out);
             let ok = m & has & (exit_target.ok | g.exit.smooth);
-            let (u, pv, s, ok) = leave(l, up, t, n_t, ok);
+            let (u, pv, s, ok) = leave(l, up, t, n_t, ok, g.e_out);
             if ok.any() {
                 let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
                 let share = L::select(rough_exit, exit_target.value(pv), pv);
@@ -447,7 +464,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             // Through k to u_w: arrive at k along the sampled target.
             let t = inner_target.t;
             let ok = inner_on & has & inner_target.ok;
-            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, ok);
+            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, ok, g.k);
             if ok.any() {
                 let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
                 let ok = ok & p1.gt(zero);
