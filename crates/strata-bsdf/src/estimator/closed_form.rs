@@ -19,6 +19,11 @@
 //! back to it. The unidirectional estimator converges to this value (tested
 //! against it, and against the test suite's own formula), so
 //! [`crate::Estimator::Auto`] answers such stacks' `eval` with it.
+//!
+//! With a *scattering* layer the same formula, at the layer's `σt`, is the
+//! sum over the paths that never collide in it
+//! ([`SmoothCoatLambertian::unscattered`]): the exact part of `Auto`'s
+//! control variate, whose walks then score only the paths with a collision.
 
 use super::Settings;
 use crate::fresnel;
