@@ -65,8 +65,15 @@ fn compare(label: &str, what: &str, a: [f64; 3], sa: [f64; 3], b: [f64; 3], sb: 
 }
 
 fn check_reflection(label: &str, toml: &str, from_below: bool, seed: u64) {
+    check_reflection_with(label, toml, from_below, seed, false);
+}
+
+/// [`check_reflection`], with the control variate of `Estimator::Auto` on
+/// (`cv`) or off.
+fn check_reflection_with(label: &str, toml: &str, from_below: bool, seed: u64, cv: bool) {
     let st = stack(toml);
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = ScalarEngine::<f32>::new(&st, Settings::default()).with_control_variate(cv);
+    assert_eq!(eng.control_variate(), cv, "{label}");
     let flip = |mut w: [f64; 3]| {
         if from_below {
             w[2] = -w[2];
@@ -226,4 +233,35 @@ fn transmission_obeys_the_eta_squared_relation() {
         "#,
         9,
     );
+}
+
+/// The control variate (a smooth coat over a scattering layer over a
+/// Lambertian base: the paths without a collision exactly, walks for the
+/// rest) keeps reflection symmetric: its exact part is, and the walks'
+/// part is the plain estimator's over the paths with a collision.
+#[test]
+fn reflection_is_symmetric_with_the_control_variate() {
+    check_reflection_with(
+        "weak scatterer under a smooth coat",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5 }
+        medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.8 }
+        "#,
+        false,
+        11,
+        true,
+    );
+    let chromatic = r#"
+        two_sided = true
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.8 }
+        medium = { thickness = 0.3, sigma_t = [0.1, 1.0, 3.0], albedo = [0.5, 0.9, 1.0], phase = { kind = "hg", g = -0.4 } }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = [0.9, 0.6, 0.3] }
+        "#;
+    check_reflection_with("chromatic, two-sided", chromatic, false, 12, true);
+    check_reflection_with("chromatic, two-sided", chromatic, true, 13, true);
 }

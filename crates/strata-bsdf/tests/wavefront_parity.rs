@@ -482,3 +482,106 @@ fn general_walk_agrees_with_specialized() {
         }
     }
 }
+
+/// The control variate of `Estimator::Auto` (a smooth coat over a
+/// scattering layer over a Lambertian base: walks leave out the paths
+/// without a collision, and the estimate adds them exactly): every walk on
+/// every width and setting is the scalar engine's, and so are the
+/// estimates with the exact part. On the thin layer most walks never
+/// collide and score 0; the thicker ones keep most walks contributing.
+#[test]
+fn eval_walk_by_walk_with_the_control_variate() {
+    let stacks = [
+        (
+            "thin (τ 0.01)",
+            r#"
+            [[layers]]
+            interface = { kind = "dielectric", ior = 1.5 }
+            medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+            [[layers]]
+            interface = { kind = "diffuse", albedo = 0.8 }
+            "#,
+            100,
+        ),
+        (
+            "chromatic, two-sided",
+            r#"
+            two_sided = true
+            [[layers]]
+            interface = { kind = "dielectric", ior = 1.7 }
+            medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = [0.2, 0.6, 1.0], phase = { kind = "hg", g = 0.3 } }
+            [[layers]]
+            interface = { kind = "diffuse", albedo = [0.9, 0.5, 0.2] }
+            "#,
+            20,
+        ),
+        (
+            "thick grey",
+            r#"
+            [[layers]]
+            interface = { kind = "dielectric", ior = 2.2 }
+            medium = { thickness = 2.0, sigma_t = 1.0, albedo = 0.95, phase = { kind = "hg", g = -0.5 } }
+            [[layers]]
+            interface = { kind = "diffuse", albedo = 0.6 }
+            "#,
+            20,
+        ),
+    ];
+    let n = 512;
+    let capped = Settings {
+        max_scatter_order: Some(2),
+        rr_start: 1,
+        ..Settings::default()
+    };
+    let no_mis = Settings {
+        mis: false,
+        ..Settings::default()
+    };
+    for (name, toml, share) in stacks {
+        let st = stack(toml);
+        let qs = queries(&st);
+        let keys: Vec<u64> = (0..qs.len() as u64).map(|k| 500 + k).collect();
+        for (label, set) in [
+            ("default", Settings::default()),
+            ("no MIS", no_mis),
+            ("capped", capped),
+        ] {
+            let sc = ScalarEngine::<f32>::new(&st, set).with_control_variate(true);
+            assert!(sc.control_variate(), "{name}");
+            let spec = Plan::Specialized;
+            let w8 = Wavefront::<F32x8>::new(&st, set, spec).with_control_variate(true);
+            let w16 = Wavefront::<F32x16>::new(&st, set, spec).with_control_variate(true);
+            let w1 = Wavefront::<f32>::new(&st, set, spec).with_control_variate(true);
+            let plain = ScalarEngine::<f32>::new(&st, set);
+            for (width, w) in [
+                ("f32x8", w8.eval_walk_values(&qs, n, 9, &keys)),
+                ("f32x16", w16.eval_walk_values(&qs, n, 9, &keys)),
+                ("one lane", w1.eval_walk_values(&qs, n, 9, &keys)),
+            ] {
+                let (mut total, mut nonzero, mut dropped) = (0usize, 0usize, 0usize);
+                for (k, &(wi, wo)) in qs.iter().enumerate() {
+                    let s = sc.eval_walk_values(wi, wo, n, 9, keys[k]);
+                    assert_eq!(s, w[k], "{name}, {label}, {width}: query {k}");
+                    let p = plain.eval_walk_values(wi, wo, n, 9, keys[k]);
+                    total += s.len();
+                    nonzero += s.iter().filter(|v| v.iter().any(|&x| x != 0.0)).count();
+                    dropped += s.iter().zip(&p).filter(|(a, b)| a != b).count();
+                }
+                assert!(
+                    nonzero * share >= total,
+                    "{name}, {label}, {width}: only {nonzero} of {total} walks contribute"
+                );
+                // The control variate changed something (it is on).
+                assert!(dropped > 0, "{name}, {label}, {width}");
+            }
+            let (we, _) = w8.eval_batch(&qs, n, 9, &keys);
+            for (k, &(wi, wo)) in qs.iter().enumerate() {
+                assert_eq!(
+                    sc.eval(wi, wo, n, 9, keys[k]),
+                    we[k],
+                    "{name}, {label}: {k}"
+                );
+            }
+        }
+    }
+}

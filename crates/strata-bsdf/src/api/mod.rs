@@ -182,9 +182,12 @@ impl LayeredBsdf {
 
     /// A BSDF with explicit walk settings.
     pub fn with_settings(stack: LayerStack, settings: Settings) -> Self {
+        // The default estimator, `Auto`, uses the control variate where the
+        // stack has one.
+        let auto = Estimator::default() == Estimator::Auto;
         LayeredBsdf {
-            scalar: ScalarEngine::new(&stack, settings),
-            wave: Wavefront::new(&stack, settings, Plan::Specialized),
+            scalar: ScalarEngine::new(&stack, settings).with_control_variate(auto),
+            wave: Wavefront::new(&stack, settings, Plan::Specialized).with_control_variate(auto),
             settings,
             engine: Engine::default(),
             samples: Self::DEFAULT_SAMPLES,
@@ -236,6 +239,11 @@ impl LayeredBsdf {
     /// exact value where the stack has a closed form).
     pub fn estimator(mut self, estimator: Estimator) -> Self {
         self.estimator = estimator;
+        // The engines' walks leave out what the control variate holds only
+        // for `Auto`; `Unidirectional` keeps the plain walks.
+        let cv = estimator == Estimator::Auto;
+        self.scalar.set_control_variate(cv);
+        self.wave.set_control_variate(cv);
         self
     }
 

@@ -42,8 +42,14 @@ impl std::str::FromStr for EvalStart {
 pub enum Estimator {
     /// The exact value where the stack has a closed form (a smooth coat over
     /// a clear or absorbing layer over a Lambertian base:
-    /// `estimator::closed_form`; standard error 0), the unidirectional
-    /// estimator elsewhere. The default.
+    /// `estimator::closed_form`; standard error 0); for a smooth coat over a
+    /// *scattering* layer over a Lambertian base, a control variate: the
+    /// paths that never collide in the medium (the closed form of the same
+    /// stack with the medium as a pure absorber) exactly, plus the walks of
+    /// the unidirectional estimator scoring only the paths with a collision
+    /// (unbiased; lower variance, most where the layer is optically thin:
+    /// docs/performance.md); the unidirectional estimator elsewhere. The
+    /// default.
     #[default]
     Auto,
     /// The unidirectional random-walk estimator, always (method.md §4).

@@ -19,6 +19,11 @@
 //! back to it. The unidirectional estimator converges to this value (tested
 //! against it, and against the test suite's own formula), so
 //! [`crate::Estimator::Auto`] answers such stacks' `eval` with it.
+//!
+//! With a *scattering* layer the same formula, at the layer's `σt`, is the
+//! sum over the paths that never collide in it
+//! ([`SmoothCoatLambertian::unscattered`]): the exact part of `Auto`'s
+//! control variate, whose walks then score only the paths with a collision.
 
 use super::Settings;
 use crate::fresnel;
@@ -43,6 +48,24 @@ impl SmoothCoatLambertian {
     /// The closed form of `stack`, if it has one under `settings` (a depth
     /// cap truncates the series: then it has none).
     pub fn of(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        if stack.medium(0).is_some_and(|m| m.scatters()) {
+            return None;
+        }
+        Self::unscattered(stack, settings)
+    }
+
+    /// The part of `stack`'s BSDF carried by the paths that never collide in
+    /// its medium, for a smooth coat over any layer (clear, absorbing or
+    /// scattering) over a Lambertian base: [`SmoothCoatLambertian::of`] the
+    /// same stack with the medium made a pure absorber of the same `σt`. A
+    /// path that crosses the layer without colliding has transmittance
+    /// `e^(−σt d/μ)` whatever the albedo, so these paths are exactly the
+    /// absorber's paths. It is the exact part of the control variate of
+    /// [`crate::Estimator::Auto`]: the walks then score only the paths with
+    /// a collision (`ScalarEngine::with_control_variate`). Where the medium
+    /// does not scatter it is the whole BSDF. `None` for other stacks, and
+    /// under a depth cap (which truncates these paths too).
+    pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
         if stack.len() != 2 || settings.max_depth.is_some() {
             return None;
         }
@@ -53,11 +76,7 @@ impl SmoothCoatLambertian {
         {
             return None;
         }
-        let tau = match stack.medium(0) {
-            Some(m) if m.scatters() => return None,
-            Some(m) => m.optical_depth(),
-            None => [0.0; 3],
-        };
+        let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
         let r_bar = tau.map(|t| internal_reflectance(eta, t));
         Some(SmoothCoatLambertian {

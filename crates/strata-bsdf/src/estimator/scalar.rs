@@ -24,6 +24,7 @@
 //! per query, from the stream of the query's first walk.
 
 use super::accumulate::{BlockReducer, MeanVar};
+use super::closed_form::SmoothCoatLambertian;
 use super::events::{self, Connection};
 use super::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
@@ -102,6 +103,9 @@ pub struct ScalarEngine<S: Scalar> {
     pub(super) ifaces: Vec<InterfaceLanes<S>>,
     pub(super) media: Vec<MediumLanes<S>>,
     pub(super) settings: Settings,
+    /// With the control variate: the exact part of `f` carried by paths
+    /// without a medium collision, which the walks then leave out.
+    pub(super) cv: Option<SmoothCoatLambertian>,
 }
 
 /// What `eval` adds to a walk: the connections to the viewer (method.md §4).
@@ -113,6 +117,9 @@ struct Connect<'a, S: Scalar> {
     /// The layer next to the exit, and the interface across it.
     region: Option<(usize, usize)>,
     chain: &'a [Link<S>],
+    /// The control variate is on: leave out the contributions of paths
+    /// without a medium collision (its exact part holds them).
+    collided_only: bool,
     acc: Rgb<S>,
     /// The path continuations from medium collisions, summed apart from
     /// `acc` and added to it when the walk ends: the wavefront engine defers
@@ -143,7 +150,37 @@ impl<S: Scalar> ScalarEngine<S> {
                 .map(|l| MediumLanes::new(stack, l))
                 .collect(),
             settings,
+            cv: None,
         }
+    }
+
+    /// Turns the control variate of `eval` on or off (off by default; it is
+    /// what [`crate::Estimator::Auto`] uses). For a smooth coat over a
+    /// scattering (or any) layer over a Lambertian base
+    /// ([`SmoothCoatLambertian::unscattered`]), `f = f₀ + f₊`: `f₀`, the paths
+    /// that never collide in the medium, is added exactly, and the walks
+    /// estimate only `f₊` by leaving out every contribution of a path
+    /// without a collision (next-event estimation and continuations from
+    /// surface vertices before the walk's first collision: their segment to
+    /// the exit crosses the layer by a transmittance). The walks themselves,
+    /// their random numbers and their events are unchanged. Other stacks
+    /// have no such `f₀`: for them this does nothing.
+    pub fn with_control_variate(mut self, on: bool) -> Self {
+        self.set_control_variate(on);
+        self
+    }
+
+    /// [`ScalarEngine::with_control_variate`] in place.
+    pub fn set_control_variate(&mut self, on: bool) {
+        self.cv = on
+            .then(|| SmoothCoatLambertian::unscattered(&self.stack, &self.settings))
+            .flatten();
+    }
+
+    /// Whether `eval` uses the control variate (it is on and the stack has
+    /// the shape it needs).
+    pub fn control_variate(&self) -> bool {
+        self.cv.is_some()
     }
 
     /// The stack.
@@ -197,8 +234,13 @@ impl<S: Scalar> ScalarEngine<S> {
         let mut order = 0u32;
         loop {
             let iface = &self.ifaces[i];
-            // Next-event estimation from this surface vertex.
-            if let Some(c) = connect.as_deref_mut() {
+            // Next-event estimation from this surface vertex. Before the first
+            // collision, the link crosses the layer by a transmittance: the
+            // path has no collision, and a control variate holds it exactly.
+            if let Some(c) = connect
+                .as_deref_mut()
+                .filter(|c| !(c.collided_only && order == 0))
+            {
                 for link in c.chain.iter().filter(|k| k.start == i) {
                     let m = &self.media[link.layer];
                     let t = m.transmittance(m.thickness, link.conn.u.z.abs());
@@ -220,7 +262,12 @@ impl<S: Scalar> ScalarEngine<S> {
             let next = self.layout.next(i, d.z > S::zero());
             // Path continuation: the new direction reaches a rough exit.
             if let (Some(c), Next::Layer { l, .. }) = (connect.as_deref_mut(), next) {
-                if c.exit_rough && c.region.map(|r| r.1) == Some(i) && c.toward_exit(d) {
+                // (Before the first collision, a path without one, as above.)
+                if !(c.collided_only && order == 0)
+                    && c.exit_rough
+                    && c.region.map(|r| r.1) == Some(i)
+                    && c.toward_exit(d)
+                {
                     let m = &self.media[l];
                     let t = m.transmittance(m.thickness, d.z.abs());
                     let ex = &self.ifaces[c.exit];
@@ -448,7 +495,8 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// Each walk's value of the unidirectional estimator, in sample order
-    /// (without the first-order term): for parity tests and diagnostics.
+    /// (without the first-order term and the control variate's exact part):
+    /// for parity tests and diagnostics.
     pub fn eval_walk_values(
         &self,
         wi: [f64; 3],
@@ -463,7 +511,7 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// Runs the `n` walks of an eval query, handing each walk's value to
-    /// `f`; returns the first-order term.
+    /// `f`; returns the deterministic terms (first order, control variate).
     fn eval_walks(
         &self,
         wi: [f64; 3],
@@ -496,6 +544,7 @@ impl<S: Scalar> ScalarEngine<S> {
                     exit_rough: !self.stack.interface(e_out).smooth,
                     region: self.layout.exit_region(e_out),
                     chain,
+                    collided_only: self.cv.is_some(),
                     acc: Rgb::zero(),
                     from_collisions: Rgb::zero(),
                 };
@@ -505,12 +554,32 @@ impl<S: Scalar> ScalarEngine<S> {
             }
         });
         // First-order term: the entrance alone, when it is also the exit.
-        if e_in == e_out {
+        let direct = if e_in == e_out {
             rgb_f64(self.ifaces[e_in].eval(wi, wo))
         } else {
             [0.0; 3]
-        }
+        };
+        add_unscattered(self.cv.as_ref(), direct, wi, wo)
     }
+}
+
+/// The deterministic terms of an eval: `direct` (the first-order term) plus,
+/// with the control variate `cv`, its exact part at the walks' directions
+/// (taken from the engine's precision, so that both engines add the same
+/// number). A smooth coat's first-order term is a delta, 0 here, and not a
+/// path of `f₀` (which enters the coat), so nothing is counted twice.
+pub(super) fn add_unscattered<S: Lane>(
+    cv: Option<&SmoothCoatLambertian>,
+    direct: [f64; 3],
+    wi: V3<S>,
+    wo: V3<S>,
+) -> [f64; 3] {
+    let Some(cv) = cv else {
+        return direct;
+    };
+    let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
+    let f0 = cv.eval(dir(wi), dir(wo));
+    std::array::from_fn(|c| direct[c] + f0[c])
 }
 
 /// A unit direction in the engine's precision (normalized in f64 first).

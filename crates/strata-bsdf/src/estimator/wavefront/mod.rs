@@ -47,6 +47,7 @@ mod stages;
 pub mod walks;
 
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
+use super::closed_form::SmoothCoatLambertian;
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::pdf::{DensitySums, PdfEstimate, PdfKind};
@@ -344,6 +345,10 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     /// is the same for every walk ([`events::chain_is_fixed`]), computed once
     /// per query in `prepare`.
     fixed_chain: Vec<bool>,
+    /// With the control variate: the exact part of `f` carried by paths
+    /// without a medium collision, which the walks then leave out
+    /// ([`Wavefront::with_control_variate`]).
+    cv: Option<SmoothCoatLambertian>,
     slots: usize,
 }
 
@@ -411,8 +416,33 @@ impl<W: Wide> Wavefront<W> {
             media_spec: (0..n.saturating_sub(1))
                 .map(|l| MediumLanes::new(stack, l))
                 .collect(),
+            cv: None,
             slots: SLOTS_PER_LANE * W::LANES,
         }
+    }
+
+    /// Turns the control variate of eval on or off, as
+    /// `ScalarEngine::with_control_variate` does (the same walks leave out
+    /// the same contributions, so the two engines still agree walk by walk).
+    pub fn with_control_variate(mut self, on: bool) -> Self {
+        self.set_control_variate(on);
+        self
+    }
+
+    /// [`Wavefront::with_control_variate`] in place.
+    pub fn set_control_variate(&mut self, on: bool) {
+        self.cv = on
+            .then(|| SmoothCoatLambertian::unscattered(&self.stack, &self.settings))
+            .flatten();
+        if let Some(t) = self.tail.as_mut() {
+            t.set_control_variate(on);
+        }
+    }
+
+    /// Whether eval uses the control variate (it is on and the stack has the
+    /// shape it needs).
+    pub fn control_variate(&self) -> bool {
+        self.cv.is_some()
     }
 
     /// Sets the number of walk slots per wave (rounded up to whole chunks).
@@ -714,7 +744,8 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// Query `k`'s estimate from the sum of its walks: with the first-order
-    /// term (the entrance alone, when it is also the exit).
+    /// term (the entrance alone, when it is also the exit) and the control
+    /// variate's exact part.
     fn eval_estimate(&self, queries: &Queries, q: usize, sum: MeanVar) -> Estimate {
         if !queries.valid[q] {
             return sum.estimate();
@@ -727,11 +758,16 @@ impl<W: Wide> Wavefront<W> {
         } else {
             [0.0; 3]
         };
-        sum.estimate_plus(direct)
+        sum.estimate_plus(super::scalar::add_unscattered(
+            self.cv.as_ref(),
+            direct,
+            wi,
+            wo,
+        ))
     }
 
     /// Each walk's value of the unidirectional estimator (without the
-    /// first-order term), query by query in sample order: for parity tests
+    /// first-order term and the control variate's exact part), query by query in sample order: for parity tests
     /// and diagnostics (its memory grows with the batch).
     pub fn eval_walk_values(
         &self,

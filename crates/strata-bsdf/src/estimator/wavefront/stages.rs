@@ -547,6 +547,15 @@ impl<W: Wide> Wavefront<W> {
         let iface = &self.ifaces[i];
         let a = -c.d;
         let (wo, e_out) = (c.wo, c.e_out);
+        // With the control variate, a walk that has not collided yet scores
+        // nothing here: its connection crosses the layer by a transmittance,
+        // a path without a collision, which the exact part holds (scalar:
+        // `Connect::collided_only`).
+        let scoring = if eval && self.cv.is_some() {
+            active & c.order.gt(W::zero())
+        } else {
+            active
+        };
         // Next-event estimation from this surface vertex.
         if links {
             let at_i = W::splat(i as f64);
@@ -554,7 +563,7 @@ impl<W: Wide> Wavefront<W> {
             Self::connect_links(
                 ws,
                 idx,
-                active,
+                scoring,
                 c,
                 |k| k.start.eq(at_i),
                 |k| events::connect_surface(iface, a, first, &k.conn, k.t, mis),
@@ -580,7 +589,7 @@ impl<W: Wide> Wavefront<W> {
                 if k0 != i {
                     continue;
                 }
-                let m = alive & e_out.eq(W::splat(e as f64)) & toward(d, e);
+                let m = alive & scoring & e_out.eq(W::splat(e as f64)) & toward(d, e);
                 if m.any() {
                     let med = &self.media[l0];
                     let t = med.transmittance(med.thickness, d.z.abs());
