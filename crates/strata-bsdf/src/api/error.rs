@@ -167,7 +167,7 @@ pub fn check_walks(argument: &'static str, n: u64) -> Result<(), QueryError> {
     }
 }
 
-/// The largest thread pool [`LayeredBsdf::threads`] builds: more threads
+/// The largest thread pool [`LayeredBsdf::threads`](crate::LayeredBsdf::threads) builds: more threads
 /// than cores never helps, and each one reserves a stack.
 pub const MAX_THREADS: usize = 1024;
 

@@ -6,9 +6,9 @@
 //! [`QueryError`] naming the argument and its value, never a panic and never a
 //! silent NaN.
 //!
-//! * [`error`]: what can be wrong with a query, and which one.
-//! * [`transport`]: radiance or importance, for light that crosses the stack.
-//! * [`strategy`]: which estimator answers `eval`, and from which side.
+//! * `error`: what can be wrong with a query, and which one.
+//! * `transport`: radiance or importance, for light that crosses the stack.
+//! * `strategy`: which estimator answers `eval`, and from which side.
 //! * [`slices`]: the batch forms over flat slices a renderer keeps (SoA or
 //!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
 
@@ -182,9 +182,10 @@ impl LayeredBsdf {
 
     /// A BSDF with explicit walk settings.
     pub fn with_settings(stack: LayerStack, settings: Settings) -> Self {
-        // The default estimator, `Auto`, uses the control variate where the
-        // stack has one.
-        let auto = Estimator::default() == Estimator::Auto;
+        // The default estimator, `Auto`, uses the control variate where it
+        // pays (`SmoothCoatLambertian::control_variate_pays`).
+        let auto = Estimator::default() == Estimator::Auto
+            && SmoothCoatLambertian::control_variate_pays(&stack, &settings);
         LayeredBsdf {
             scalar: ScalarEngine::new(&stack, settings).with_control_variate(auto),
             wave: Wavefront::new(&stack, settings, Plan::Specialized).with_control_variate(auto),
@@ -241,7 +242,8 @@ impl LayeredBsdf {
         self.estimator = estimator;
         // The engines' walks leave out what the control variate holds only
         // for `Auto`; `Unidirectional` keeps the plain walks.
-        let cv = estimator == Estimator::Auto;
+        let cv = estimator == Estimator::Auto
+            && SmoothCoatLambertian::control_variate_pays(self.stack(), &self.settings);
         self.scalar.set_control_variate(cv);
         self.wave.set_control_variate(cv);
         self

@@ -47,9 +47,10 @@ pub enum Estimator {
     /// paths that never collide in the medium (the closed form of the same
     /// stack with the medium as a pure absorber) exactly, plus the walks of
     /// the unidirectional estimator scoring only the paths with a collision
-    /// (unbiased; lower variance, most where the layer is optically thin:
-    /// docs/performance.md); the unidirectional estimator elsewhere. The
-    /// default.
+    /// (unbiased), where the medium scatters little against what the base
+    /// reflects (`SmoothCoatLambertian::control_variate_pays`, the rule under
+    /// which it measured lower variance: docs/performance.md); the
+    /// unidirectional estimator elsewhere. The default.
     #[default]
     Auto,
     /// The unidirectional random-walk estimator, always (method.md §4).

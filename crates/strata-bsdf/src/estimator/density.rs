@@ -22,7 +22,7 @@
 //! * `P_exit`: the probability that `sample()`'s walk, leaving `v` along `u`,
 //!   meets only delta events and then leaves along `wo` (smooth exit) or
 //!   arrives at the rough exit. It is estimated without bias by one
-//!   continuation ([`DensityWalk::delta_exit`]) that samples the
+//!   continuation (`DensityWalk::delta_exit`) that samples the
 //!   reflect-or-transmit choices and takes everything else in expectation: no
 //!   collision across a scattering layer (with the walk's hero channel, as
 //!   `sample()` samples it), Russian roulette's survival.
