@@ -342,7 +342,7 @@ impl LayeredBsdf {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         check_pairs(&wi, &wo)?;
-        if self.engine.resolve(n, self.pdf_samples as u64) == Engine::Scalar {
+        if self.pdf_engine(n) == Engine::Scalar {
             for (k, p) in pdf.iter_mut().enumerate() {
                 let (a, b) = pair_at(&wi, &wo, k);
                 *p = self.pdf_one(a, b);
