@@ -45,6 +45,24 @@ fn slice_calls_allocate_nothing() {
     let clear = include_str!("../materials/clear_coat_lambertian.toml");
     let wi = [[0.3f32, 0.0, 0.95], [0.1, -0.4, 0.9], [0.2, 0.2, -0.9]];
     let wo = [[-0.3f32, 0.1, 0.95], [0.5, 0.0, 0.8], [0.0, 0.3, 0.9]];
+    // The global pool's worker threads allocate as they start, on their
+    // own, whenever that is (the first call that asks for the pool starts
+    // them): a parallel batch first makes sure they have, so that the
+    // counter sees only the calls measured.
+    {
+        let stack = strata_bsdf::LayerStack::from_toml_str(slab).unwrap();
+        let b = LayeredBsdf::new(stack)
+            .engine(Engine::Wavefront)
+            .samples(64);
+        let pairs = vec![
+            (
+                glam::Vec3::new(0.3, 0.0, 0.95),
+                glam::Vec3::new(0.0, 0.3, 0.9)
+            );
+            512
+        ];
+        b.eval_batch(&pairs).unwrap();
+    }
     for toml in [coated, slab, clear] {
         for transport in [Transport::Radiance, Transport::Importance] {
             let stack = strata_bsdf::LayerStack::from_toml_str(toml).unwrap();
@@ -93,7 +111,8 @@ fn slice_calls_allocate_nothing() {
             assert!(s.iter().any(|r| r.flags != 0));
         }
     }
-    // Auto picks the scalar engine for a single sample and a single pdf.
+    // A single sample and a single pdf on Auto (the scalar engine's walk,
+    // the pdf on the wavefront from buffers the thread keeps).
     let stack = strata_bsdf::LayerStack::from_toml_str(coated).unwrap();
     let b = LayeredBsdf::new(stack);
     let mut s = [SampleRecord::default(); 1];
