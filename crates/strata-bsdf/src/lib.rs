@@ -75,9 +75,9 @@ pub mod stack;
 
 pub use api::{
     check_walks, AlbedoRecord, BatchError, Direction, Engine, Estimator, EvalRecord, EvalStart,
-    LayeredBsdf, QueryError, Sample, SampleFlags, SampleRecord, ThreadsError, Transport, Vectors,
-    VectorsMut, MAX_THREADS, MAX_WALKS,
+    LayeredBsdf, ParamSets, QueryError, Sample, SampleFlags, SampleRecord, SetsError, ThreadsError,
+    Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
 };
 pub use estimator::pdf::{PdfEstimate, PdfKind};
 pub use estimator::{Albedo, Estimate, Settings};
-pub use stack::{LayerStack, MaterialDesc, MaterialError, StackError};
+pub use stack::{LayerStack, MaterialDesc, MaterialError, Shape, StackError};

@@ -41,6 +41,15 @@ pub enum QueryError {
         /// The number of queries.
         queries: usize,
     },
+    /// A query's parameter set index names no set.
+    NoSuchSet {
+        /// The index given.
+        value: u32,
+        /// The number of sets.
+        sets: usize,
+    },
+    /// Parameter sets built by a BSDF of another shape, settings or estimator.
+    ForeignSets,
 }
 
 impl fmt::Display for QueryError {
@@ -71,6 +80,12 @@ impl fmt::Display for QueryError {
                 f,
                 "{argument} has {len} entries for {queries} queries: give one per query"
             ),
+            QueryError::NoSuchSet { value, sets } => write!(
+                f,
+                "set = {value}: there are {sets} parameter sets (0 to {})",
+                sets.saturating_sub(1)
+            ),
+            QueryError::ForeignSets => write!(f, "{}", super::SetsError::Foreign),
         }
     }
 }

@@ -13,6 +13,7 @@
 //!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
 
 mod error;
+mod sets;
 pub mod slices;
 mod strategy;
 mod transport;
@@ -20,6 +21,8 @@ mod transport;
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };
+use sets::Per;
+pub use sets::{ParamSets, SetsError};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
 pub use strategy::{Estimator, EvalStart};
 pub use transport::Transport;
@@ -33,7 +36,7 @@ use crate::estimator::wavefront::{
 use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
 use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
-use crate::stack::LayerStack;
+use crate::stack::{LayerStack, Shape};
 use glam::Vec3;
 use std::cell::RefCell;
 use std::sync::Arc;
@@ -155,6 +158,8 @@ pub struct LayeredBsdf {
     estimator: Estimator,
     exact: Option<SmoothCoatLambertian>,
     threads: Threads,
+    /// The stack's shape, which parameter sets must have.
+    shape: Shape,
 }
 
 /// Where the wavefront engine's large batches run.
@@ -184,8 +189,7 @@ impl LayeredBsdf {
     pub fn with_settings(stack: LayerStack, settings: Settings) -> Self {
         // The default estimator, `Auto`, uses the control variate where it
         // pays (`SmoothCoatLambertian::control_variate_pays`).
-        let auto = Estimator::default() == Estimator::Auto
-            && SmoothCoatLambertian::control_variate_pays(&stack, &settings);
+        let auto = control_variate_for(Estimator::default(), &stack, &settings);
         LayeredBsdf {
             scalar: ScalarEngine::new(&stack, settings).with_control_variate(auto),
             wave: Wavefront::new(&stack, settings, Plan::Specialized).with_control_variate(auto),
@@ -199,6 +203,7 @@ impl LayeredBsdf {
             estimator: Estimator::default(),
             exact: SmoothCoatLambertian::of(&stack, &settings),
             threads: Threads::Current,
+            shape: stack.shape(),
         }
     }
 
@@ -242,11 +247,16 @@ impl LayeredBsdf {
         self.estimator = estimator;
         // The engines' walks leave out what the control variate holds only
         // for `Auto`; `Unidirectional` keeps the plain walks.
-        let cv = estimator == Estimator::Auto
-            && SmoothCoatLambertian::control_variate_pays(self.stack(), &self.settings);
+        let cv = self.control_variate_for(self.stack());
         self.scalar.set_control_variate(cv);
         self.wave.set_control_variate(cv);
         self
+    }
+
+    /// Whether eval walks on `stack` leave out the control variate's paths
+    /// under this BSDF's estimator.
+    pub(super) fn control_variate_for(&self, stack: &LayerStack) -> bool {
+        control_variate_for(self.estimator, stack, &self.settings)
     }
 
     /// Whether `eval` is answered by a closed form (the stack has one and the
@@ -368,7 +378,7 @@ impl LayeredBsdf {
             Direction::new("wo", wo)?.get(),
         );
         check_walks("samples", samples)?;
-        Ok(self.eval_validated(&[pair], samples, &[query])[0])
+        Ok(self.eval_validated(Per::OWN, &[pair], samples, &[query])[0])
     }
 
     /// Samples an outgoing direction for light from `wi`; `None` if the walk
@@ -426,7 +436,7 @@ impl LayeredBsdf {
         let dirs = directions2(pairs)?;
         one_each("keys", keys.len(), pairs.len())?;
         check_walks("samples", samples).map_err(BatchError::call)?;
-        Ok(self.eval_validated(&dirs, samples, keys))
+        Ok(self.eval_validated(Per::OWN, &dirs, samples, keys))
     }
 
     /// One sampled direction per incident direction; `sample_index[k]`
@@ -451,7 +461,7 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
-        Ok(self.sample_validated(&dirs, keys, sample_index))
+        Ok(self.sample_validated(Per::OWN, &dirs, keys, sample_index))
     }
 
     /// The approximate pdf for every pair. A pdf takes no caller keys: it
@@ -459,7 +469,7 @@ impl LayeredBsdf {
     /// directions (and the seed), and the number [`Sample::pdf`] carries is
     /// the one a later `pdf` call gives, whatever the length of the vectors.
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
-        Ok(self.pdf_validated(&directions2(pairs)?))
+        Ok(self.pdf_validated(Per::OWN, &directions2(pairs)?))
     }
 
     /// [`LayeredBsdf::pdf_unbiased`] for every pair.
@@ -470,7 +480,7 @@ impl LayeredBsdf {
     ) -> Result<Vec<PdfEstimate>, BatchError> {
         let dirs = directions2(pairs)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
-        Ok(self.pdf_unbiased_validated(&dirs, samples))
+        Ok(self.pdf_unbiased_validated(Per::OWN, &dirs, samples))
     }
 
     /// Directional albedo of every incident direction, `n` walks each; keys
@@ -490,16 +500,17 @@ impl LayeredBsdf {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         check_walks("n", n).map_err(BatchError::call)?;
-        Ok(self.albedo_validated(&dirs, n, keys))
+        Ok(self.albedo_validated(Per::OWN, &dirs, n, keys))
     }
 
     // ------------------------------------------- the engines, on valid input
 
     /// Eval of validated pairs on the engine the call resolves to, in the
     /// BSDF's transport mode.
-    fn eval_validated(&self, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
+    fn eval_validated(&self, per: Per, dirs: &[Pair], samples: u64, keys: &[u64]) -> Vec<Estimate> {
         let mut est = Vec::with_capacity(dirs.len());
         self.eval_each(
+            per,
             dirs.len(),
             samples,
             |k| (dirs[k], keys[k]),
@@ -513,6 +524,7 @@ impl LayeredBsdf {
     /// the call runs query by query, or serially on a warm thread.
     fn eval_each(
         &self,
+        per: Per,
         n: usize,
         samples: u64,
         query: impl Fn(usize) -> (Pair, u64) + Sync,
@@ -521,7 +533,7 @@ impl LayeredBsdf {
         if self.eval_by_query(n, samples) {
             for k in 0..n {
                 let ((a, b), key) = query(k);
-                out(k, self.eval_one(a, b, samples, key));
+                out(k, self.eval_one(per, k, a, b, samples, key));
             }
             return;
         }
@@ -533,12 +545,13 @@ impl LayeredBsdf {
         };
         let finish = |k: usize, e: Estimate| {
             let ((a, b), _) = query(k);
-            out(k, self.scaled(e, a, b, self.eval_start.swaps(a[2], b[2])));
+            let swapped = self.eval_start.swaps(a[2], b[2]);
+            out(k, self.scaled(self.stack_in(per, k), e, a, b, swapped));
         };
         let serial = self.serial();
         self.install(n, samples, || {
             self.wave
-                .eval_each(n, walked, samples, self.seed, serial, finish)
+                .eval_each(per.sets(), n, walked, samples, self.seed, serial, finish)
         });
     }
 
@@ -548,21 +561,23 @@ impl LayeredBsdf {
         self.eval_is_exact() || self.engine.resolve(n, samples) == Engine::Scalar
     }
 
-    /// One query's eval by the closed form or on the scalar engine, from the
+    /// Query `k`'s eval by the closed form or on the scalar engine, from the
     /// side `eval_start` chooses, in the transport mode; allocates nothing.
-    fn eval_one(&self, a: [f64; 3], b: [f64; 3], samples: u64, key: u64) -> Estimate {
-        if let (Estimator::Auto, Some(exact)) = (self.estimator, &self.exact) {
-            return self.exact_eval(exact, a, b, samples);
+    fn eval_one(&self, per: Per, k: usize, a: Pt, b: Pt, samples: u64, key: u64) -> Estimate {
+        let stack = self.stack_in(per, k);
+        if let (Estimator::Auto, Some(exact)) = (self.estimator, self.exact_in(per, k)) {
+            return self.exact_eval(stack, exact, a, b, samples);
         }
         let s = self.eval_start.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
-        self.scaled(self.scalar.eval(x, y, samples, self.seed, key), a, b, s)
+        let e = self.scalar_in(per, k).eval(x, y, samples, self.seed, key);
+        self.scaled(stack, e, a, b, s)
     }
 
-    /// An estimate of the radiance BSDF from `a` to `b` (or, `swapped`, from
-    /// `b` to `a`) as this mode's BSDF from `a` to `b`.
-    fn scaled(&self, mut e: Estimate, a: [f64; 3], b: [f64; 3], swapped: bool) -> Estimate {
-        if let Some(x) = self.transport.factor_of(self.stack(), a[2], b[2], swapped) {
+    /// An estimate of the radiance BSDF of `stack` from `a` to `b` (or,
+    /// `swapped`, from `b` to `a`) as this mode's BSDF from `a` to `b`.
+    fn scaled(&self, stack: &LayerStack, mut e: Estimate, a: Pt, b: Pt, swapped: bool) -> Estimate {
+        if let Some(x) = self.transport.factor_of(stack, a[2], b[2], swapped) {
             e.value = e.value.map(|v| v * x);
             e.stderr = e.stderr.map(|v| v * x);
         }
@@ -573,12 +588,13 @@ impl LayeredBsdf {
     /// stack is opaque, so reflection only: both transport modes agree).
     fn exact_eval(
         &self,
+        stack: &LayerStack,
         exact: &SmoothCoatLambertian,
-        a: [f64; 3],
-        b: [f64; 3],
+        a: Pt,
+        b: Pt,
         n: u64,
     ) -> Estimate {
-        let value = match crate::estimator::orient(self.stack(), a, Some(b)) {
+        let value = match crate::estimator::orient(stack, a, Some(b)) {
             Some(o) => exact.eval(o.wi, o.apply(b)),
             None => [0.0; 3],
         };
@@ -593,13 +609,14 @@ impl LayeredBsdf {
     /// [`LayeredBsdf::pdf`] gives for its direction.
     fn sample_validated(
         &self,
-        dirs: &[[f64; 3]],
+        per: Per,
+        dirs: &[Pt],
         keys: &[u64],
         sample_index: &[u64],
     ) -> Vec<Option<Sample>> {
         let mut res = Vec::with_capacity(dirs.len());
         let query = |k: usize| (dirs[k], keys[k], sample_index[k]);
-        self.sample_each(dirs.len(), query, |_, s| res.push(s));
+        self.sample_each(per, dirs.len(), query, |_, s| res.push(s));
         res
     }
 
@@ -609,14 +626,15 @@ impl LayeredBsdf {
     /// scalar engine, or serially on a warm thread.
     fn sample_each(
         &self,
+        per: Per,
         n: usize,
-        query: impl Fn(usize) -> ([f64; 3], u64, u64) + Sync,
+        query: impl Fn(usize) -> (Pt, u64, u64) + Sync,
         mut out: impl FnMut(usize, Option<Sample>),
     ) {
         if self.engine.resolve(n, 1) == Engine::Scalar {
             for k in 0..n {
                 let (a, key, index) = query(k);
-                out(k, self.sample_one(a, key, index));
+                out(k, self.sample_one(per, k, a, key, index));
             }
             return;
         }
@@ -626,16 +644,22 @@ impl LayeredBsdf {
             walks.clear();
             self.install(n, 1, || {
                 let push = |_, w| walks.push(w);
-                self.wave.sample_each(n, &query, self.seed, serial, push)
+                (self.wave).sample_each(per.sets(), n, &query, self.seed, serial, push)
             });
             // The pdf of each sampled direction, as `pdf(wi, wo)` computes it
             // (0 for a direction that is not one, as on the scalar path).
-            let pair = |w: &Option<WalkSample>, a: [f64; 3]| {
+            let pair = |w: &Option<WalkSample>, a: Pt| {
                 Some((a, Direction::new("wo", w.as_ref()?.wo).ok()?.get()))
             };
             b.pairs.clear();
-            let pairs = (b.walks.iter().enumerate()).filter_map(|(k, w)| pair(w, query(k).0));
-            b.pairs.extend(pairs);
+            b.sets.clear();
+            for (k, w) in b.walks.iter().enumerate() {
+                if let Some(p) = pair(w, query(k).0) {
+                    b.pairs.push(p);
+                    b.sets.push(per.set(k) as u32);
+                }
+            }
+            let sub = per.with_set(&b.sets);
             b.pdf.clear();
             if serial || b.pairs.len() <= PDF_CHUNK {
                 // On this thread (where `pdf_validated` would run them too),
@@ -645,9 +669,9 @@ impl LayeredBsdf {
                 let push = |_, p: PdfEstimate| pdf.push(p.value as f32);
                 let (n, walks) = (pairs.len(), self.pdf_samples as u64);
                 let kind = PdfKind::Approximate;
-                (self.wave).pdf_each(n, keyed, walks, self.seed, kind, push);
+                (self.wave).pdf_each(sub.sets(), n, keyed, walks, self.seed, kind, push);
             } else {
-                b.pdf.extend(self.pdf_validated(&b.pairs));
+                b.pdf.extend(self.pdf_validated(sub, &b.pairs));
             }
             let mut pdfs = b.pdf.iter();
             for (k, &w) in b.walks.iter().enumerate() {
@@ -656,23 +680,26 @@ impl LayeredBsdf {
                     Some(_) => pdfs.next().copied().unwrap_or(0.0),
                     None => 0.0,
                 };
-                out(k, w.map(|w| self.finish_sample(w, a, pdf)));
+                out(
+                    k,
+                    w.map(|w| self.finish_sample(self.stack_in(per, k), w, a, pdf)),
+                );
             }
         })
     }
 
-    /// One sample on the scalar engine, with its pdf; allocates nothing.
-    fn sample_one(&self, a: [f64; 3], key: u64, index: u64) -> Option<Sample> {
+    /// Query `k`'s sample on the scalar engine, with its pdf; allocates nothing.
+    fn sample_one(&self, per: Per, k: usize, a: Pt, key: u64, index: u64) -> Option<Sample> {
         let mut rng = WalkRng::new(self.seed, key, index, Stream::Walk);
-        let w = self.scalar.sample(a, &mut rng)?;
-        let pdf = Direction::new("wo", w.wo).map_or(0.0, |b| self.pdf_one(a, b.get()));
-        Some(self.finish_sample(w, a, pdf))
+        let w = self.scalar_in(per, k).sample(a, &mut rng)?;
+        let pdf = Direction::new("wo", w.wo).map_or(0.0, |b| self.pdf_one(per, k, a, b.get()));
+        Some(self.finish_sample(self.stack_in(per, k), w, a, pdf))
     }
 
     /// A walk's sample from `a` with its pdf, in the transport mode.
-    fn finish_sample(&self, w: WalkSample, a: [f64; 3], pdf: f32) -> Sample {
+    fn finish_sample(&self, stack: &LayerStack, w: WalkSample, a: Pt, pdf: f32) -> Sample {
         let mut weight = w.weight;
-        if let Some(s) = self.transport.factor(self.stack(), a[2], w.wo.z as f64) {
+        if let Some(s) = self.transport.factor(stack, a[2], w.wo.z as f64) {
             weight = weight.map(|v| (v as f64 * s) as f32);
         }
         Sample {
@@ -693,30 +720,40 @@ impl LayeredBsdf {
         self.engine.resolve(queries, 2 * self.pdf_samples as u64)
     }
 
-    /// One pair's approximate pdf, keyed by the directions, on the engine
+    /// Query `k`'s approximate pdf, keyed by the directions, on the engine
     /// [`LayeredBsdf::pdf_engine`] picks; allocates nothing once the thread
     /// is warm.
-    fn pdf_one(&self, a: [f64; 3], b: [f64; 3]) -> f32 {
+    fn pdf_one(&self, per: Per, k: usize, a: Pt, b: Pt) -> f32 {
         let key = pdf_key(a, b);
         if self.pdf_engine(1) == Engine::Scalar {
-            return self.scalar.pdf(a, b, self.pdf_samples, self.seed, key) as f32;
+            return (self.scalar_in(per, k)).pdf(a, b, self.pdf_samples, self.seed, key) as f32;
         }
         let mut p = 0.0;
         let (walks, kind) = (self.pdf_samples as u64, PdfKind::Approximate);
         let put = |_, e: PdfEstimate| p = e.value as f32;
-        self.wave
-            .pdf_each(1, |_| ((a, b), key), walks, self.seed, kind, put);
+        let one = per.one(k);
+        (self.wave).pdf_each(
+            one.sets(),
+            1,
+            |_| ((a, b), key),
+            walks,
+            self.seed,
+            kind,
+            put,
+        );
         p
     }
 
     /// The approximate pdf of validated pairs, keyed by the directions.
-    fn pdf_validated(&self, dirs: &[Pair]) -> Vec<f32> {
+    fn pdf_validated(&self, per: Per, dirs: &[Pair]) -> Vec<f32> {
         if self.pdf_engine(dirs.len()) == Engine::Scalar {
-            return dirs.iter().map(|&(a, b)| self.pdf_one(a, b)).collect();
+            let pdf = |(k, &(a, b)): (usize, &Pair)| self.pdf_one(per, k, a, b);
+            return dirs.iter().enumerate().map(pdf).collect();
         }
         let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
         let p = self.install_if(dirs.len() > PDF_CHUNK, || {
-            self.wave.pdf_batch(
+            self.wave.pdf_batch_in(
+                per.sets(),
                 dirs,
                 self.pdf_samples as u64,
                 self.seed,
@@ -729,29 +766,36 @@ impl LayeredBsdf {
 
     /// The unbiased pdf of validated pairs, `samples` density walks each,
     /// keyed by the directions.
-    pub(super) fn pdf_unbiased_validated(&self, dirs: &[Pair], samples: u64) -> Vec<PdfEstimate> {
+    pub(super) fn pdf_unbiased_validated(
+        &self,
+        per: Per,
+        dirs: &[Pair],
+        samples: u64,
+    ) -> Vec<PdfEstimate> {
         let kind = PdfKind::Unbiased;
         if self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
             return dirs
                 .iter()
-                .map(|&(a, b)| {
+                .enumerate()
+                .map(|(k, &(a, b))| {
                     let key = pdf_key(a, b);
-                    self.scalar
+                    self.scalar_in(per, k)
                         .pdf_estimate(a, b, samples, self.seed, key, kind)
                 })
                 .collect();
         }
         let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
         self.install(dirs.len(), samples, || {
-            self.wave.pdf_batch(dirs, samples, self.seed, &keys, kind)
+            (self.wave).pdf_batch_in(per.sets(), dirs, samples, self.seed, &keys, kind)
         })
     }
 
     /// Albedos of validated directions; the transmitted fraction follows the
     /// transport mode.
-    fn albedo_validated(&self, dirs: &[[f64; 3]], n: u64, keys: &[u64]) -> Vec<Albedo> {
+    fn albedo_validated(&self, per: Per, dirs: &[Pt], n: u64, keys: &[u64]) -> Vec<Albedo> {
         let mut res = Vec::with_capacity(dirs.len());
-        self.albedo_each(dirs.len(), n, |k| (dirs[k], keys[k]), |_, a| res.push(a));
+        let query = |k| (dirs[k], keys[k]);
+        self.albedo_each(per, dirs.len(), n, query, |_, a| res.push(a));
         res
     }
 
@@ -761,14 +805,15 @@ impl LayeredBsdf {
     /// or serially on a warm thread.
     fn albedo_each(
         &self,
+        per: Per,
         m: usize,
         n: u64,
-        query: impl Fn(usize) -> ([f64; 3], u64) + Sync,
+        query: impl Fn(usize) -> (Pt, u64) + Sync,
         mut out: impl FnMut(usize, Albedo) + Send,
     ) {
         let mut finish = |k: usize, mut r: Albedo| {
             let a = query(k).0;
-            if let Some(s) = self.transport.factor(self.stack(), a[2], -a[2]) {
+            if let Some(s) = self.transport.factor(self.stack_in(per, k), a[2], -a[2]) {
                 let t = &mut r.transmitted;
                 t.value = t.value.map(|v| v * s);
                 t.stderr = t.stderr.map(|v| v * s);
@@ -778,13 +823,14 @@ impl LayeredBsdf {
         if self.engine.resolve(m, n) == Engine::Scalar {
             for k in 0..m {
                 let (a, key) = query(k);
-                finish(k, self.scalar.albedo(a, n, self.seed, key));
+                finish(k, self.scalar_in(per, k).albedo(a, n, self.seed, key));
             }
             return;
         }
         let serial = self.serial();
+        let sets = per.sets();
         self.install(m, n, || {
-            (self.wave).albedo_each(m, &query, n, self.seed, serial, finish)
+            (self.wave).albedo_each(sets, m, &query, n, self.seed, serial, finish)
         });
     }
 }
@@ -794,6 +840,8 @@ impl LayeredBsdf {
 struct SampleBuffers {
     walks: Vec<Option<WalkSample>>,
     pairs: Vec<Pair>,
+    /// Each pair's parameter set (with sets).
+    sets: Vec<u32>,
     pdf: Vec<f32>,
 }
 
@@ -830,6 +878,16 @@ fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
         .enumerate()
         .map(|(i, &w)| direction_at("wi", i, w))
         .collect()
+}
+
+/// A validated direction.
+type Pt = [f64; 3];
+
+/// `Estimator::Auto` uses the control variate where it pays
+/// (`SmoothCoatLambertian::control_variate_pays`); `Unidirectional` keeps
+/// the plain walks.
+fn control_variate_for(estimator: Estimator, stack: &LayerStack, settings: &Settings) -> bool {
+    estimator == Estimator::Auto && SmoothCoatLambertian::control_variate_pays(stack, settings)
 }
 
 /// A validated `(wi, wo)` pair.

@@ -14,12 +14,13 @@
 //! `k` of `strata sample` does). With `Some(keys)` the renderer's sampler
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
+use super::sets::Per;
 use super::{
     check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Engine,
     Estimate, LayeredBsdf, Pair,
 };
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
-use crate::estimator::wavefront::PDF_CHUNK;
+use crate::estimator::wavefront::{Sets, PDF_CHUNK};
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -345,7 +346,7 @@ impl LayeredBsdf {
         if self.pdf_engine(n) == Engine::Scalar {
             for (k, p) in pdf.iter_mut().enumerate() {
                 let (a, b) = pair_at(&wi, &wo, k);
-                *p = self.pdf_one(a, b);
+                *p = self.pdf_one(Per::OWN, k, a, b);
             }
             return Ok(());
         }
@@ -358,11 +359,13 @@ impl LayeredBsdf {
             };
             let (walks, kind) = (self.pdf_samples as u64, PdfKind::Approximate);
             let put = |k: usize, e: PdfEstimate| pdf[k] = e.value as f32;
-            self.wave.pdf_each(n, keyed, walks, self.seed, kind, put);
+            let own = Sets::Own;
+            self.wave
+                .pdf_each(own, n, keyed, walks, self.seed, kind, put);
             return Ok(());
         }
         let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
-        pdf.copy_from_slice(&self.pdf_validated(&pairs));
+        pdf.copy_from_slice(&self.pdf_validated(Per::OWN, &pairs));
         Ok(())
     }
 
@@ -384,7 +387,7 @@ impl LayeredBsdf {
         check_pairs(&wi, &wo)?;
         let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
         for ((e, p), s) in self
-            .pdf_unbiased_validated(&pairs, samples)
+            .pdf_unbiased_validated(Per::OWN, &pairs, samples)
             .iter()
             .zip(pdf.iter_mut())
             .zip(stderr.iter_mut())
@@ -417,7 +420,7 @@ impl LayeredBsdf {
             let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
             (dir_at(&wi, k), key)
         };
-        self.albedo_each(m, n, query, |k, a| {
+        self.albedo_each(Per::OWN, m, n, query, |k, a| {
             out[k] = AlbedoRecord {
                 reflected: f32x3(a.reflected.value),
                 transmitted: f32x3(a.transmitted.value),
@@ -454,7 +457,7 @@ impl LayeredBsdf {
         }
         let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
         let query = |k: usize| (pair_at(wi, wo, k), key(k));
-        self.eval_each(n, self.samples, query, |k, e| out(k, &e));
+        self.eval_each(Per::OWN, n, self.samples, query, |k, e| out(k, &e));
         Ok(())
     }
 
@@ -483,7 +486,7 @@ impl LayeredBsdf {
             let (key, index) = stream(k);
             (dir_at(wi, k), key, index)
         };
-        self.sample_each(n, query, |k, s| out(k, s.as_ref()));
+        self.sample_each(Per::OWN, n, query, |k, s| out(k, s.as_ref()));
         Ok(())
     }
 }

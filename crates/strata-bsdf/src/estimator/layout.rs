@@ -6,18 +6,8 @@
 //! `l + 1`, and `z` is the depth below interface `l` (so `0 <= z <= thickness`).
 
 use crate::lane::{Lane, Rgb};
+pub use crate::stack::LayerKind;
 use crate::stack::{LayerStack, Medium};
-
-/// What a layer asks of a walk crossing it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LayerKind {
-    /// No medium (or one that neither scatters nor attenuates): crossed for free.
-    Clear,
-    /// Attenuates without scattering: crossed with its transmittance, no free flight.
-    Absorbing,
-    /// Scatters: free-flight sampling, collisions, phase sampling.
-    Scattering,
-}
 
 /// One medium's parameters in a lane type (splatted: the same in every lane).
 #[derive(Clone, Copy, Debug)]
@@ -54,25 +44,18 @@ impl<L: Lane> MediumLanes<L> {
     }
 
     fn from_medium(m: &Medium) -> Self {
-        let kind = if m.scatters() {
-            LayerKind::Scattering
-        } else if m.attenuates() {
-            LayerKind::Absorbing
-        } else {
-            LayerKind::Clear
-        };
         // Walks measure depth in units of the layer's thickness, so the medium
         // enters only through its optical depth (as it does in the physics:
         // σt |Δz| / |d.z|). A thickness or sigma_t that single precision
         // cannot hold (1e-50, 1e300) then cannot overflow or vanish when their
         // product is ordinary (docs/numerics.md).
         MediumLanes {
-            kind,
+            kind: m.kind(),
             thickness: L::one(),
             sigma_t: Rgb::from_array(m.optical_depth()),
             albedo: Rgb::from_array(m.albedo),
             g: L::splat(m.g),
-            grey: m.sigma_t[0] == m.sigma_t[1] && m.sigma_t[1] == m.sigma_t[2],
+            grey: m.grey(),
         }
     }
 

@@ -17,6 +17,7 @@ pub mod density;
 pub mod events;
 pub mod layout;
 mod orient;
+pub mod params;
 pub mod pdf;
 pub mod scalar;
 pub mod wavefront;

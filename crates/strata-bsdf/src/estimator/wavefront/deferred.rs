@@ -16,17 +16,18 @@
 //! stay bit for bit the scalar engine's.
 
 use super::walks::{lane_ids, lane_rows, load16, Chunk};
-use super::Wavefront;
+use super::{Queries, Wavefront};
 use crate::estimator::events;
 use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::medium;
 
 /// One pending continuation: the viewer direction `wo` (3), the direction
 /// before the collision (3) and after it (3), the depth to the exit's side
-/// of the layer, the throughput (3) and the walk (its index in the task, as
-/// float bits); two unused.
+/// of the layer, the throughput (3), the walk (its index in the task) and
+/// its query (both as float bits); one unused.
 type Row = [f32; 16];
 const WALK: usize = 13;
+const QUERY: usize = 14;
 
 /// The pending continuations of a task, per rough exit, and each walk's sum.
 #[derive(Default)]
@@ -61,7 +62,7 @@ impl Deferred {
         &mut self,
         x: usize,
         lanes: u32,
-        walk: W::Bits,
+        (walk, query): (W::Bits, W::Bits),
         (wo, d, dn, dz, beta): (V3<W>, V3<W>, V3<W>, W, Rgb<W>),
     ) {
         let z = W::zero();
@@ -73,7 +74,7 @@ impl Deferred {
             beta.g,
             beta.b,
             W::from_bit_lanes(walk),
-            z,
+            W::from_bit_lanes(query),
             z,
         ];
         // Whole rows, stored by two transposes (as `lane_rows`, sixteen wide).
@@ -113,9 +114,8 @@ fn add3(v: &mut [f32; 3], s: &[f32]) {
 impl<W: Wide> Wavefront<W> {
     /// Runs the pending continuations toward exit `x`, a chunk of rows at a
     /// time, oldest first: the full chunks only, or (`all`) every row.
-    pub(super) fn run_deferred(&self, def: &mut Deferred, x: usize, all: bool) {
+    pub(super) fn run_deferred(&self, q: &Queries, def: &mut Deferred, x: usize, all: bool) {
         let (e, l, _) = self.exits[x];
-        let (exit, med) = (&self.ifaces[e], &self.media[l]);
         let rows = std::mem::take(&mut def.pending[x]);
         let whole = rows.len() / W::LANES * W::LANES;
         let end = if all { rows.len() } else { whole };
@@ -127,11 +127,13 @@ impl<W: Wide> Wavefront<W> {
             let (wo, d) = (V3::new(f[0], f[1], f[2]), V3::new(f[3], f[4], f[5]));
             let (dn, dz) = (V3::new(f[6], f[7], f[8]), f[9]);
             let beta = Rgb::new(f[10], f[11], f[12]);
+            let sets = q.lane_sets(W::LANES, |j| rows[idx[j] as usize][QUERY].to_bits());
+            let (exit, med) = (self.iface_in(&sets, e), self.medium_in(&sets, l));
             // As in the scalar engine's collision, in the same order.
             let t = med.transmittance(dz, dn.z.abs());
             let pv = medium::hg_eval_dirs(med.g, d, dn);
             let no = W::Mask::splat(false);
-            let add = beta * events::continue_to_exit(exit, wo, dn, pv, no, t, true);
+            let add = beta * events::continue_to_exit(&exit, wo, dn, pv, no, t, true);
             let z = W::zero();
             let out = lane_rows([add.r, add.g, add.b, z, z, z, z, z]);
             for (j, r) in rows[first..first + n].iter().enumerate() {

@@ -50,6 +50,7 @@ use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::closed_form::SmoothCoatLambertian;
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
+use super::params::{LaneSets, SetTable};
 use super::pdf::{DensitySums, PdfEstimate, PdfKind};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
@@ -57,6 +58,7 @@ use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use rayon::prelude::*;
 use stages::TaskBuffers;
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::thread::LocalKey;
 use walks::Walks;
@@ -153,6 +155,12 @@ pub(crate) struct Queries {
     /// [`walks::LinkLanes::fields`], then 1 if it exists (0 under total
     /// internal reflection).
     pub link0: Vec<[f32; 16]>,
+    /// The queries have parameter sets of their own (else the engine's).
+    pub varying: bool,
+    /// Where `varying`: the call's parameter sets...
+    pub table: SetTable,
+    /// ...and each query's.
+    pub set: Vec<u32>,
 }
 
 impl Queries {
@@ -188,11 +196,34 @@ impl Queries {
         refill(&mut self.e_out, m, 0.0);
         refill(&mut self.fixed, m, false);
         refill(&mut self.link0, m, [0.0; 16]);
+        refill(&mut self.set, m, 0);
+        self.varying = false;
+    }
+
+    /// The sets of the lanes whose queries are `lq` (`None`: every query
+    /// has the engine's own parameters).
+    pub(crate) fn lane_sets(
+        &self,
+        lanes: usize,
+        lq: impl Fn(usize) -> u32,
+    ) -> Option<LaneSets<'_>> {
+        self.varying
+            .then(|| LaneSets::new(&self.table, lanes, |j| self.set[lq(j) as usize]))
     }
 }
 
 /// One query as given: `(wi, wo for eval, seeding key)`.
 type QuerySpec = ([f64; 3], Option<[f64; 3]>, u64);
+
+/// Which parameters each query of a call has.
+#[derive(Clone, Copy, Debug, Default)]
+pub enum Sets<'a> {
+    /// The engine's own (its stack's), for every query.
+    #[default]
+    Own,
+    /// Query `k` has set `set[k]` of the table (of the engine's shape).
+    Table(&'a SetTable, &'a [u32]),
+}
 
 /// A validated `(wi, wo)` pair.
 pub(crate) type Pair = ([f64; 3], [f64; 3]);
@@ -467,9 +498,9 @@ impl<W: Wide> Wavefront<W> {
         self.settings
     }
 
-    fn prepare(&self, mode: Mode, seed: u64, pairs: &[QuerySpec]) -> Queries {
+    fn prepare(&self, mode: Mode, seed: u64, sets: Sets, pairs: &[QuerySpec]) -> Queries {
         let mut q = Queries::default();
-        self.prepare_into(&mut q, mode, seed, pairs.len(), |k| pairs[k]);
+        self.prepare_into(&mut q, mode, seed, sets, pairs.len(), |k| pairs[k]);
         q
     }
 
@@ -480,10 +511,17 @@ impl<W: Wide> Wavefront<W> {
         q: &mut Queries,
         mode: Mode,
         seed: u64,
+        sets: Sets,
         m: usize,
         mut spec: impl FnMut(usize) -> QuerySpec,
     ) {
         q.reset(mode, m);
+        if let Sets::Table(table, set) = sets {
+            assert_eq!(set.len(), m, "one set per query");
+            q.varying = true;
+            q.table.copy_from(table);
+            q.set.copy_from_slice(set);
+        }
         for k in 0..m {
             let (wi, wo, key) = spec(k);
             q.prefix.push(crate::rng::query_prefix(seed, key));
@@ -506,7 +544,10 @@ impl<W: Wide> Wavefront<W> {
                 q.e_out[k] = e as f32;
                 if self.fixed_chain[e] && self.layout.n >= 2 {
                     q.fixed[k] = true;
-                    q.link0[k] = self.fixed_link(e, b);
+                    q.link0[k] = match q.varying {
+                        false => self.fixed_link(e, b),
+                        true => fixed_link_of(&q.table, q.set[k] as usize, e, b),
+                    };
                 }
             }
         }
@@ -516,19 +557,10 @@ impl<W: Wide> Wavefront<W> {
     /// as a row of [`Queries::link0`]: computed in lanes exactly as
     /// `launch_chain` would for each walk (its uniforms go unused).
     fn fixed_link(&self, e: usize, wo: V3<f32>) -> [f32; 16] {
-        let n = self.layout.n;
         let s = |x: f32| W::splat(x as f64);
         let wo = V3::new(s(wo.x), s(wo.y), s(wo.z));
-        let top = W::Mask::splat(e == 0);
-        let u = (W::zero(), W::zero(), W::zero());
-        let (l, ok) = stages::first_link(&self.ifaces[e], &self.media_spec, n, wo, top, u);
-        let f = l.fields();
-        let mut row = [0.0f32; 16];
-        for (r, x) in row.iter_mut().zip(f) {
-            *r = x.lane(0) as f32;
-        }
-        row[12] = if ok.lane(0) { 1.0 } else { 0.0 };
-        row
+        let media = |l: usize| Cow::Borrowed(&self.media_spec[l]);
+        link_row(&self.ifaces[e], media, self.layout.n, e, wo)
     }
 
     /// Runs the walks of `units` (an indexable sequence of `count` units)
@@ -712,18 +744,33 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> (Vec<Estimate>, Stats) {
+        self.eval_batch_in(Sets::Own, pairs, samples, seed, keys)
+    }
+
+    /// [`Wavefront::eval_batch`] with each query's parameters from `sets`.
+    pub fn eval_batch_in(
+        &self,
+        sets: Sets,
+        pairs: &[([f64; 3], [f64; 3])],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+    ) -> (Vec<Estimate>, Stats) {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let mut est = Vec::with_capacity(pairs.len());
         let query = |k: usize| (pairs[k], keys[k]);
-        let stats = self.eval_each(pairs.len(), query, samples, seed, false, |_, e| est.push(e));
+        let push = |_, e| est.push(e);
+        let stats = self.eval_each(sets, pairs.len(), query, samples, seed, false, push);
         (est, stats)
     }
 
     /// [`Wavefront::eval_batch`] of the `m` queries `query(k) = (pair, key)`
     /// (each called once, in order), handed to `out` in query order: serial
     /// (see [`Wavefront::run`]) on a warm thread, it allocates nothing.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn eval_each(
         &self,
+        sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> (Pair, u64),
         samples: u64,
@@ -732,7 +779,7 @@ impl<W: Wide> Wavefront<W> {
         mut out: impl FnMut(usize, Estimate),
     ) -> Stats {
         with_kept(&CALLS, |c| {
-            self.prepare_into(&mut c.queries, Mode::Eval, seed, m, |k| {
+            self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)
             });
@@ -753,17 +800,19 @@ impl<W: Wide> Wavefront<W> {
         let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
         let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
         let e_in = queries.e_in[q] as usize;
+        let (entrance, cv) = match queries.varying {
+            false => (&self.table[e_in], self.cv.as_ref()),
+            true => {
+                let s = queries.set[q] as usize;
+                (queries.table.iface(s, e_in), queries.table.cv(s))
+            }
+        };
         let direct = if e_in == queries.e_out[q] as usize {
-            super::scalar::rgb_f64(self.table[e_in].eval(wi, wo))
+            super::scalar::rgb_f64(entrance.eval(wi, wo))
         } else {
             [0.0; 3]
         };
-        sum.estimate_plus(super::scalar::add_unscattered(
-            self.cv.as_ref(),
-            direct,
-            wi,
-            wo,
-        ))
+        sum.estimate_plus(super::scalar::add_unscattered(cv, direct, wi, wo))
     }
 
     /// Each walk's value of the unidirectional estimator (without the
@@ -776,7 +825,19 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> Vec<Vec<[f64; 3]>> {
-        let queries = self.eval_queries(pairs, seed, keys);
+        self.eval_walk_values_in(Sets::Own, pairs, samples, seed, keys)
+    }
+
+    /// [`Wavefront::eval_walk_values`] with each query's parameters from `sets`.
+    pub fn eval_walk_values_in(
+        &self,
+        sets: Sets,
+        pairs: &[([f64; 3], [f64; 3])],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+    ) -> Vec<Vec<[f64; 3]>> {
+        let queries = self.eval_queries(sets, pairs, seed, keys);
         let valid = queries.valid_ids();
         let mut v: Vec<Vec<[f64; 3]>> = queries
             .valid
@@ -798,14 +859,20 @@ impl<W: Wide> Wavefront<W> {
         v
     }
 
-    fn eval_queries(&self, pairs: &[([f64; 3], [f64; 3])], seed: u64, keys: &[u64]) -> Queries {
+    fn eval_queries(
+        &self,
+        sets: Sets,
+        pairs: &[([f64; 3], [f64; 3])],
+        seed: u64,
+        keys: &[u64],
+    ) -> Queries {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
             .zip(keys)
             .map(|(&(wi, wo), &k)| (wi, Some(wo), k))
             .collect();
-        self.prepare(Mode::Eval, seed, &spec)
+        self.prepare(Mode::Eval, seed, sets, &spec)
     }
 
     /// Directional albedo of every incident direction, `samples` walks each.
@@ -816,18 +883,33 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         keys: &[u64],
     ) -> (Vec<Albedo>, Stats) {
+        self.albedo_batch_in(Sets::Own, wis, samples, seed, keys)
+    }
+
+    /// [`Wavefront::albedo_batch`] with each query's parameters from `sets`.
+    pub fn albedo_batch_in(
+        &self,
+        sets: Sets,
+        wis: &[[f64; 3]],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+    ) -> (Vec<Albedo>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         let mut res = Vec::with_capacity(wis.len());
         let query = |k: usize| (wis[k], keys[k]);
-        let stats = self.albedo_each(wis.len(), query, samples, seed, false, |_, a| res.push(a));
+        let push = |_, a| res.push(a);
+        let stats = self.albedo_each(sets, wis.len(), query, samples, seed, false, push);
         (res, stats)
     }
 
     /// [`Wavefront::albedo_batch`] of the `m` queries `query(k) = (wi, key)`
     /// (each called once, in order), handed to `out` in query order: serial
     /// on a warm thread, it allocates nothing.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn albedo_each(
         &self,
+        sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> ([f64; 3], u64),
         samples: u64,
@@ -836,7 +918,7 @@ impl<W: Wide> Wavefront<W> {
         mut out: impl FnMut(usize, Albedo),
     ) -> Stats {
         with_kept(&CALLS, |c| {
-            self.prepare_into(&mut c.queries, Mode::Sample, seed, m, |k| {
+            self.prepare_into(&mut c.queries, Mode::Sample, seed, sets, m, |k| {
                 let (wi, key) = query(k);
                 (wi, None, key)
             });
@@ -885,6 +967,7 @@ impl<W: Wide> Wavefront<W> {
     /// it allocates nothing.
     pub(crate) fn sample_each(
         &self,
+        sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> ([f64; 3], u64, u64),
         seed: u64,
@@ -894,7 +977,7 @@ impl<W: Wide> Wavefront<W> {
         with_kept(&CALLS, |c| {
             c.index.clear();
             let index = &mut c.index;
-            self.prepare_into(&mut c.queries, Mode::Sample, seed, m, |k| {
+            self.prepare_into(&mut c.queries, Mode::Sample, seed, sets, m, |k| {
                 let (wi, key, i) = query(k);
                 index.push(i);
                 (wi, None, key)
@@ -942,8 +1025,10 @@ impl<W: Wide> Wavefront<W> {
     /// in order), `samples` density walks each, handed to `out` in query
     /// order, on the calling thread, from buffers this thread keeps (a warm
     /// thread allocates nothing): the numbers of [`Wavefront::pdf_batch`].
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn pdf_each(
         &self,
+        sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> (Pair, u64),
         samples: u64,
@@ -952,7 +1037,7 @@ impl<W: Wide> Wavefront<W> {
         out: impl FnMut(usize, PdfEstimate),
     ) {
         with_kept(&CALLS, |c| {
-            self.prepare_into(&mut c.queries, Mode::Eval, seed, m, |k| {
+            self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)
             });
@@ -969,11 +1054,24 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
         sample_index: &[u64],
     ) -> (Vec<Option<WalkSample>>, Stats) {
+        self.sample_batch_in(Sets::Own, wis, seed, keys, sample_index)
+    }
+
+    /// [`Wavefront::sample_batch`] with each query's parameters from `sets`.
+    pub fn sample_batch_in(
+        &self,
+        sets: Sets,
+        wis: &[[f64; 3]],
+        seed: u64,
+        keys: &[u64],
+        sample_index: &[u64],
+    ) -> (Vec<Option<WalkSample>>, Stats) {
         assert_eq!(wis.len(), keys.len(), "one key per query");
         assert_eq!(wis.len(), sample_index.len(), "one sample index per query");
         let mut res = Vec::with_capacity(wis.len());
         let query = |k: usize| (wis[k], keys[k], sample_index[k]);
-        let stats = self.sample_each(wis.len(), query, seed, false, |_, s| res.push(s));
+        let push = |_, s| res.push(s);
+        let stats = self.sample_each(sets, wis.len(), query, seed, false, push);
         (res, stats)
     }
 
@@ -987,13 +1085,26 @@ impl<W: Wide> Wavefront<W> {
         keys: &[u64],
         kind: PdfKind,
     ) -> Vec<PdfEstimate> {
+        self.pdf_batch_in(Sets::Own, pairs, samples, seed, keys, kind)
+    }
+
+    /// [`Wavefront::pdf_batch`] with each query's parameters from `sets`.
+    pub fn pdf_batch_in(
+        &self,
+        sets: Sets,
+        pairs: &[([f64; 3], [f64; 3])],
+        samples: u64,
+        seed: u64,
+        keys: &[u64],
+        kind: PdfKind,
+    ) -> Vec<PdfEstimate> {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
             .zip(keys)
             .map(|(&(wi, wo), &k)| (wi, Some(wo), k))
             .collect();
-        let queries = self.prepare(Mode::Eval, seed, &spec);
+        let queries = self.prepare(Mode::Eval, seed, sets, &spec);
         let n = pairs.len();
         let chunk = |qs: std::ops::Range<usize>| {
             let mut res = Vec::with_capacity(qs.len());
@@ -1011,4 +1122,33 @@ impl<W: Wide> Wavefront<W> {
             .flat_map_iter(|c| chunk(c * PDF_CHUNK..((c + 1) * PDF_CHUNK).min(n)))
             .collect()
     }
+}
+
+/// The one link of a fixed adjoint chain from exit `e` towards `wo` on
+/// lanes of `W`, as a row of [`Queries::link0`] (lane 0's; every lane's is
+/// the same).
+fn link_row<'a, W: Wide>(
+    exit: &InterfaceLanes<W>,
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<W>>,
+    n: usize,
+    e: usize,
+    wo: V3<W>,
+) -> [f32; 16] {
+    let top = W::Mask::splat(e == 0);
+    let u = (W::zero(), W::zero(), W::zero());
+    let (l, ok) = stages::first_link(exit, media, n, wo, top, u);
+    let f = l.fields();
+    let mut row = [0.0f32; 16];
+    for (r, x) in row.iter_mut().zip(f) {
+        *r = x.lane(0) as f32;
+    }
+    row[12] = if ok.lane(0) { 1.0 } else { 0.0 };
+    row
+}
+
+/// [`Wavefront::fixed_link`] for a query of parameter set `s` of `table`,
+/// on one lane (which gives every wider lane's numbers).
+fn fixed_link_of(table: &SetTable, s: usize, e: usize, wo: V3<f32>) -> [f32; 16] {
+    let media = |l: usize| Cow::Borrowed(table.medium(s, l));
+    link_row(table.iface(s, e), media, table.interfaces(), e, wo)
 }

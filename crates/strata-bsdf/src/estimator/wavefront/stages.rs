@@ -13,12 +13,14 @@ use crate::estimator::events::{self, Connection};
 use crate::estimator::layout::{
     depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes, Next,
 };
+use crate::estimator::params::LaneSets;
 use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::medium;
 use crate::rng::{seed_state_from, LaneRng, Stream};
+use std::borrow::Cow;
 
 /// Where the lanes of a chunk go after an event.
 struct Outcome {
@@ -114,6 +116,49 @@ fn rgb_lane<W: Wide>(c: Rgb<W>, j: usize) -> Rgb<f32> {
 }
 
 impl<W: Wide> Wavefront<W> {
+    /// The sets of the chunk's lanes (`idx`: their slots), if the call's
+    /// queries have their own.
+    #[inline(always)]
+    fn sets_of<'q>(q: &'q Queries, ws: &Walks, idx: &[u32]) -> Option<LaneSets<'q>> {
+        q.lane_sets(W::LANES, |j| ws.query[idx[j] as usize])
+    }
+
+    /// Interface `i` in the lanes' sets (the engine's own without sets).
+    #[inline(always)]
+    pub(super) fn iface_in(&self, sets: &Option<LaneSets>, i: usize) -> Cow<'_, InterfaceLanes<W>> {
+        match sets {
+            None => Cow::Borrowed(&self.ifaces[i]),
+            Some(s) => Cow::Owned(s.iface(&self.ifaces[i], i)),
+        }
+    }
+
+    /// Layer `l` as the plan runs it, in the lanes' sets.
+    #[inline(always)]
+    pub(super) fn medium_in(&self, sets: &Option<LaneSets>, l: usize) -> Cow<'_, MediumLanes<W>> {
+        match sets {
+            None => Cow::Borrowed(&self.media[l]),
+            Some(s) => Cow::Owned(s.medium(&self.media[l], l)),
+        }
+    }
+
+    /// Layer `l` as the stack has it, in the lanes' sets.
+    #[inline(always)]
+    fn medium_spec_in(&self, sets: &Option<LaneSets>, l: usize) -> Cow<'_, MediumLanes<W>> {
+        match sets {
+            None => Cow::Borrowed(&self.media_spec[l]),
+            Some(s) => Cow::Owned(s.medium(&self.media_spec[l], l)),
+        }
+    }
+
+    /// The lanes whose eval walks leave out the control variate's paths.
+    #[inline(always)]
+    fn cv_in(&self, sets: &Option<LaneSets>) -> W::Mask {
+        match sets {
+            None => W::Mask::splat(self.cv.is_some()),
+            Some(s) => s.cv::<W>(),
+        }
+    }
+
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
     /// task order. The task's queues and deferred rows live in `tb`, kept by
     /// the caller between tasks so that a warm thread allocates nothing.
@@ -215,7 +260,7 @@ impl<W: Wide> Wavefront<W> {
         }
         if defers {
             for x in 0..self.exits.len() {
-                self.run_deferred(&mut wave.deferred, x, true);
+                self.run_deferred(q, &mut wave.deferred, x, true);
             }
             let values = wave.out.iter_mut().map(|o| &mut o.value);
             wave.deferred.add_sums(values);
@@ -295,13 +340,16 @@ impl<W: Wide> Wavefront<W> {
             seed_state_from(q.prefix[lq[j] as usize], k, Stream::Adjoint)
         });
         let top = c.e_out.eq(W::zero());
-        let exit = InterfaceLanes::select(top, &self.ifaces[0], &self.ifaces[n - 1]);
+        let sets = q.lane_sets(W::LANES, |j| lq[j]);
+        let (e0, e1) = (self.iface_in(&sets, 0), self.iface_in(&sets, n - 1));
+        let exit = InterfaceLanes::select(top, &e0, &e1);
         let u = (
             rng.uniform(active),
             rng.uniform(active),
             rng.uniform(active),
         );
-        let (mut last, ok) = first_link(&exit, &self.media_spec, n, c.wo, top, u);
+        let media = |l: usize| self.medium_spec_in(&sets, l);
+        let (mut last, ok) = first_link(&exit, media, n, c.wo, top, u);
         let ok = ok & active;
         c.link0 = last;
         c.links = W::select(ok, W::one(), W::zero());
@@ -323,7 +371,12 @@ impl<W: Wide> Wavefront<W> {
             if !cont.any() {
                 break;
             }
-            let iface = InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize);
+            let iface = match &sets {
+                None => InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize),
+                Some(s) => InterfaceLanes::<W>::gather(s.table().ifaces(), |k| {
+                    s.set(k) * n + j.lane(k) as usize
+                }),
+            };
             let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
             let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
             let up = c2.u.z.lt(W::zero());
@@ -347,7 +400,7 @@ impl<W: Wide> Wavefront<W> {
             let conn = Connection { v, ..c2 };
             last = LinkLanes {
                 conn,
-                t: full_crossing(&self.media_spec, layer, conn.u.z.abs()),
+                t: full_crossing(media, n - 1, layer, conn.u.z.abs()),
                 layer,
                 start,
             };
@@ -544,15 +597,17 @@ impl<W: Wide> Wavefront<W> {
         let mis = self.settings.mis;
         let links = eval && self.connects_at[i];
         let active = c.active;
-        let iface = &self.ifaces[i];
+        let sets = Self::sets_of(q, ws, idx);
+        let iface = &*self.iface_in(&sets, i);
         let a = -c.d;
         let (wo, e_out) = (c.wo, c.e_out);
         // With the control variate, a walk that has not collided yet scores
         // nothing here: its connection crosses the layer by a transmittance,
         // a path without a collision, which the exact part holds (scalar:
         // `Connect::collided_only`).
-        let scoring = if eval && self.cv.is_some() {
-            active & c.order.gt(W::zero())
+        let cv = self.cv_in(&sets);
+        let scoring = if eval && cv.any() {
+            active & (c.order.gt(W::zero()) | !cv)
         } else {
             active
         };
@@ -591,10 +646,10 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = alive & scoring & e_out.eq(W::splat(e as f64)) & toward(d, e);
                 if m.any() {
-                    let med = &self.media[l0];
+                    let med = self.medium_in(&sets, l0);
                     let t = med.transmittance(med.thickness, d.z.abs());
-                    let add = c.beta
-                        * events::continue_to_exit(&self.ifaces[e], wo, d, s.pdf, s.delta, t, mis);
+                    let ex = self.iface_in(&sets, e);
+                    let add = c.beta * events::continue_to_exit(&ex, wo, d, s.pdf, s.delta, t, mis);
                     c.acc = Rgb::select(m, c.acc + add, c.acc);
                 }
             }
@@ -618,7 +673,7 @@ impl<W: Wide> Wavefront<W> {
                 continue;
             };
             let m = cont & if going_up { up } else { !up };
-            let med = &self.media[l];
+            let med = self.medium_in(&sets, l);
             let entry = if going_up { med.thickness } else { W::zero() };
             if med.kind == LayerKind::Scattering {
                 keys[dir] = (n + l) as u16;
@@ -661,7 +716,8 @@ impl<W: Wide> Wavefront<W> {
         let mis = self.settings.mis;
         let links = eval && self.connects_in[l];
         let active = c.active;
-        let med = &self.media[l];
+        let sets = Self::sets_of(q, ws, idx);
+        let med = &*self.medium_in(&sets, l);
         let h = med.thickness;
         let d = c.d;
         let mu = d.z.abs();
@@ -725,9 +781,10 @@ impl<W: Wide> Wavefront<W> {
                 if m != 0 {
                     let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
                     let walk = W::gather_bits(&ws.walk, idx);
-                    deferred.push::<W>(x, m, walk, (wo, d, dn, dz_e, c.beta));
+                    let query = W::gather_bits(&ws.query, idx);
+                    deferred.push::<W>(x, m, (walk, query), (wo, d, dn, dz_e, c.beta));
                     if deferred.full(x, W::LANES) {
-                        self.run_deferred(deferred, x, false);
+                        self.run_deferred(q, deferred, x, false);
                     }
                 }
             }
@@ -809,12 +866,14 @@ impl<W: Wide> Wavefront<W> {
         sums: &mut Vec<DensitySums>,
         mut out: impl FnMut(usize, PdfEstimate),
     ) {
-        let walk = DensityWalk {
+        let own = DensityWalk {
             ifaces: &self.ifaces,
             media: &self.media,
             settings: &self.settings,
             max_events: kind.max_events(),
         };
+        // With per-query sets: each chunk's lanes gather their sets' numbers.
+        let (mut ifaces, mut media) = (Vec::new(), Vec::new());
         sums.clear();
         sums.resize(qs.len(), DensitySums::default());
         let pairs = qs.len() as u64 * samples;
@@ -831,7 +890,19 @@ impl<W: Wide> Wavefront<W> {
             let mut rng = LaneRng::<W>::from_states(|j| {
                 seed_state_from(q.prefix[query(j)], pair(j) % samples, Stream::Pdf)
             });
-            let p = walk.run(wi, wo, |m| rng.uniform(m));
+            let p = match q.lane_sets(W::LANES, |j| lq[j]) {
+                None => own.run(wi, wo, |m| rng.uniform(m)),
+                Some(sets) => {
+                    sets.ifaces_into(&self.ifaces, &mut ifaces);
+                    sets.media_into(&self.media, &mut media);
+                    let walk = DensityWalk {
+                        ifaces: &ifaces,
+                        media: &media,
+                        ..own
+                    };
+                    walk.run(wi, wo, |m| rng.uniform(m))
+                }
+            };
             for j in 0..lanes {
                 sums[(pair(j) / samples) as usize].push(p.lane(j));
             }
@@ -870,9 +941,9 @@ fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
 /// transmittance of the exit's layer, and the lanes where it exists (scalar:
 /// the first step of `ScalarEngine::adjoint_chain`).
 #[inline]
-pub(super) fn first_link<W: Wide>(
+pub(super) fn first_link<'a, W: Wide>(
     exit: &InterfaceLanes<W>,
-    media: &[MediumLanes<W>],
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<W>>,
     n: usize,
     wo: V3<W>,
     top: W::Mask,
@@ -882,7 +953,7 @@ pub(super) fn first_link<W: Wide>(
     // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
     let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
     let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
-    let t = full_crossing(media, layer, conn.u.z.abs());
+    let t = full_crossing(media, n.saturating_sub(1), layer, conn.u.z.abs());
     (
         LinkLanes {
             conn,
@@ -894,14 +965,21 @@ pub(super) fn first_link<W: Wide>(
     )
 }
 
-/// Transmittance of a full crossing of layer `layer` (per lane) of `media`
-/// along a direction with `|d.z| = mu`, as the scalar engine computes it.
+/// Transmittance of a full crossing of layer `layer` (per lane) of the
+/// `layers` layers `media(l)` along a direction with `|d.z| = mu`, as the
+/// scalar engine computes it.
 #[cfg_attr(feature = "profiling", inline(never))]
-fn full_crossing<L: Lane>(media: &[MediumLanes<L>], layer: L, mu: L) -> Rgb<L> {
+fn full_crossing<'a, L: Lane>(
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
+    layers: usize,
+    layer: L,
+    mu: L,
+) -> Rgb<L> {
     let mut t = Rgb::one();
-    for (l, m) in media.iter().enumerate() {
+    for l in 0..layers {
         let here = layer.eq(L::splat(l as f64));
         if here.any() {
+            let m = media(l);
             t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
         }
     }

@@ -1,0 +1,329 @@
+//! Per-query parameters: parameter sets of a BSDF's shape.
+//!
+//! A renderer evaluates textures at every hit. A [`LayeredBsdf`] is built for
+//! a stack's *shape* ([`crate::stack::Shape`]); [`ParamSets`] holds the numbers
+//! of any stacks of that shape (built by [`LayeredBsdf::param_sets`]: it
+//! validates them and derives their lanes, with no engine rebuilt), and the
+//! `*_batch_sets` calls give each query its set by index. A query answers
+//! exactly, bit for bit, what a BSDF built from its set's stack answers,
+//! with the same settings, seed and key (`tests/param_sets.rs`).
+
+use super::{
+    directions1, directions2, one_each, BatchError, Estimator, LayeredBsdf, QueryError, Sample,
+};
+use crate::estimator::closed_form::SmoothCoatLambertian;
+use crate::estimator::params::SetTable;
+use crate::estimator::pdf::PdfEstimate;
+use crate::estimator::scalar::ScalarEngine;
+use crate::estimator::wavefront::Sets;
+use crate::estimator::{Albedo, Estimate, Settings};
+use crate::stack::{LayerStack, Shape};
+use glam::Vec3;
+use std::fmt;
+
+/// The parameter sets of one [`LayeredBsdf`]'s shape, ready for its batch
+/// calls. Building one costs the validation of its stacks and a few
+/// hundred bytes of numbers per set: no engine is rebuilt.
+#[derive(Clone, Debug)]
+pub struct ParamSets {
+    /// What they were built for: the BSDF's shape, settings and estimator.
+    shape: Shape,
+    settings: Settings,
+    estimator: Estimator,
+    stacks: Vec<LayerStack>,
+    /// The sets' numbers in the wavefront's one-lane form.
+    table: SetTable,
+    /// Per set, the scalar engine's form of its numbers (the scalar engine
+    /// holds nothing but them).
+    scalar: Vec<ScalarEngine<f32>>,
+    /// Per set, the closed form of eval (where the shape has one).
+    exact: Vec<Option<SmoothCoatLambertian>>,
+}
+
+impl ParamSets {
+    /// Number of sets.
+    pub fn len(&self) -> usize {
+        self.stacks.len()
+    }
+
+    /// No sets.
+    pub fn is_empty(&self) -> bool {
+        self.stacks.is_empty()
+    }
+
+    /// Set `s`'s stack.
+    pub fn stack(&self, s: usize) -> &LayerStack {
+        &self.stacks[s]
+    }
+}
+
+/// Parameter sets that do not fit a BSDF.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SetsError {
+    /// Set `set`'s stack has another shape than the BSDF's.
+    Shape {
+        /// The set's index.
+        set: usize,
+        /// The first difference.
+        why: String,
+    },
+    /// The sets were built by a BSDF of another shape, settings or estimator.
+    Foreign,
+}
+
+impl fmt::Display for SetsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SetsError::Shape { set, why } => write!(
+                f,
+                "parameter set {set} has another shape than the material: {why} \
+                 (a BSDF runs stacks of its own shape only)"
+            ),
+            SetsError::Foreign => write!(
+                f,
+                "these parameter sets were built by a BSDF of another shape, \
+                 settings or estimator: build them with this one's param_sets"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SetsError {}
+
+/// Which parameters each query of a call has: the BSDF's own, or a set
+/// each (`set[k]` for query `k`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Per<'a>(Option<(&'a ParamSets, &'a [u32])>);
+
+impl<'a> Per<'a> {
+    /// Every query has the BSDF's own parameters.
+    pub const OWN: Per<'static> = Per(None);
+
+    /// Query `k`'s set (0 without sets).
+    pub fn set(&self, k: usize) -> usize {
+        self.0.map_or(0, |(_, s)| s[k] as usize)
+    }
+
+    /// The same sets, for queries whose sets are `set`.
+    pub fn with_set(&self, set: &'a [u32]) -> Per<'a> {
+        Per(self.0.map(|(p, _)| (p, set)))
+    }
+
+    /// Query `k` alone.
+    pub fn one(&self, k: usize) -> Per<'a> {
+        Per(self.0.map(|(p, s)| (p, &s[k..k + 1])))
+    }
+
+    /// The wavefront's form.
+    pub fn sets(&self) -> Sets<'a> {
+        match self.0 {
+            None => Sets::Own,
+            Some((p, s)) => Sets::Table(&p.table, s),
+        }
+    }
+}
+
+impl LayeredBsdf {
+    /// Parameter sets for this BSDF's batch calls: `stacks` must all have
+    /// its shape ([`LayerStack::shape`]; error otherwise, naming the set).
+    /// They hold this BSDF's settings and estimator choices (the control
+    /// variate where it pays, the closed form where the shape has one), so
+    /// a BSDF configured otherwise refuses them.
+    pub fn param_sets(
+        &self,
+        stacks: impl IntoIterator<Item = LayerStack>,
+    ) -> Result<ParamSets, SetsError> {
+        let shape = self.shape.clone();
+        let stacks: Vec<LayerStack> = stacks.into_iter().collect();
+        for (set, st) in stacks.iter().enumerate() {
+            if let Some(why) = shape.difference(&st.shape()) {
+                return Err(SetsError::Shape { set, why });
+            }
+        }
+        let settings = self.settings;
+        let mut table = SetTable::new(shape.interfaces.len());
+        let mut scalar = Vec::with_capacity(stacks.len());
+        for st in &stacks {
+            let cv = self.control_variate_for(st);
+            table.push(st, &settings, cv);
+            scalar.push(ScalarEngine::new(st, settings).with_control_variate(cv));
+        }
+        let exact = (stacks.iter())
+            .map(|st| SmoothCoatLambertian::of(st, &settings))
+            .collect();
+        Ok(ParamSets {
+            shape,
+            settings,
+            estimator: self.estimator,
+            stacks,
+            table,
+            scalar,
+            exact,
+        })
+    }
+
+    /// Checks that `sets` were built for this BSDF, and that every query's
+    /// index names one of them.
+    fn check_sets<'a>(
+        &self,
+        sets: &'a ParamSets,
+        set: &'a [u32],
+        queries: usize,
+    ) -> Result<Per<'a>, BatchError> {
+        if sets.shape != self.shape
+            || sets.settings != self.settings
+            || sets.estimator != self.estimator
+        {
+            return Err(BatchError::call(QueryError::ForeignSets));
+        }
+        one_each("set", set.len(), queries)?;
+        if let Some((k, &value)) = set
+            .iter()
+            .enumerate()
+            .find(|(_, &s)| s as usize >= sets.len())
+        {
+            return Err(BatchError {
+                index: Some(k),
+                error: QueryError::NoSuchSet {
+                    value,
+                    sets: sets.len(),
+                },
+            });
+        }
+        Ok(Per(Some((sets, set))))
+    }
+
+    /// Query `k`'s stack.
+    pub(super) fn stack_in<'a>(&'a self, per: Per<'a>, k: usize) -> &'a LayerStack {
+        match per.0 {
+            None => self.stack(),
+            Some((p, s)) => &p.stacks[s[k] as usize],
+        }
+    }
+
+    /// Query `k`'s scalar engine.
+    pub(super) fn scalar_in<'a>(&'a self, per: Per<'a>, k: usize) -> &'a ScalarEngine<f32> {
+        match per.0 {
+            None => &self.scalar,
+            Some((p, s)) => &p.scalar[s[k] as usize],
+        }
+    }
+
+    /// Query `k`'s closed form of eval, if it has one.
+    pub(super) fn exact_in<'a>(
+        &'a self,
+        per: Per<'a>,
+        k: usize,
+    ) -> Option<&'a SmoothCoatLambertian> {
+        match per.0 {
+            None => self.exact.as_ref(),
+            Some((p, s)) => p.exact[s[k] as usize].as_ref(),
+        }
+    }
+
+    /// [`LayeredBsdf::eval_batch`] where query `k` has the parameters of
+    /// set `set[k]`.
+    pub fn eval_batch_sets(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        pairs: &[(Vec3, Vec3)],
+    ) -> Result<Vec<Estimate>, BatchError> {
+        let keys: Vec<u64> = (pairs.iter())
+            .map(|&(a, b)| super::direction_key(a, b))
+            .collect();
+        self.eval_batch_sets_keyed(sets, set, pairs, self.samples, &keys)
+    }
+
+    /// [`LayeredBsdf::eval_batch_keyed`] where query `k` has the parameters
+    /// of set `set[k]`.
+    pub fn eval_batch_sets_keyed(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Estimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        one_each("keys", keys.len(), pairs.len())?;
+        crate::check_walks("samples", samples).map_err(BatchError::call)?;
+        let per = self.check_sets(sets, set, pairs.len())?;
+        Ok(self.eval_validated(per, &dirs, samples, keys))
+    }
+
+    /// [`LayeredBsdf::sample_batch`] where query `k` has the parameters of
+    /// set `set[k]`.
+    pub fn sample_batch_sets(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        wis: &[Vec3],
+        sample_index: &[u64],
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let keys: Vec<u64> = wis.iter().map(|&a| super::direction_key(a, a)).collect();
+        self.sample_batch_sets_keyed(sets, set, wis, &keys, sample_index)
+    }
+
+    /// [`LayeredBsdf::sample_batch_keyed`] where query `k` has the
+    /// parameters of set `set[k]`.
+    pub fn sample_batch_sets_keyed(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        wis: &[Vec3],
+        keys: &[u64],
+        sample_index: &[u64],
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let dirs = directions1(wis)?;
+        one_each("keys", keys.len(), wis.len())?;
+        one_each("sample_index", sample_index.len(), wis.len())?;
+        let per = self.check_sets(sets, set, wis.len())?;
+        Ok(self.sample_validated(per, &dirs, keys, sample_index))
+    }
+
+    /// [`LayeredBsdf::pdf_batch`] where query `k` has the parameters of set
+    /// `set[k]`.
+    pub fn pdf_batch_sets(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        pairs: &[(Vec3, Vec3)],
+    ) -> Result<Vec<f32>, BatchError> {
+        let dirs = directions2(pairs)?;
+        let per = self.check_sets(sets, set, pairs.len())?;
+        Ok(self.pdf_validated(per, &dirs))
+    }
+
+    /// [`LayeredBsdf::pdf_unbiased_batch`] where query `k` has the
+    /// parameters of set `set[k]`.
+    pub fn pdf_unbiased_batch_sets(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+    ) -> Result<Vec<PdfEstimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        crate::check_walks("samples", samples).map_err(BatchError::call)?;
+        let per = self.check_sets(sets, set, pairs.len())?;
+        Ok(self.pdf_unbiased_validated(per, &dirs, samples))
+    }
+
+    /// [`LayeredBsdf::albedo_batch_keyed`] where query `k` has the
+    /// parameters of set `set[k]`.
+    pub fn albedo_batch_sets_keyed(
+        &self,
+        sets: &ParamSets,
+        set: &[u32],
+        wis: &[Vec3],
+        n: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Albedo>, BatchError> {
+        let dirs = directions1(wis)?;
+        one_each("keys", keys.len(), wis.len())?;
+        crate::check_walks("n", n).map_err(BatchError::call)?;
+        let per = self.check_sets(sets, set, wis.len())?;
+        Ok(self.albedo_validated(per, &dirs, n, keys))
+    }
+}
