@@ -75,8 +75,8 @@ pub mod stack;
 
 pub use api::{
     check_walks, AlbedoRecord, BatchError, Direction, Engine, Estimator, EvalRecord, EvalStart,
-    LayeredBsdf, ParamSets, QueryError, Sample, SampleFlags, SampleRecord, SetsError, ThreadsError,
-    Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
+    LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags, SampleRecord, SetsError,
+    ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
 };
 pub use estimator::pdf::{PdfEstimate, PdfKind};
 pub use estimator::{Albedo, Estimate, Settings};

@@ -14,7 +14,8 @@ use strata_bsdf::estimator::wavefront::{Plan, Sets, Wavefront};
 use strata_bsdf::lane::F32x8;
 use strata_bsdf::rng::{mix64, Stream, WalkRng};
 use strata_bsdf::{
-    BatchError, Engine, Estimator, LayerStack, LayeredBsdf, QueryError, SetsError, Settings,
+    BatchError, Engine, Estimator, LayerStack, LayeredBsdf, Materials, QueryError, SetsError,
+    Settings,
 };
 
 /// A uniform number in `[lo, hi)` from a counter (no state to thread).
@@ -369,4 +370,60 @@ fn sets_that_do_not_fit_are_errors() {
     let other = bsdf.clone().estimator(Estimator::Unidirectional);
     let e = other.eval_batch_sets(&sets, &[0; 4], &pairs).unwrap_err();
     assert_eq!(e.error, QueryError::ForeignSets);
+}
+
+/// A heterogeneous batch: materials of four shapes (five of each) in one
+/// call, queries interleaved; each answers what its material alone answers
+/// with the template's configuration.
+#[test]
+fn a_mixed_batch_answers_what_each_material_answers() {
+    let stacks: Vec<LayerStack> = (families().iter())
+        .flat_map(|f| (0..SETS).map(move |v| variant(f, v)))
+        .collect();
+    for engine in [Engine::Scalar, Engine::Wavefront] {
+        let template = LayeredBsdf::new(stacks[0].clone())
+            .engine(engine)
+            .samples(32)
+            .seed(11);
+        let mats = Materials::new(&template, stacks.clone());
+        assert_eq!((mats.len(), mats.shapes()), (20, 4));
+        let (pairs, _) = queries(41);
+        let material: Vec<u32> = (0..pairs.len() as u32).map(|k| k * 7 % 20).collect();
+        let own = |k: usize| template.with_stack(stacks[material[k] as usize].clone());
+        let eval = mats.eval_batch(&material, &pairs).unwrap();
+        let wis: Vec<glam::Vec3> = pairs.iter().map(|p| p.0).collect();
+        let index: Vec<u64> = (0..wis.len() as u64).collect();
+        let samples = mats.sample_batch(&material, &wis, &index).unwrap();
+        let pdf = mats.pdf_batch(&material, &pairs).unwrap();
+        let keys: Vec<u64> = (0..wis.len() as u64).map(|k| k ^ 0xabc).collect();
+        let albedo = mats.albedo_batch_keyed(&material, &wis, 16, &keys).unwrap();
+        for k in 0..pairs.len() {
+            let b = own(k);
+            let what = format!("{engine:?} query {k} (material {})", material[k]);
+            let e = b.eval_batch(&pairs[k..k + 1]).unwrap()[0];
+            assert_eq!(bits(eval[k].value), bits(e.value), "eval {what}");
+            let s = b.sample_batch(&wis[k..k + 1], &index[k..k + 1]).unwrap()[0];
+            assert_eq!(samples[k], s, "sample {what}");
+            let p = b.pdf_batch(&pairs[k..k + 1]).unwrap()[0];
+            assert_eq!(pdf[k].to_bits(), p.to_bits(), "pdf {what}");
+            let a = b
+                .albedo_batch_keyed(&wis[k..k + 1], 16, &keys[k..k + 1])
+                .unwrap()[0];
+            assert_eq!(albedo[k], a, "albedo {what}");
+        }
+        // An index past the materials names the query.
+        let mut bad = material.clone();
+        bad[9] = 20;
+        let e = mats.eval_batch(&bad, &pairs).unwrap_err();
+        assert_eq!(e.index, Some(9));
+        assert_eq!(
+            e.to_string(),
+            "query 9: material = 20: there are 20 materials (0 to 19)"
+        );
+        // A bad direction is named by its index in the whole batch.
+        let mut p2 = pairs.clone();
+        p2[13].1 = glam::Vec3::new(f32::NAN, 0.0, 1.0);
+        let e = mats.eval_batch(&material, &p2).unwrap_err();
+        assert_eq!(e.index, Some(13), "{e}");
+    }
 }

@@ -50,6 +50,13 @@ pub enum QueryError {
     },
     /// Parameter sets built by a BSDF of another shape, settings or estimator.
     ForeignSets,
+    /// A query's material index names no material.
+    NoSuchMaterial {
+        /// The index given.
+        value: u32,
+        /// The number of materials.
+        materials: usize,
+    },
 }
 
 impl fmt::Display for QueryError {
@@ -86,6 +93,11 @@ impl fmt::Display for QueryError {
                 sets.saturating_sub(1)
             ),
             QueryError::ForeignSets => write!(f, "{}", super::SetsError::Foreign),
+            QueryError::NoSuchMaterial { value, materials } => write!(
+                f,
+                "material = {value}: there are {materials} materials (0 to {})",
+                materials.saturating_sub(1)
+            ),
         }
     }
 }

@@ -13,6 +13,7 @@
 //!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
 
 mod error;
+mod materials;
 mod sets;
 pub mod slices;
 mod strategy;
@@ -21,6 +22,7 @@ mod transport;
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };
+pub use materials::Materials;
 use sets::Per;
 pub use sets::{ParamSets, SetsError};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
@@ -205,6 +207,23 @@ impl LayeredBsdf {
             threads: Threads::Current,
             shape: stack.shape(),
         }
+    }
+
+    /// A BSDF over `stack` with this one's configuration: walk settings,
+    /// samples, seed, estimator, engine, transport, start side and threads
+    /// (its engines are built for `stack`).
+    pub fn with_stack(&self, stack: LayerStack) -> Self {
+        let b = LayeredBsdf {
+            engine: self.engine,
+            samples: self.samples,
+            pdf_samples: self.pdf_samples,
+            seed: self.seed,
+            transport: self.transport,
+            eval_start: self.eval_start,
+            threads: self.threads.clone(),
+            ..Self::with_settings(stack, self.settings)
+        };
+        b.estimator(self.estimator)
     }
 
     /// Sets the number of walks per `eval` (at least 1; a call with more
