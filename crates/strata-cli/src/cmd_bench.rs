@@ -16,10 +16,12 @@ use rayon::ThreadPoolBuilder;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use strata_bsdf::estimator::params::SetTable;
 use strata_bsdf::estimator::scalar::ScalarEngine;
-use strata_bsdf::estimator::wavefront::{Plan, Stats, Wavefront};
+use strata_bsdf::estimator::wavefront::{Plan, Sets, Stats, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8, Wide};
-use strata_bsdf::{LayerStack, Settings};
+use strata_bsdf::stack::{InterfaceDesc, RgbParam, Roughness};
+use strata_bsdf::{Engine, EvalStart, Estimator, LayerStack, LayeredBsdf, Materials, Settings};
 
 /// Arguments of `strata bench`.
 #[derive(clap::Args)]
@@ -161,13 +163,74 @@ fn wave<'a, W: Wide>(
     threads: usize,
 ) -> Result<Measurement<'a>, String> {
     let wf = Wavefront::<W>::new(stack, Settings::default(), plan);
-    let pool = ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| format!("cannot start {threads} threads: {e}"))?;
+    let pool = pool(threads)?;
     Ok(Measurement::new(engine, threads, move || {
         Some(pool.install(|| wf.eval_batch(pairs, samples, 1, keys).1))
     }))
+}
+
+/// Query `k`'s own variant of `stack`: every rough interface's roughness,
+/// every layer's thickness and single-scattering albedo and every diffuse
+/// albedo scaled by its own factor (0.7–1.3, 0.5–1.5, 0.8–1, 0.8–1); the
+/// stack itself where a variant would change the shape.
+fn varied(stack: &LayerStack, k: u64) -> LayerStack {
+    let u = |i: u64| {
+        let x = strata_bsdf::rng::mix64(k.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ i);
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let scale = |r: RgbParam, f: f64| match r {
+        RgbParam::Grey(v) => RgbParam::Grey(v * f),
+        RgbParam::Rgb(a) => RgbParam::Rgb(a.map(|v| v * f)),
+    };
+    let mut desc = stack.desc().clone();
+    for (i, layer) in desc.layers.iter_mut().enumerate() {
+        let i = 4 * i as u64;
+        match &mut layer.interface {
+            InterfaceDesc::Dielectric { roughness, .. }
+            | InterfaceDesc::Conductor { roughness, .. } => {
+                let f = 0.7 + 0.6 * u(i);
+                *roughness = match *roughness {
+                    Roughness::Isotropic(a) => Roughness::Isotropic(a * f),
+                    Roughness::Anisotropic(a) => Roughness::Anisotropic(a.map(|x| x * f)),
+                };
+            }
+            InterfaceDesc::Diffuse { albedo } => *albedo = scale(*albedo, 0.8 + 0.2 * u(i)),
+        }
+        if let Some(m) = &mut layer.medium {
+            m.thickness *= 0.5 + u(i + 1);
+            m.albedo = scale(m.albedo, 0.8 + 0.2 * u(i + 2));
+        }
+    }
+    match LayerStack::new(&desc) {
+        Ok(v) if v.shape() == stack.shape() => v,
+        _ => stack.clone(),
+    }
+}
+
+/// The wavefront measurement where every query has its own parameters
+/// ([`varied`]), on a pool of `threads`.
+fn wave_varying<'a>(
+    table: &'a SetTable,
+    set: &'a [u32],
+    stack: &LayerStack,
+    pairs: &'a [([f64; 3], [f64; 3])],
+    keys: &'a [u64],
+    samples: u64,
+    threads: usize,
+) -> Result<Measurement<'a>, String> {
+    let wf = Wavefront::<F32x8>::new(stack, Settings::default(), Plan::Specialized);
+    let pool = pool(threads)?;
+    Ok(Measurement::new("wavefront-varying", threads, move || {
+        let sets = Sets::Table(table, set);
+        Some(pool.install(|| wf.eval_batch_in(sets, pairs, samples, 1, keys).1))
+    }))
+}
+
+fn pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| format!("cannot start {threads} threads: {e}"))
 }
 
 fn bench_stack(
@@ -181,6 +244,11 @@ fn bench_stack(
     let q = pairs.len() as f64;
     let n = args.samples;
     let sc = ScalarEngine::<f32>::new(stack, Settings::default());
+    let mut table = SetTable::new(stack.len());
+    for k in 0..pairs.len() as u64 {
+        table.push(&varied(stack, k), &Settings::default(), false);
+    }
+    let set: Vec<u32> = (0..pairs.len() as u32).collect();
     let mut ms = vec![
         Measurement::new("scalar", 1, || {
             let s: f64 = pairs
@@ -193,8 +261,10 @@ fn bench_stack(
         }),
         wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, 1)?,
     ];
+    ms.push(wave_varying(&table, &set, stack, &pairs, &keys, n, 1)?);
     if all > 1 {
         ms.push(wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, all)?);
+        ms.push(wave_varying(&table, &set, stack, &pairs, &keys, n, all)?);
     }
     ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
     ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
@@ -222,6 +292,79 @@ fn bench_stack(
             }
         })
         .collect())
+}
+
+/// The batch of every stack's queries at once, interleaved (query `k` on
+/// stack `k % stacks`), through [`Materials`] with the wavefront rows' walks
+/// (the wavefront engine, unidirectional walks from `wi`), one thread and
+/// all threads; and the cost of building a parameter set.
+fn bench_mixed(stacks: &[(String, LayerStack)], args: &Args, all: usize) -> Result<Vec<Row>, String> {
+    let m = stacks.len();
+    let per: Vec<Vec<([f64; 3], [f64; 3])>> = (stacks.iter())
+        .map(|(_, st)| batch(st, args.queries as usize))
+        .collect();
+    let v = |d: [f64; 3]| glam::Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+    let (mut pairs, mut material) = (Vec::new(), Vec::new());
+    for k in 0..args.queries as usize {
+        for (s, p) in per.iter().enumerate() {
+            pairs.push((v(p[k].0), v(p[k].1)));
+            material.push(s as u32);
+        }
+    }
+    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+    let name = format!("mixed ({m} shapes)");
+    let mut ms = Vec::new();
+    let mut threads = vec![1];
+    if all > 1 {
+        threads.push(all);
+    }
+    for t in threads {
+        let template = LayeredBsdf::new(stacks[0].1.clone())
+            .engine(Engine::Wavefront)
+            .estimator(Estimator::Unidirectional)
+            .eval_start(EvalStart::Wi)
+            .threads(t)
+            .map_err(|e| e.to_string())?;
+        let mats = Materials::new(&template, stacks.iter().map(|(_, st)| st.clone()));
+        let (material, pairs, keys) = (&material, &pairs, &keys);
+        let n = args.samples;
+        ms.push(Measurement::new("wavefront-mixed", t, move || {
+            let e = mats.eval_batch_keyed(material, pairs, n, keys);
+            std::hint::black_box(e.map(|e| e.len()).unwrap_or(0));
+            None
+        }));
+    }
+    interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
+    let q = pairs.len() as f64;
+    Ok(ms
+        .iter()
+        .map(|x| Row {
+            stack: name.clone(),
+            engine: x.engine,
+            threads: x.threads,
+            queries_per_s: q / x.best.as_secs_f64(),
+            segments_per_s: None,
+            occupancy: None,
+        })
+        .collect())
+}
+
+/// Time to build one parameter set: `LayerStack::new` of a variant's
+/// description and its entry in [`strata_bsdf::ParamSets`], per set, from
+/// a thousand sets of `stack`.
+fn set_build_cost(stack: &LayerStack) -> (f64, f64) {
+    let n = 1000u64;
+    let descs: Vec<_> = (0..n).map(|k| varied(stack, k).desc().clone()).collect();
+    let t = Instant::now();
+    let stacks: Vec<LayerStack> = (descs.iter())
+        .map(|d| LayerStack::new(d).expect("a variant is valid"))
+        .collect();
+    let validate = t.elapsed().as_secs_f64() / n as f64;
+    let bsdf = LayeredBsdf::new(stack.clone());
+    let t = Instant::now();
+    let sets = bsdf.param_sets(stacks).expect("variants keep the shape");
+    std::hint::black_box(sets.len());
+    (validate, t.elapsed().as_secs_f64() / n as f64)
 }
 
 pub fn run(args: Args) -> Result<(), String> {
@@ -258,6 +401,12 @@ pub fn run(args: Args) -> Result<(), String> {
         }
         rows.extend(bench_stack(name, st, &args, all)?);
     }
+    if stacks.len() > 1 && args.only.is_none() {
+        if !args.json {
+            crate::common::note("benchmarking a batch that mixes them ...");
+        }
+        rows.extend(bench_mixed(&stacks, &args, all)?);
+    }
     let mut text = String::new();
     if args.json {
         for r in &rows {
@@ -270,8 +419,64 @@ pub fn run(args: Args) -> Result<(), String> {
         }
     } else {
         table(&mut text, &rows, &args);
+        summary(&mut text, &rows);
+        let _ = writeln!(text, "\nbuilding a parameter set (per set, 1000 variants):");
+        for (name, st) in &stacks {
+            let (validate, add) = set_build_cost(st);
+            let _ = writeln!(
+                text,
+                "  {name:<24} LayerStack::new {:.2} us, param_sets {:.2} us",
+                validate * 1e6,
+                add * 1e6
+            );
+        }
     }
     print_out(&text)
+}
+
+/// The ratios issue 15 asks for: each `wavefront-varying` row against the
+/// uniform `wavefront` row of its stack and threads, and each
+/// `wavefront-mixed` row against the throughput its stacks' uniform rows
+/// predict for the same mix (equal numbers of queries of each: the
+/// harmonic mean of their rates) and against their arithmetic mean.
+fn summary(o: &mut String, rows: &[Row]) {
+    let rate = |stack: &str, engine: &str, t: usize| {
+        (rows.iter())
+            .find(|r| r.stack == stack && r.engine == engine && r.threads == t)
+            .map(|r| r.queries_per_s)
+    };
+    let _ = writeln!(o);
+    for r in rows.iter().filter(|r| r.engine == "wavefront-varying") {
+        if let Some(u) = rate(&r.stack, "wavefront", r.threads) {
+            let _ = writeln!(
+                o,
+                "{:<24} varying / uniform, {} thread(s): {:.2}",
+                r.stack,
+                r.threads,
+                r.queries_per_s / u
+            );
+        }
+    }
+    for r in rows.iter().filter(|r| r.engine == "wavefront-mixed") {
+        let uniform: Vec<f64> = (rows.iter())
+            .filter(|u| u.engine == "wavefront" && u.threads == r.threads)
+            .map(|u| u.queries_per_s)
+            .collect();
+        if uniform.is_empty() {
+            continue;
+        }
+        let k = uniform.len() as f64;
+        let harmonic = k / uniform.iter().map(|x| 1.0 / x).sum::<f64>();
+        let mean = uniform.iter().sum::<f64>() / k;
+        let _ = writeln!(
+            o,
+            "{:<24} mixed, {} thread(s): {:.2} x the uniform rows' rate for this mix, {:.2} x their mean",
+            r.stack,
+            r.threads,
+            r.queries_per_s / harmonic,
+            r.queries_per_s / mean
+        );
+    }
 }
 
 /// The table of `rows`, appended to `o`.

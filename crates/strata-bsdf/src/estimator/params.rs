@@ -12,9 +12,10 @@
 
 use super::closed_form::SmoothCoatLambertian;
 use super::layout::MediumLanes;
+use super::wavefront::walks::load16;
 use super::Settings;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, MAX_LANES};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES};
 use crate::microfacet::Microfacet;
 use crate::stack::LayerStack;
 
@@ -30,6 +31,44 @@ pub struct SetTable {
     /// Per set: the exact part of eval that the walks leave out, when the
     /// control variate is on for it.
     cv: Vec<Option<SmoothCoatLambertian>>,
+    /// The numbers of `ifaces` as rows, which a chunk loads with two 8×8
+    /// transposes ([`IFACE_ROW`]).
+    iface_rows: Vec<[f32; 16]>,
+    /// The numbers of `media` as rows ([`MEDIUM_ROW`]).
+    medium_rows: Vec<[f32; 8]>,
+}
+
+/// An interface's row: `n_above`, `n_below`, `alpha_x`, `alpha_y`, `eta`
+/// (3), `k` (3), `albedo` (3); three unused.
+pub const IFACE_ROW: usize = 16;
+
+/// A medium's row: `sigma_t` (3), `albedo` (3), `g`; one unused.
+pub const MEDIUM_ROW: usize = 8;
+
+fn iface_row(t: &InterfaceLanes<f32>) -> [f32; 16] {
+    let mut r = [0.0; 16];
+    let v = [
+        t.n_above,
+        t.n_below,
+        t.mf.alpha_x,
+        t.mf.alpha_y,
+        t.eta.r,
+        t.eta.g,
+        t.eta.b,
+        t.k.r,
+        t.k.g,
+        t.k.b,
+        t.albedo.r,
+        t.albedo.g,
+        t.albedo.b,
+    ];
+    r[..v.len()].copy_from_slice(&v);
+    r
+}
+
+fn medium_row(m: &MediumLanes<f32>) -> [f32; 8] {
+    let (a, b) = (m.sigma_t, m.albedo);
+    [a.r, a.g, a.b, b.r, b.g, b.b, m.g, 0.0]
 }
 
 impl SetTable {
@@ -47,10 +86,15 @@ impl SetTable {
     pub fn push(&mut self, stack: &LayerStack, settings: &Settings, control_variate: bool) {
         debug_assert_eq!(stack.len(), self.n);
         let n = self.n;
+        let first = (self.ifaces.len(), self.media.len());
         self.ifaces
             .extend((0..n).map(|i| stack.interface_lanes::<f32>(i)));
         self.media
             .extend((0..n.saturating_sub(1)).map(|l| MediumLanes::new(stack, l)));
+        let rows = self.ifaces[first.0..].iter().map(iface_row);
+        self.iface_rows.extend(rows);
+        let rows = self.media[first.1..].iter().map(medium_row);
+        self.medium_rows.extend(rows);
         self.cv.push(
             control_variate
                 .then(|| SmoothCoatLambertian::unscattered(stack, settings))
@@ -64,6 +108,8 @@ impl SetTable {
         self.ifaces.clear();
         self.media.clear();
         self.cv.clear();
+        self.iface_rows.clear();
+        self.medium_rows.clear();
     }
 
     /// Makes it a copy of `other`, reusing its memory.
@@ -72,6 +118,8 @@ impl SetTable {
         self.ifaces.clone_from(&other.ifaces);
         self.media.clone_from(&other.media);
         self.cv.clone_from(&other.cv);
+        self.iface_rows.clone_from(&other.iface_rows);
+        self.medium_rows.clone_from(&other.medium_rows);
     }
 
     /// Interfaces per set.
@@ -144,67 +192,61 @@ impl<'a> LaneSets<'a> {
         self.set[j] as usize
     }
 
+    /// Row `first + k` of lane `j`'s set, where sets have `per` rows.
+    fn rows(&self, per: usize, first: usize) -> [u32; MAX_LANES] {
+        std::array::from_fn(|j| (self.set[j] as usize * per + first) as u32)
+    }
+
     /// Interface `i` in every lane's set; kinds and flags from `own`.
-    pub fn iface<L: Lane>(&self, own: &InterfaceLanes<L>, i: usize) -> InterfaceLanes<L> {
+    pub fn iface<W: Wide>(&self, own: &InterfaceLanes<W>, i: usize) -> InterfaceLanes<W> {
         let t = self.table;
-        let numbers = match self.same {
-            Some(s) => splat_iface::<L>(t.iface(s as usize, i)),
-            None => InterfaceLanes::<L>::gather(&t.ifaces, |j| self.set(j) * t.n + i),
+        let f = match self.same {
+            Some(s) => t.iface_rows[s as usize * t.n + i].map(|x| W::splat(x as f64)),
+            None => load16::<W, IFACE_ROW>(&t.iface_rows, &self.rows(t.n, i)[..W::LANES], 0),
         };
         InterfaceLanes {
+            n_above: f[0],
+            n_below: f[1],
             mf: Microfacet {
-                beckmann: own.mf.beckmann,
-                separable: own.mf.separable,
-                ..numbers.mf
+                alpha_x: f[2],
+                alpha_y: f[3],
+                ..own.mf
             },
-            smooth: own.smooth,
-            dielectric: own.dielectric,
-            conductor: own.conductor,
-            diffuse: own.diffuse,
-            run_all: own.run_all,
-            ..numbers
+            eta: Rgb::new(f[4], f[5], f[6]),
+            k: Rgb::new(f[7], f[8], f[9]),
+            albedo: Rgb::new(f[10], f[11], f[12]),
+            ..*own
         }
     }
 
     /// Layer `l` in every lane's set; its class, greyness and depth units
     /// from `own`.
-    pub fn medium<L: Lane>(&self, own: &MediumLanes<L>, l: usize) -> MediumLanes<L> {
+    pub fn medium<W: Wide>(&self, own: &MediumLanes<W>, l: usize) -> MediumLanes<W> {
         let t = self.table;
-        let m = |j: usize| t.medium(self.set(j), l);
-        let (sigma_t, albedo, g) = match self.same {
-            Some(s) => {
-                let x = t.medium(s as usize, l);
-                (
-                    splat_rgb(x.sigma_t),
-                    splat_rgb(x.albedo),
-                    L::splat(x.g as f64),
-                )
-            }
-            None => (
-                gather_rgb(|j| m(j).sigma_t),
-                gather_rgb(|j| m(j).albedo),
-                L::from_fn(|j| m(j).g as f64),
-            ),
+        let per = t.n - 1;
+        let f = match self.same {
+            Some(s) => t.medium_rows[s as usize * per + l].map(|x| W::splat(x as f64)),
+            None => W::load8(&t.medium_rows, &self.rows(per, l)[..W::LANES], 0),
         };
         MediumLanes {
-            sigma_t,
-            albedo,
-            g,
+            sigma_t: Rgb::new(f[0], f[1], f[2]),
+            albedo: Rgb::new(f[3], f[4], f[5]),
+            g: f[6],
             ..*own
         }
     }
 
     /// Layers `0..own.len()` in every lane's set, into `out`.
-    pub fn media_into<L: Lane>(&self, own: &[MediumLanes<L>], out: &mut Vec<MediumLanes<L>>) {
+    pub fn media_into<W: Wide>(&self, own: &[MediumLanes<W>], out: &mut Vec<MediumLanes<W>>) {
         out.clear();
         out.extend(own.iter().enumerate().map(|(l, m)| self.medium(m, l)));
     }
 
     /// Interfaces `0..own.len()` in every lane's set, into `out`.
-    pub fn ifaces_into<L: Lane>(
+    pub fn ifaces_into<W: Wide>(
         &self,
-        own: &[InterfaceLanes<L>],
-        out: &mut Vec<InterfaceLanes<L>>,
+        own: &[InterfaceLanes<W>],
+        out: &mut Vec<InterfaceLanes<W>>,
     ) {
         out.clear();
         out.extend(own.iter().enumerate().map(|(i, it)| self.iface(it, i)));
@@ -216,45 +258,5 @@ impl<'a> LaneSets<'a> {
             Some(s) => L::Mask::splat(self.table.cv(s as usize).is_some()),
             None => L::Mask::from_fn(|j| self.table.cv(self.set(j)).is_some()),
         }
-    }
-}
-
-fn splat_rgb<L: Lane>(c: Rgb<f32>) -> Rgb<L> {
-    Rgb::new(
-        L::splat(c.r as f64),
-        L::splat(c.g as f64),
-        L::splat(c.b as f64),
-    )
-}
-
-fn gather_rgb<L: Lane>(f: impl Fn(usize) -> Rgb<f32>) -> Rgb<L> {
-    Rgb::new(
-        L::from_fn(|j| f(j).r as f64),
-        L::from_fn(|j| f(j).g as f64),
-        L::from_fn(|j| f(j).b as f64),
-    )
-}
-
-/// A one-lane interface in every lane.
-fn splat_iface<L: Lane>(t: &InterfaceLanes<f32>) -> InterfaceLanes<L> {
-    let s = |x: f32| L::splat(x as f64);
-    let m = |b: bool| L::Mask::splat(b);
-    InterfaceLanes {
-        n_above: s(t.n_above),
-        n_below: s(t.n_below),
-        mf: Microfacet {
-            alpha_x: s(t.mf.alpha_x),
-            alpha_y: s(t.mf.alpha_y),
-            beckmann: m(t.mf.beckmann),
-            separable: m(t.mf.separable),
-        },
-        smooth: m(t.smooth),
-        dielectric: m(t.dielectric),
-        conductor: m(t.conductor),
-        diffuse: m(t.diffuse),
-        eta: splat_rgb(t.eta),
-        k: splat_rgb(t.k),
-        albedo: splat_rgb(t.albedo),
-        run_all: t.run_all,
     }
 }
