@@ -8,12 +8,14 @@
 mod description;
 mod error;
 pub mod presets;
+mod set;
 
 pub use description::{
     Distribution, InterfaceDesc, LayerDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbParam,
     Roughness, Shadowing,
 };
 pub use error::{MaterialError, StackError};
+pub use set::{SetError, SetPath};
 
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb};
