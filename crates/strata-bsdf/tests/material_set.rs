@@ -47,6 +47,11 @@ fn file(p: &[(&str, &str)]) -> LayerStack {
     LayerStack::from_toml_str(&material(p)).expect("material with the values")
 }
 
+/// Set entries, as written.
+type Set = Vec<(&'static str, Value)>;
+/// The file's values, by placeholder.
+type Values = Vec<(&'static str, String)>;
+
 const CU_ETA: &str = "[0.200438, 0.924033, 1.10221]";
 const CU_K: &str = "[3.91295, 2.45285, 2.14219]";
 
@@ -54,7 +59,7 @@ const CU_K: &str = "[3.91295, 2.45285, 2.14219]";
 #[test]
 fn set_equals_file_for_every_parameter() {
     let eta_k = |e: &str, k: &str| format!("eta = {e}, k = {k}");
-    let cases: Vec<(Vec<(&str, Value)>, Vec<(&str, String)>)> = vec![
+    let cases: Vec<(Set, Values)> = vec![
         (
             vec![("exterior_ior", json!(1.2))],
             vec![("exterior_ior", "1.2".into())],
