@@ -8,6 +8,7 @@
 mod description;
 mod error;
 pub mod presets;
+mod set;
 mod shape;
 
 pub use description::{
@@ -15,6 +16,7 @@ pub use description::{
     Roughness, Shadowing,
 };
 pub use error::{MaterialError, StackError};
+pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};
 
 use crate::interface::InterfaceLanes;
