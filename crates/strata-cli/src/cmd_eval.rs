@@ -12,13 +12,22 @@
 //! Each query is keyed by its directions' bits, as the library's unkeyed
 //! calls key it (and the C and Python bindings'): a line's answer depends on
 //! the seed and its directions only, the same number every binding gives.
+//!
+//! A line may carry `"set"`, a map from a path in the material tree to a
+//! value, applied to that query alone (docs/materials.md, *Per-query
+//! overrides*): `{"wi":[..],"wo":[..],"set":{"layers[0].medium.thickness":0.5}}`.
+//! Its answer is the one a material file with those values gives, bit for
+//! bit. A set that names no field of the material, or makes a value
+//! invalid, stops the run like any bad line, naming the line, the path and
+//! the value.
 
 use crate::common::{load_material, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
-use strata_bsdf::query::parse_query_vectors;
-use strata_bsdf::{LayeredBsdf, PdfKind};
+use std::collections::HashMap;
+use strata_bsdf::query::parse_query_line_set;
+use strata_bsdf::{LayerStack, LayeredBsdf, Materials, PdfKind};
 
 /// Arguments of `strata eval`.
 #[derive(clap::Args)]
@@ -72,7 +81,7 @@ struct Answer {
 /// Runs `strata eval`.
 pub fn run(args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
-    let mut bsdf = LayeredBsdf::new(stack);
+    let mut bsdf = LayeredBsdf::new(stack.clone());
     if let (PdfKind::Approximate, Some(n)) = (args.pdf, args.pdf_samples) {
         let n = u32::try_from(n).map_err(|_| format!("--pdf-samples: {n} is too many for approx"))?;
         bsdf = bsdf.pdf_samples(n);
@@ -90,6 +99,7 @@ pub fn run(args: Args) -> Result<(), String> {
     // directions (not on the engine, the chunking or its line).
     let mut pairs = Vec::with_capacity(CHUNK);
     let mut lines_of = Vec::with_capacity(CHUNK);
+    let mut chunk_sets = Variants::new(stack);
     let mut lines = stdin.lock().lines().enumerate();
     loop {
         let mut failure = None;
@@ -101,15 +111,19 @@ pub fn run(args: Args) -> Result<(), String> {
                     if l.trim().is_empty() {
                         return Ok(None);
                     }
-                    parse_query_vectors(&l)
-                        .map(Some)
-                        .map_err(|e| format!("stdin line {line_no}: {e}"))
+                    let (wi, wo, set) =
+                        parse_query_line_set(&l).map_err(|e| format!("stdin line {line_no}: {e}"))?;
+                    let m = chunk_sets
+                        .add(&set)
+                        .map_err(|e| format!("stdin line {line_no}: {e}"))?;
+                    Ok(Some((wi, wo, m)))
                 });
             match parsed {
                 Ok(None) => continue,
-                Ok(Some((wi, wo))) => {
+                Ok(Some((wi, wo, m))) => {
                     pairs.push((wi, wo));
                     lines_of.push(line_no);
+                    chunk_sets.material.push(m);
                 }
                 Err(e) => {
                     failure = Some(e);
@@ -121,11 +135,12 @@ pub fn run(args: Args) -> Result<(), String> {
             }
         }
         let done = pairs.len() < CHUNK || failure.is_some();
-        if let Err(e) = answer(&bsdf, &args, &pairs, &lines_of, &mut out) {
+        if let Err(e) = answer(&bsdf, &args, &pairs, &chunk_sets, &lines_of, &mut out) {
             return e;
         }
         pairs.clear();
         lines_of.clear();
+        chunk_sets.clear();
         if let Some(e) = failure {
             // The answers before the bad line are out; then the error.
             out.flush().or_else(stdout_failure)?;
@@ -143,12 +158,77 @@ fn answer(
     bsdf: &LayeredBsdf,
     args: &Args,
     pairs: &[(glam::Vec3, glam::Vec3)],
+    sets: &Variants,
     lines_of: &[usize],
     out: &mut impl Write,
 ) -> Result<(), Result<(), String>> {
     if pairs.is_empty() {
         return Ok(());
     }
+    if sets.stacks.len() > 1 {
+        // Some lines set values of their own: one batch over the materials.
+        let mats = Materials::new(bsdf, sets.stacks.iter().cloned());
+        return answer_with(&Batch::Mixed(&mats, &sets.material), args, pairs, lines_of, out);
+    }
+    answer_with(&Batch::One(bsdf), args, pairs, lines_of, out)
+}
+
+/// The materials of a chunk: the file's (0) and each distinct set's.
+struct Variants {
+    stacks: Vec<LayerStack>,
+    /// Each distinct set (its entries, in words) and its material.
+    seen: HashMap<String, u32>,
+    /// Each query's material.
+    material: Vec<u32>,
+}
+
+impl Variants {
+    fn new(base: LayerStack) -> Self {
+        Variants {
+            stacks: vec![base],
+            seen: HashMap::new(),
+            material: Vec::new(),
+        }
+    }
+
+    /// The material of a line with `set` (0: none), added if new.
+    fn add(&mut self, set: &strata_bsdf::query::QuerySet) -> Result<u32, String> {
+        if set.is_empty() {
+            return Ok(0);
+        }
+        let key: Vec<String> = (set.entries().iter()).map(|(p, v)| format!("{p}={v}")).collect();
+        let key = key.join(";");
+        if let Some(&m) = self.seen.get(&key) {
+            return Ok(m);
+        }
+        let st = set.apply(&self.stacks[0]).map_err(|e| e.to_string())?;
+        let m = self.stacks.len() as u32;
+        self.stacks.push(st);
+        self.seen.insert(key, m);
+        Ok(m)
+    }
+
+    fn clear(&mut self) {
+        self.stacks.truncate(1);
+        self.seen.clear();
+        self.material.clear();
+    }
+}
+
+/// What answers a chunk: the file's material alone, or materials per query.
+enum Batch<'a> {
+    One(&'a LayeredBsdf),
+    Mixed(&'a Materials, &'a [u32]),
+}
+
+/// [`answer`] on `batch`.
+fn answer_with(
+    batch: &Batch,
+    args: &Args,
+    pairs: &[(glam::Vec3, glam::Vec3)],
+    lines_of: &[usize],
+    out: &mut impl Write,
+) -> Result<(), Result<(), String>> {
     // Directions were validated when parsed, so the batch cannot fail on them.
     let fail = |e: strata_bsdf::BatchError| {
         Err(match e.index {
@@ -160,23 +240,30 @@ fn answer(
         .iter()
         .map(|&(a, b)| strata_bsdf::api::direction_key(a, b))
         .collect();
-    let f = bsdf
-        .eval_batch_keyed(pairs, args.samples, &keys)
-        .map_err(fail)?;
+    let f = match batch {
+        Batch::One(b) => b.eval_batch_keyed(pairs, args.samples, &keys),
+        Batch::Mixed(m, of) => m.eval_batch_keyed(of, pairs, args.samples, &keys),
+    }
+    .map_err(fail)?;
     let p: Vec<(f32, Option<f32>)> = match args.pdf {
-        PdfKind::Approximate => bsdf
-            .pdf_batch(pairs)
-            .map_err(fail)?
-            .into_iter()
-            .map(|p| (p, None))
-            .collect(),
+        PdfKind::Approximate => match batch {
+            Batch::One(b) => b.pdf_batch(pairs),
+            Batch::Mixed(m, of) => m.pdf_batch(of, pairs),
+        }
+        .map_err(fail)?
+        .into_iter()
+        .map(|p| (p, None))
+        .collect(),
         PdfKind::Unbiased => {
             let n = args.pdf_samples.unwrap_or(UNBIASED_PDF_SAMPLES);
-            bsdf.pdf_unbiased_batch(pairs, n)
-                .map_err(fail)?
-                .into_iter()
-                .map(|p| (p.value as f32, Some(p.stderr as f32)))
-                .collect()
+            match batch {
+                Batch::One(b) => b.pdf_unbiased_batch(pairs, n),
+                Batch::Mixed(m, of) => m.pdf_unbiased_batch(of, pairs, n),
+            }
+            .map_err(fail)?
+            .into_iter()
+            .map(|p| (p.value as f32, Some(p.stderr as f32)))
+            .collect()
         }
     };
     for (e, (pdf, pdf_stderr)) in f.iter().zip(p) {

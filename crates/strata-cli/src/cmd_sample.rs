@@ -28,6 +28,11 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Values of the material to set for these walks: a JSON object from a
+    /// path in the material tree to a value, as a line of `strata eval`
+    /// carries (docs/materials.md), e.g. `{"layers[0].medium.thickness":0.5}`.
+    #[arg(long)]
+    set: Option<String>,
     #[command(flatten)]
     engine: EngineArgs,
 }
@@ -49,7 +54,13 @@ struct Line {
 /// Runs `strata sample`.
 pub fn run(args: Args) -> Result<(), String> {
     let wi = parse_vec3("--wi", &args.wi)?;
-    let stack = load_material(&args.material)?;
+    let mut stack = load_material(&args.material)?;
+    if let Some(set) = &args.set {
+        let v: serde_json::Value =
+            serde_json::from_str(set).map_err(|e| format!("--set {set}: not JSON: {e}"))?;
+        let q = strata_bsdf::query::QuerySet::from_json(&v).map_err(|e| format!("--set: {e}"))?;
+        stack = q.apply(&stack).map_err(|e| format!("--set: {e}"))?;
+    }
     let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
     // Validate the direction once, naming the flag.
     strata_bsdf::Direction::new("wi", wi).map_err(|e| format!("--wi {}: {e}", args.wi))?;

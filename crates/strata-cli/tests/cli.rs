@@ -1201,3 +1201,125 @@ fn bench_against_pbrt_v4_reports_every_pair() {
         &["--against", "mitsuba"],
     );
 }
+
+// ---------------------------------------------------------------- set
+
+/// A line's `"set"` answers what a material file with those values answers,
+/// bit for bit (lines with and without sets mixed in one run, and sets that
+/// change the stack's shape); `strata sample --set` draws what the file's
+/// walks draw; a set that names nothing, or makes a value invalid, stops the
+/// run naming the line, the path and the value.
+#[test]
+fn eval_lines_and_sample_set_values_of_their_own() {
+    let dir = scratch("set");
+    let base = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.2 }\n\
+                medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 2.0], albedo = 0.8 }\n\
+                [[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.3 }\n";
+    // The same material with the set's values written in (the preset's eta
+    // and k replaced by explicit values), and one whose roughness 0 makes
+    // the coat smooth (another shape).
+    let set_a = r#"{"layers[0].medium.thickness":1.25,"layers[1].interface.eta":[0.3,0.5,1.2],"layers[1].interface.k":[3,2.5,2]}"#;
+    let file_a = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.2 }\n\
+                  medium = { thickness = 1.25, sigma_t = [0.5, 1.0, 2.0], albedo = 0.8 }\n\
+                  [[layers]]\ninterface = { kind = \"conductor\", eta = [0.3, 0.5, 1.2], k = [3, 2.5, 2], roughness = 0.3 }\n";
+    let set_b = r#"{"layers[0].interface.roughness":0,"layers[0].interface.ior":1.33}"#;
+    let file_b = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.33, roughness = 0 }\n\
+                  medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 2.0], albedo = 0.8 }\n\
+                  [[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.3 }\n";
+    let write = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, body).unwrap();
+        p.display().to_string()
+    };
+    let (m0, ma, mb) = (
+        write("base.toml", base),
+        write("a.toml", file_a),
+        write("b.toml", file_b),
+    );
+    let dirs = [
+        r#""wi":[0.3,0,0.95],"wo":[-0.3,0.1,0.9]"#,
+        r#""wi":[0.8,0,0.6],"wo":[0,0.6,0.8]"#,
+        r#""wi":[0,0.1,1],"wo":[0.9,0,0.3]"#,
+    ];
+    let mut input = String::new();
+    let mut expect: Vec<(&str, usize)> = Vec::new();
+    for (k, d) in dirs.iter().enumerate() {
+        input += &format!("{{{d}}}\n{{{d},\"set\":{set_a}}}\n{{{d},\"set\":{set_b}}}\n");
+        expect.extend([(m0.as_str(), k), (ma.as_str(), k), (mb.as_str(), k)]);
+    }
+    let flags = ["--samples", "64", "--seed", "3"];
+    let eval = |m: &str, input: &str| {
+        let mut a = vec!["eval", "--material", m];
+        a.extend(flags);
+        assert_ok(&run(&a, input))
+    };
+    let got = eval(&m0, &input);
+    let got: Vec<&str> = got.lines().collect();
+    assert_eq!(got.len(), 9);
+    for (line, (m, k)) in got.iter().zip(&expect) {
+        let want = eval(m, &format!("{{{}}}\n", dirs[*k]));
+        assert_eq!(*line, want.trim_end(), "{m} query {k}");
+    }
+    // The sets change the answers (else the above could pass with them ignored).
+    assert_ne!(got[0], got[1]);
+    assert_ne!(got[0], got[2]);
+    // strata sample --set.
+    let sample = |m: &str, set: Option<&str>| {
+        let mut a = vec![
+            "sample",
+            "--material",
+            m,
+            "--wi",
+            "0.3,0,0.95",
+            "--count",
+            "50",
+        ];
+        if let Some(s) = set {
+            a.extend(["--set", s]);
+        }
+        assert_ok(&run(&a, ""))
+    };
+    assert_eq!(sample(&m0, Some(set_a)), sample(&ma, None));
+    assert_ne!(sample(&m0, Some(set_a)), sample(&m0, None));
+    // Bad sets stop the run at their line, naming the path and the value.
+    let good = format!("{{{}}}\n", dirs[0]);
+    let bad: [(&str, &[&str]); 4] = [
+        (
+            r#"{"layers[0].medium.thickness":-1}"#,
+            &["stdin line 2", "layers[0].medium.thickness", "-1"],
+        ),
+        (
+            r#"{"layers[5].medium.thickness":1}"#,
+            &["stdin line 2", "layers[5]"],
+        ),
+        (
+            r#"{"layers[0].interface.albedo":0.5}"#,
+            &["stdin line 2", "layers[0].interface.albedo"],
+        ),
+        (
+            r#"{"layers[0].medium.thickness":"thick"}"#,
+            &["stdin line 2", "thick"],
+        ),
+    ];
+    for (set, needles) in bad {
+        let input = format!("{good}{{{},\"set\":{set}}}\n{good}", dirs[1]);
+        let out = run(&["eval", "--material", &m0, "--samples", "8"], &input);
+        assert_fails_with(&out, needles);
+        assert_eq!(text(&out.stdout).lines().count(), 1, "{set}");
+    }
+    let out = run(
+        &[
+            "sample",
+            "--material",
+            &m0,
+            "--wi",
+            "0,0,1",
+            "--count",
+            "1",
+            "--set",
+            "{\"x\":1}",
+        ],
+        "",
+    );
+    assert_fails_with(&out, &["--set", "x"]);
+}
