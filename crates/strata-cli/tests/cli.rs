@@ -1081,7 +1081,9 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
     let expect = [
         ("scalar", 1),
         ("wavefront", 1),
+        ("wavefront-varying", 1),
         ("wavefront", 2),
+        ("wavefront-varying", 2),
         ("wavefront-general", 1),
         ("wavefront-f32x16", 1),
     ];
