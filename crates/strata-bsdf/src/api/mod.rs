@@ -441,8 +441,7 @@ impl LayeredBsdf {
     /// `f(wi, wo)` for every pair, `samples()` walks each; query keys from
     /// the directions (the same answers as [`LayeredBsdf::eval`]).
     pub fn eval_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<Estimate>, BatchError> {
-        let keys: Vec<u64> = pairs.iter().map(|&(a, b)| direction_key(a, b)).collect();
-        self.eval_batch_keyed(pairs, self.samples, &keys)
+        self.eval_batch_keyed(pairs, self.samples, &pair_keys(pairs))
     }
 
     /// `f(wi, wo)` for every pair with `samples` walks and explicit keys.
@@ -452,10 +451,7 @@ impl LayeredBsdf {
         samples: u64,
         keys: &[u64],
     ) -> Result<Vec<Estimate>, BatchError> {
-        let dirs = directions2(pairs)?;
-        one_each("keys", keys.len(), pairs.len())?;
-        check_walks("samples", samples).map_err(BatchError::call)?;
-        Ok(self.eval_validated(Per::OWN, &dirs, samples, keys))
+        self.eval_checked(Per::OWN, pairs, samples, keys)
     }
 
     /// One sampled direction per incident direction; `sample_index[k]`
@@ -465,8 +461,7 @@ impl LayeredBsdf {
         wis: &[Vec3],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
-        let keys: Vec<u64> = wis.iter().map(|&a| direction_key(a, a)).collect();
-        self.sample_batch_keyed(wis, &keys, sample_index)
+        self.sample_batch_keyed(wis, &dir_keys(wis), sample_index)
     }
 
     /// [`LayeredBsdf::sample_batch`] with explicit keys: query `k` draws
@@ -477,10 +472,7 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
-        let dirs = directions1(wis)?;
-        one_each("keys", keys.len(), wis.len())?;
-        one_each("sample_index", sample_index.len(), wis.len())?;
-        Ok(self.sample_validated(Per::OWN, &dirs, keys, sample_index))
+        self.sample_checked(Per::OWN, wis, keys, sample_index)
     }
 
     /// The approximate pdf for every pair. A pdf takes no caller keys: it
@@ -497,16 +489,13 @@ impl LayeredBsdf {
         pairs: &[(Vec3, Vec3)],
         samples: u64,
     ) -> Result<Vec<PdfEstimate>, BatchError> {
-        let dirs = directions2(pairs)?;
-        check_walks("samples", samples).map_err(BatchError::call)?;
-        Ok(self.pdf_unbiased_validated(Per::OWN, &dirs, samples))
+        self.pdf_unbiased_checked(Per::OWN, pairs, samples)
     }
 
     /// Directional albedo of every incident direction, `n` walks each; keys
     /// from the directions.
     pub fn albedo_batch(&self, wis: &[Vec3], n: u64) -> Result<Vec<Albedo>, BatchError> {
-        let keys: Vec<u64> = wis.iter().map(|&a| direction_key(a, a)).collect();
-        self.albedo_batch_keyed(wis, n, &keys)
+        self.albedo_batch_keyed(wis, n, &dir_keys(wis))
     }
 
     /// [`LayeredBsdf::albedo_batch`] with explicit keys.
@@ -516,10 +505,63 @@ impl LayeredBsdf {
         n: u64,
         keys: &[u64],
     ) -> Result<Vec<Albedo>, BatchError> {
+        self.albedo_checked(Per::OWN, wis, n, keys)
+    }
+
+    // ------------------------------------ the batch calls' checks, for any `per`
+
+    /// Eval after checking the directions, keys and walk count.
+    pub(super) fn eval_checked(
+        &self,
+        per: Per,
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Estimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        one_each("keys", keys.len(), pairs.len())?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
+        Ok(self.eval_validated(per, &dirs, samples, keys))
+    }
+
+    /// Samples after checking the directions, keys and sample indices.
+    pub(super) fn sample_checked(
+        &self,
+        per: Per,
+        wis: &[Vec3],
+        keys: &[u64],
+        sample_index: &[u64],
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let dirs = directions1(wis)?;
+        one_each("keys", keys.len(), wis.len())?;
+        one_each("sample_index", sample_index.len(), wis.len())?;
+        Ok(self.sample_validated(per, &dirs, keys, sample_index))
+    }
+
+    /// The unbiased pdf after checking the directions and walk count.
+    pub(super) fn pdf_unbiased_checked(
+        &self,
+        per: Per,
+        pairs: &[(Vec3, Vec3)],
+        samples: u64,
+    ) -> Result<Vec<PdfEstimate>, BatchError> {
+        let dirs = directions2(pairs)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
+        Ok(self.pdf_unbiased_validated(per, &dirs, samples))
+    }
+
+    /// Albedos after checking the directions, keys and walk count.
+    pub(super) fn albedo_checked(
+        &self,
+        per: Per,
+        wis: &[Vec3],
+        n: u64,
+        keys: &[u64],
+    ) -> Result<Vec<Albedo>, BatchError> {
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         check_walks("n", n).map_err(BatchError::call)?;
-        Ok(self.albedo_validated(Per::OWN, &dirs, n, keys))
+        Ok(self.albedo_validated(per, &dirs, n, keys))
     }
 
     // ------------------------------------------- the engines, on valid input
@@ -918,6 +960,16 @@ fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
         .enumerate()
         .map(|(i, &(a, b))| Ok((direction_at("wi", i, a)?, direction_at("wo", i, b)?)))
         .collect()
+}
+
+/// The keys of unkeyed eval and pdf batches: each pair's directions.
+fn pair_keys(pairs: &[(Vec3, Vec3)]) -> Vec<u64> {
+    pairs.iter().map(|&(a, b)| direction_key(a, b)).collect()
+}
+
+/// The keys of unkeyed sample and albedo batches: each direction.
+fn dir_keys(wis: &[Vec3]) -> Vec<u64> {
+    wis.iter().map(|&a| direction_key(a, a)).collect()
 }
 
 /// The key of a pdf query: the bits of the normalized directions in f32.

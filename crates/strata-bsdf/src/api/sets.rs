@@ -8,9 +8,7 @@
 //! exactly, bit for bit, what a BSDF built from its set's stack answers,
 //! with the same settings, seed and key (`tests/param_sets.rs`).
 
-use super::{
-    directions1, directions2, one_each, BatchError, Estimator, LayeredBsdf, QueryError, Sample,
-};
+use super::{directions2, one_each, BatchError, Estimator, LayeredBsdf, QueryError, Sample};
 use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::pdf::PdfEstimate;
@@ -229,10 +227,7 @@ impl LayeredBsdf {
         set: &[u32],
         pairs: &[(Vec3, Vec3)],
     ) -> Result<Vec<Estimate>, BatchError> {
-        let keys: Vec<u64> = (pairs.iter())
-            .map(|&(a, b)| super::direction_key(a, b))
-            .collect();
-        self.eval_batch_sets_keyed(sets, set, pairs, self.samples, &keys)
+        self.eval_batch_sets_keyed(sets, set, pairs, self.samples, &super::pair_keys(pairs))
     }
 
     /// [`LayeredBsdf::eval_batch_keyed`] where query `k` has the parameters
@@ -245,11 +240,8 @@ impl LayeredBsdf {
         samples: u64,
         keys: &[u64],
     ) -> Result<Vec<Estimate>, BatchError> {
-        let dirs = directions2(pairs)?;
-        one_each("keys", keys.len(), pairs.len())?;
-        crate::check_walks("samples", samples).map_err(BatchError::call)?;
         let per = self.check_sets(sets, set, pairs.len())?;
-        Ok(self.eval_validated(per, &dirs, samples, keys))
+        self.eval_checked(per, pairs, samples, keys)
     }
 
     /// [`LayeredBsdf::sample_batch`] where query `k` has the parameters of
@@ -261,8 +253,7 @@ impl LayeredBsdf {
         wis: &[Vec3],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
-        let keys: Vec<u64> = wis.iter().map(|&a| super::direction_key(a, a)).collect();
-        self.sample_batch_sets_keyed(sets, set, wis, &keys, sample_index)
+        self.sample_batch_sets_keyed(sets, set, wis, &super::dir_keys(wis), sample_index)
     }
 
     /// [`LayeredBsdf::sample_batch_keyed`] where query `k` has the
@@ -275,11 +266,8 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
-        let dirs = directions1(wis)?;
-        one_each("keys", keys.len(), wis.len())?;
-        one_each("sample_index", sample_index.len(), wis.len())?;
         let per = self.check_sets(sets, set, wis.len())?;
-        Ok(self.sample_validated(per, &dirs, keys, sample_index))
+        self.sample_checked(per, wis, keys, sample_index)
     }
 
     /// [`LayeredBsdf::pdf_batch`] where query `k` has the parameters of set
@@ -290,9 +278,8 @@ impl LayeredBsdf {
         set: &[u32],
         pairs: &[(Vec3, Vec3)],
     ) -> Result<Vec<f32>, BatchError> {
-        let dirs = directions2(pairs)?;
         let per = self.check_sets(sets, set, pairs.len())?;
-        Ok(self.pdf_validated(per, &dirs))
+        Ok(self.pdf_validated(per, &directions2(pairs)?))
     }
 
     /// [`LayeredBsdf::pdf_unbiased_batch`] where query `k` has the
@@ -304,10 +291,8 @@ impl LayeredBsdf {
         pairs: &[(Vec3, Vec3)],
         samples: u64,
     ) -> Result<Vec<PdfEstimate>, BatchError> {
-        let dirs = directions2(pairs)?;
-        crate::check_walks("samples", samples).map_err(BatchError::call)?;
         let per = self.check_sets(sets, set, pairs.len())?;
-        Ok(self.pdf_unbiased_validated(per, &dirs, samples))
+        self.pdf_unbiased_checked(per, pairs, samples)
     }
 
     /// [`LayeredBsdf::albedo_batch_keyed`] where query `k` has the
@@ -320,10 +305,7 @@ impl LayeredBsdf {
         n: u64,
         keys: &[u64],
     ) -> Result<Vec<Albedo>, BatchError> {
-        let dirs = directions1(wis)?;
-        one_each("keys", keys.len(), wis.len())?;
-        crate::check_walks("n", n).map_err(BatchError::call)?;
         let per = self.check_sets(sets, set, wis.len())?;
-        Ok(self.albedo_validated(per, &dirs, n, keys))
+        self.albedo_checked(per, wis, n, keys)
     }
 }
