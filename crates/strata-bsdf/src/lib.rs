@@ -74,10 +74,10 @@ pub mod rng;
 pub mod stack;
 
 pub use api::{
-    check_walks, AlbedoRecord, BatchError, Direction, Engine, Estimator, EvalRecord, EvalStart,
-    LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags, SampleRecord, SetsError,
-    ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Direction, Engine, Estimator,
+    EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags,
+    SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
 };
 pub use estimator::pdf::{PdfEstimate, PdfKind};
 pub use estimator::{Albedo, Estimate, Settings};
-pub use stack::{LayerStack, MaterialDesc, MaterialError, Shape, StackError};
+pub use stack::{LayerStack, MaterialDesc, MaterialError, SetError, SetPath, Shape, StackError};

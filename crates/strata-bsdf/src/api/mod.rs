@@ -12,6 +12,7 @@
 //! * [`slices`]: the batch forms over flat slices a renderer keeps (SoA or
 //!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
 
+mod columns;
 mod error;
 mod materials;
 mod sets;
@@ -19,6 +20,7 @@ pub mod slices;
 mod strategy;
 mod transport;
 
+pub use columns::{Column, ColumnsError};
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };

@@ -1,0 +1,158 @@
+//! Per-query parameters as columns: the form a renderer's textures take.
+//!
+//! A renderer that looks up a thickness map and an absorption map at every
+//! hit has, per parameter, one array with a value (or an RGB triple) per
+//! query. [`Materials::per_query`] turns such columns into one material per
+//! query: the BSDF's stack with row `k` of every column set through
+//! [`LayerStack::with_set`], so query `k` answers bit for bit what a material
+//! file with those values answers. This is the one implementation behind the
+//! C ABI's and the Python module's per-query arrays.
+
+use super::{LayeredBsdf, Materials};
+use crate::stack::{LayerStack, SetError, SetPath};
+use serde_json::Value;
+use std::fmt;
+
+/// One parameter's values, `width` floats per query (1 for a number, 3 for
+/// an RGB triple or a normal), query after query.
+#[derive(Clone, Copy, Debug)]
+pub struct Column<'a> {
+    /// The parameter, e.g. `layers[0].medium.thickness`.
+    pub path: &'a SetPath,
+    /// Floats per query: 1, or 3 for the fields that take triples.
+    pub width: usize,
+    /// `width × queries` values.
+    pub values: &'a [f32],
+}
+
+/// Columns that cannot make the queries' materials.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColumnsError {
+    /// A column whose width is not 1 or 3, or whose length is not `width ×
+    /// queries`.
+    Length {
+        /// The column's path.
+        path: String,
+        /// Its width.
+        width: usize,
+        /// Its number of values.
+        len: usize,
+        /// The number of queries.
+        queries: usize,
+    },
+    /// Query `query`'s values do not make a valid material (the error names
+    /// the path, the value and, for an invalid material, the layer and field).
+    Query {
+        /// The query's index.
+        query: usize,
+        /// What is wrong.
+        error: SetError,
+    },
+}
+
+impl fmt::Display for ColumnsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ColumnsError::Length {
+                path,
+                width,
+                len,
+                queries,
+            } if *width == 1 || *width == 3 => write!(
+                f,
+                "`{path}`: {len} values for {queries} queries of width {width} \
+                 (expected {})",
+                width * queries
+            ),
+            ColumnsError::Length { path, width, .. } => write!(
+                f,
+                "`{path}`: width {width}; a column has 1 value per query, or 3 (an RGB triple, a normal)"
+            ),
+            ColumnsError::Query { query, error } => write!(f, "query {query}: {error}"),
+        }
+    }
+}
+
+impl std::error::Error for ColumnsError {}
+
+impl Materials {
+    /// One material per query, `queries` of them: `template`'s stack with
+    /// row `k` of every column as query `k`'s values, answered with
+    /// `template`'s configuration (see [`Materials::new`]). Query `k` of a
+    /// batch call then passes material `k` (see [`Materials::identity`]).
+    ///
+    /// Every row is checked before anything runs: the first query whose
+    /// values are invalid is an error naming it, and no material is built
+    /// (a renderer clamps its textures, or drops the query and retries the
+    /// rest; nothing is answered silently for it).
+    ///
+    /// ```
+    /// use strata_bsdf::{Column, LayerStack, LayeredBsdf, Materials};
+    /// let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(
+    ///     "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
+    ///      medium = { thickness = 1, sigma_t = 0.5 }\n\
+    ///      [[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.8 }\n",
+    /// ).unwrap());
+    /// let path = "layers[0].medium.thickness".parse().unwrap();
+    /// let thickness = [0.1, 0.5, 2.0];
+    /// let m = Materials::per_query(&bsdf, 3, &[Column { path: &path, width: 1, values: &thickness }]).unwrap();
+    /// assert_eq!(m.len(), 3);
+    /// let bad = [0.1, -1.0, 2.0];
+    /// let e = Materials::per_query(&bsdf, 3, &[Column { path: &path, width: 1, values: &bad }]).unwrap_err();
+    /// assert!(e.to_string().starts_with("query 1: "), "{e}");
+    /// ```
+    pub fn per_query(
+        template: &LayeredBsdf,
+        queries: usize,
+        columns: &[Column],
+    ) -> Result<Materials, ColumnsError> {
+        for c in columns {
+            if !(c.width == 1 || c.width == 3) || c.values.len() != c.width * queries {
+                return Err(ColumnsError::Length {
+                    path: c.path.to_string(),
+                    width: c.width,
+                    len: c.values.len(),
+                    queries,
+                });
+            }
+        }
+        let stacks = (0..queries)
+            .map(|k| query_stack(template.stack(), columns, k))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Materials::new(template, stacks))
+    }
+
+    /// `0, 1, …, n − 1`: the material indices of a batch whose query `k`
+    /// runs on material `k` (as [`Materials::per_query`] builds them).
+    pub fn identity(n: usize) -> Vec<u32> {
+        (0..n as u32).collect()
+    }
+}
+
+/// `base` with query `k`'s row of every column.
+fn query_stack(
+    base: &LayerStack,
+    columns: &[Column],
+    k: usize,
+) -> Result<LayerStack, ColumnsError> {
+    let mut set: Vec<(SetPath, Value)> = Vec::with_capacity(columns.len());
+    for c in columns {
+        let row = &c.values[k * c.width..(k + 1) * c.width];
+        if let Some(x) = row.iter().find(|x| !x.is_finite()) {
+            // JSON has no NaN: said here, before it would become `null`.
+            let error = SetError::Value {
+                path: c.path.to_string(),
+                value: x.to_string(),
+                problem: "not a finite number".into(),
+            };
+            return Err(ColumnsError::Query { query: k, error });
+        }
+        let value = match row {
+            [x] => Value::from(*x as f64),
+            _ => Value::from(row.iter().map(|&x| x as f64).collect::<Vec<_>>()),
+        };
+        set.push((c.path.clone(), value));
+    }
+    base.with_set(&set)
+        .map_err(|error| ColumnsError::Query { query: k, error })
+}
