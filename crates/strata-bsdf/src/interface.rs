@@ -17,7 +17,7 @@
 
 use crate::fresnel;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
-use crate::math::sample_cosine_hemisphere;
+use crate::math::{sample_cosine_hemisphere, Frame};
 use crate::microfacet::Microfacet;
 
 /// One interface per lane.
@@ -43,6 +43,11 @@ pub struct InterfaceLanes<L: Lane> {
     pub k: Rgb<L>,
     /// Lambertian albedo.
     pub albedo: Rgb<L>,
+    /// Shading normal, in the slab's frame (z where untilted).
+    pub normal: V3<L>,
+    /// Some lane's normal is tilted: the frame change runs. Off, the
+    /// interface runs exactly the untilted code.
+    pub tilted: bool,
     /// Run every code path whatever the lanes need: the unspecialized walk
     /// that benchmarks compare against. Results are identical, only slower.
     /// (Normally a kind's code runs only if some lane is of that kind, and
@@ -92,6 +97,8 @@ impl<L: Lane> InterfaceLanes<L> {
             eta: rgb(&|t| t.eta),
             k: rgb(&|t| t.k),
             albedo: rgb(&|t| t.albedo),
+            normal: V3::new(v(&|t| t.normal.x), v(&|t| t.normal.y), v(&|t| t.normal.z)),
+            tilted: table.iter().any(|t| t.tilted),
             run_all: table.iter().any(|t| t.run_all),
         }
     }
@@ -117,6 +124,8 @@ impl<L: Lane> InterfaceLanes<L> {
             eta: rgb(a.eta, b.eta),
             k: rgb(a.k, b.k),
             albedo: rgb(a.albedo, b.albedo),
+            normal: V3::select(m, a.normal, b.normal),
+            tilted: a.tilted || b.tilted,
             run_all: a.run_all || b.run_all,
         }
     }
@@ -137,11 +146,126 @@ impl<L: Lane> InterfaceLanes<L> {
         self.n_below / self.n_above
     }
 
+    /// The shading frame; the lanes whose normal is the slab's (`flat`),
+    /// which take their directions as they are, so that they compute
+    /// exactly what an untilted interface computes.
+    #[inline]
+    fn shading(&self) -> (Frame<L>, L::Mask) {
+        let zero = L::zero();
+        let flat = self.normal.x.eq(zero) & self.normal.y.eq(zero);
+        (Frame::around(self.normal), flat)
+    }
+
+    /// `d` in the shading frame, and the lanes where it lies on the same
+    /// side of the shading normal as of the slab's (the others carry no
+    /// light: method.md §8).
+    #[inline]
+    fn to_shading(f: &Frame<L>, flat: L::Mask, d: V3<L>) -> (V3<L>, L::Mask) {
+        let dl = V3::select(flat, d, f.to_local(d));
+        (dl, flat | (dl.z * d.z).gt(L::zero()))
+    }
+
     /// Samples `b` given `a`. `transmit_only` lanes sample the refraction lobe
     /// alone (used to enter a stack and for next-event estimation); their
     /// weight then includes the `1 - F` the selection would have removed.
+    ///
+    /// A tilted interface samples in its shading frame; a lane whose `a` or
+    /// `b` lies on the other side of the shading normal than of the slab's
+    /// normal produces nothing (method.md §8). The weight is the shading
+    /// frame's `f |b'.z| / pdf`.
     #[inline]
     pub fn sample(
+        &self,
+        a: V3<L>,
+        u_select: L,
+        u1: L,
+        u2: L,
+        transmit_only: L::Mask,
+    ) -> BsdfSample<L> {
+        if !self.tilted {
+            return self.sample_local(a, u_select, u1, u2, transmit_only);
+        }
+        let (f, flat) = self.shading();
+        let (al, front) = Self::to_shading(&f, flat, a);
+        let s = self.sample_local(al, u_select, u1, u2, transmit_only);
+        let b = V3::select(flat, s.b, f.to_world(s.b));
+        let agree = flat | (s.b.z * b.z).gt(L::zero());
+        let valid = s.valid & front & agree;
+        BsdfSample {
+            b,
+            weight: Rgb::select(front & agree, s.weight, Rgb::zero()),
+            valid,
+            ..s
+        }
+    }
+
+    /// The radiance BSDF `f(a → b)` without the cosine, delta lobes excluded.
+    /// A tilted interface's is its shading frame's `f(a' → b') |b'.z| /
+    /// |b.z|` (so that `f |b.z|` is the shading frame's `f |b'.z|`), 0 where
+    /// `a` or `b` lies on the other side of the shading normal.
+    #[inline]
+    pub fn eval(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
+        if !self.tilted {
+            return self.eval_local(a, b);
+        }
+        let (f, flat) = self.shading();
+        let (al, front) = Self::to_shading(&f, flat, a);
+        let (bl, agree) = Self::to_shading(&f, flat, b);
+        let ok = front & agree;
+        let c = L::div_or_zero(bl.z.abs(), b.z.abs(), ok & b.z.abs().gt(L::zero()));
+        let c = L::select(flat, L::one(), c);
+        Rgb::select(ok, self.eval_local(al, bl).scale(c), Rgb::zero())
+    }
+
+    /// The density with which [`InterfaceLanes::sample`] (from `a`, with the
+    /// same `transmit_only` mask) produces `b`; 0 for delta lobes.
+    #[inline]
+    pub fn pdf(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
+        if !self.tilted {
+            return self.pdf_local(a, b, transmit_only);
+        }
+        let (f, flat) = self.shading();
+        let (al, front) = Self::to_shading(&f, flat, a);
+        let (bl, agree) = Self::to_shading(&f, flat, b);
+        L::select(
+            front & agree,
+            self.pdf_local(al, bl, transmit_only),
+            L::zero(),
+        )
+    }
+
+    /// The factor that turns a sample drawn from the side light *leaves*
+    /// along (`depart`) into one of light arriving from `arrive`: Veach's
+    /// shading-normal correction `|depart'.z| |arrive.z| / (|depart.z|
+    /// |arrive'.z|)`, primes in the shading frame; 1 where untilted. The
+    /// adjoint chain applies it, since a tilted interface is not reciprocal.
+    #[inline]
+    pub fn adjoint(&self, depart: V3<L>, arrive: V3<L>) -> L {
+        if !self.tilted {
+            return L::one();
+        }
+        let (f, flat) = self.shading();
+        let (dl, al) = (f.to_local(depart), f.to_local(arrive));
+        let num = dl.z.abs() * arrive.z.abs();
+        let den = depart.z.abs() * al.z.abs();
+        L::select(flat, L::one(), L::div_or_zero(num, den, den.gt(L::zero())))
+    }
+
+    /// `|d.z|` in the shading frame (the slab's `|d.z|` where untilted): the
+    /// cosine a tilted interface's solid-angle Jacobians take.
+    #[inline]
+    pub fn cos_local(&self, d: V3<L>) -> L {
+        if !self.tilted {
+            return d.z.abs();
+        }
+        let (f, flat) = self.shading();
+        Self::to_shading(&f, flat, d).0.z.abs()
+    }
+
+    /// Samples `b` given `a` in the interface's own frame (see
+    /// [`InterfaceLanes::sample`]).
+    #[inline]
+    fn sample_local(
         &self,
         a: V3<L>,
         u_select: L,
@@ -184,7 +308,7 @@ impl<L: Lane> InterfaceLanes<L> {
             let (w_rough, pdf) = if any_rough {
                 (
                     self.rough_weight(a, b, m_up),
-                    L::select(rough, self.pdf(a, b, transmit_only), zero),
+                    L::select(rough, self.pdf_local(a, b, transmit_only), zero),
                 )
             } else {
                 (L::one(), zero)
@@ -204,7 +328,7 @@ impl<L: Lane> InterfaceLanes<L> {
             let (w_rough, pdf) = if any_rough {
                 (
                     self.rough_weight(a, b, m),
-                    L::select(rough, self.pdf(a, b, transmit_only), zero),
+                    L::select(rough, self.pdf_local(a, b, transmit_only), zero),
                 )
             } else {
                 (L::one(), zero)
@@ -277,9 +401,9 @@ impl<L: Lane> InterfaceLanes<L> {
         (h, ok)
     }
 
-    /// The radiance BSDF `f(a → b)` without the cosine, delta lobes excluded.
+    /// The radiance BSDF `f(a → b)` in the interface's own frame.
     #[inline]
-    pub fn eval(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
+    fn eval_local(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
         let zero = L::zero();
         let rough = !self.smooth;
         let reflection = (a.z * b.z).gt(zero);
@@ -328,10 +452,9 @@ impl<L: Lane> InterfaceLanes<L> {
         f
     }
 
-    /// The density with which [`InterfaceLanes::sample`] (from `a`, with the
-    /// same `transmit_only` mask) produces `b`; 0 for delta lobes.
+    /// The density of `b` given `a` in the interface's own frame.
     #[inline]
-    pub fn pdf(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
+    fn pdf_local(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
         let zero = L::zero();
         let rough = !self.smooth;
         let reflection = (a.z * b.z).gt(zero);

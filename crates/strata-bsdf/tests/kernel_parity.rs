@@ -584,6 +584,10 @@ struct IfIn {
     b: [f32; 3],
     u: [f32; 3],
     transmit_only: bool,
+    /// The shading normal: the slab's `[0, 0, 1]` half of the time, so
+    /// that vectors mix untilted lanes into tilted interfaces (which must
+    /// give what the untilted code gives).
+    normal: [f32; 3],
 }
 
 fn interface<L: Lane>(x: &[IfIn]) -> InterfaceLanes<L> {
@@ -598,6 +602,8 @@ fn interface<L: Lane>(x: &[IfIn]) -> InterfaceLanes<L> {
         eta: rgb(x, |t| t.eta),
         k: rgb(x, |t| t.k),
         albedo: rgb(x, |t| t.albedo),
+        normal: v3(x, |t| t.normal),
+        tilted: x.iter().any(|t| t.normal != [0.0, 0.0, 1.0]),
         run_all: false,
     }
 }
@@ -677,6 +683,13 @@ fn interface_inputs(g: &mut Gen, n: usize) -> Vec<IfIn> {
             b,
             u: [g.uniform(), g.uniform(), g.uniform()],
             transmit_only: g.coin(0.3),
+            normal: if g.coin(0.5) {
+                [0.0, 0.0, 1.0]
+            } else {
+                let (x, y) = (g.uniform() - 0.5, g.uniform() - 0.5);
+                let l = (x * x + y * y + 1.0).sqrt();
+                [x / l, y / l, 1.0 / l]
+            },
         });
     }
     v

@@ -90,6 +90,8 @@ fn base<L: Lane>(mf: Microfacet<L>) -> InterfaceLanes<L> {
         eta: Rgb::splat(L::one()),
         k: Rgb::zero(),
         albedo: Rgb::zero(),
+        normal: V3::z_axis(),
+        tilted: false,
         run_all: false,
     }
 }
@@ -516,5 +518,71 @@ fn henyey_greenstein() {
         }
         .check(alpha());
         eprintln!("HG {g}: {r:?}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Tilted shading normals
+// ---------------------------------------------------------------------------
+
+#[test]
+fn tilted_interfaces() {
+    // The sampler's histogram against the pdf of the tilted interface: the
+    // shading frame's density where both directions lie on the slab's side
+    // of the shading normal, 0 elsewhere (method.md §8).
+    let tilt = |l: &mut InterfaceLanes<f32>, m: &mut InterfaceLanes<f64>| {
+        let n = [0.35f32, -0.2, 0.915];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let n = n.map(|x| x / len);
+        l.normal = V3::new(n[0], n[1], n[2]);
+        m.normal = V3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+        l.tilted = true;
+        m.tilted = true;
+    };
+    let mut cases = Vec::new();
+    for (k, inc) in [Inc::Theta(30.0, 0.0), Inc::Theta(70.0, -10.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let mut d32 = dielectric::<f32>(1.0, 1.5, microfacet(0.3, 0.3, false));
+        let mut d64 = dielectric::<f64>(1.0, 1.5, microfacet(0.3, 0.3, false));
+        tilt(&mut d32, &mut d64);
+        let mut c32 = conductor::<f32>(microfacet(0.2, 0.4, false));
+        let mut c64 = conductor::<f64>(microfacet(0.2, 0.4, false));
+        tilt(&mut c32, &mut c64);
+        cases.push((
+            format!("tilted dielectric from {inc:?}"),
+            d32,
+            d64,
+            inc,
+            400 + k as u64,
+        ));
+        cases.push((
+            format!("tilted conductor from {inc:?}"),
+            c32,
+            c64,
+            inc,
+            410 + k as u64,
+        ));
+    }
+    for (name, i32, i64, inc, seed) in cases {
+        let a32 = v32(inc.dir(false));
+        let a64 = v64(a32);
+        let sampler = move |u: [f32; 4]| {
+            let s = i32.sample(a32, u[0], u[1], u[2], false);
+            s.valid.then(|| arr(s.b))
+        };
+        let pdf = move |b: [f64; 3]| i64.pdf(a64, from_arr(b), false);
+        let r = Fit {
+            name: name.clone(),
+            grid: GRID,
+            samples: SAMPLES,
+            seed,
+            sampler: &sampler,
+            pdf: &pdf,
+            cos_breaks: vec![],
+        }
+        .check(alpha());
+        eprintln!("{name}: {r:?}");
     }
 }

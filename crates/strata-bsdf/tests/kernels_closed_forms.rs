@@ -122,6 +122,8 @@ impl Iface {
             eta: Rgb::one(),
             k: Rgb::zero(),
             albedo: Rgb::zero(),
+            normal: V3::z_axis(),
+            tilted: false,
             run_all: false,
         };
         match self.kind {

@@ -426,15 +426,31 @@ fn any_distribution() -> impl Strategy<Value = (Distribution, Shadowing)> {
     })
 }
 
+/// Mostly untilted; sometimes a tilted normal, now and then one that points
+/// down or has zero length (errors).
+fn any_normal() -> impl Strategy<Value = Option<[f64; 3]>> {
+    prop_oneof![
+        4 => Just(None),
+        2 => (field(-1.0, 1.0), field(-1.0, 1.0), field(-0.2, 1.0)).prop_map(|(x, y, z)| Some([x, y, z])),
+    ]
+}
+
 fn dielectric() -> impl Strategy<Value = InterfaceDesc> {
-    (field(1.0, 3.0), any_roughness(), any_distribution()).prop_map(
-        |(ior, roughness, (distribution, shadowing))| InterfaceDesc::Dielectric {
-            ior,
-            roughness,
-            distribution,
-            shadowing,
-        },
+    (
+        field(1.0, 3.0),
+        any_roughness(),
+        any_distribution(),
+        any_normal(),
     )
+        .prop_map(|(ior, roughness, (distribution, shadowing), normal)| {
+            InterfaceDesc::Dielectric {
+                ior,
+                roughness,
+                distribution,
+                shadowing,
+                normal,
+            }
+        })
 }
 
 fn conductor() -> impl Strategy<Value = InterfaceDesc> {
@@ -446,14 +462,17 @@ fn conductor() -> impl Strategy<Value = InterfaceDesc> {
         1 => (prop::option::of(presets), prop::option::of(rgb(0.05, 3.0)), prop::option::of(rgb(0.0, 10.0)))
             .prop_map(|(p, e, k)| (p.map(String::from), e, k)),
     ];
-    (spec, any_roughness(), any_distribution()).prop_map(
-        |((preset, eta, k), roughness, (distribution, shadowing))| InterfaceDesc::Conductor {
-            preset,
-            eta,
-            k,
-            roughness,
-            distribution,
-            shadowing,
+    (spec, any_roughness(), any_distribution(), any_normal()).prop_map(
+        |((preset, eta, k), roughness, (distribution, shadowing), normal)| {
+            InterfaceDesc::Conductor {
+                preset,
+                eta,
+                k,
+                roughness,
+                distribution,
+                shadowing,
+                normal,
+            }
         },
     )
 }
@@ -483,7 +502,7 @@ fn any_material() -> impl Strategy<Value = MaterialDesc> {
     let last = prop_oneof![
         2 => dielectric(),
         2 => conductor(),
-        1 => rgb(0.0, 1.0).prop_map(|albedo| InterfaceDesc::Diffuse { albedo }),
+        1 => (rgb(0.0, 1.0), any_normal()).prop_map(|(albedo, normal)| InterfaceDesc::Diffuse { albedo, normal }),
     ];
     let upper = prop_oneof![8 => dielectric(), 1 => conductor()];
     (

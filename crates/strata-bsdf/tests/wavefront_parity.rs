@@ -25,7 +25,8 @@ use strata_bsdf::{LayerStack, PdfKind, Settings};
 
 /// Every interface kind (smooth and rough, GGX and Beckmann, isotropic and
 /// anisotropic), every medium kind (clear, absorbing, scattering; grey and
-/// chromatic), reflection and transmission, a two-sided opaque stack.
+/// chromatic), reflection and transmission, a two-sided opaque stack, and
+/// tilted shading normals.
 const STACKS: &[(&str, &str)] = &[
     (
         "clear coat over Lambertian",
@@ -99,6 +100,29 @@ const STACKS: &[(&str, &str)] = &[
         medium = { thickness = 10.0, sigma_t = 1.0, albedo = 0.99, phase = { kind = "hg", g = 0.2 } }
         [[layers]]
         interface = { kind = "conductor", preset = "Al", roughness = 0.4 }
+        "#,
+    ),
+    (
+        "tilted normals: smooth coat, scattering layer, rough inner interface, rough gold; two-sided",
+        r#"
+        two_sided = true
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, normal = [0.2, 0.1, 1] }
+        medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 1.5], albedo = 0.8, phase = { kind = "hg", g = 0.4 } }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.3, roughness = 0.2, normal = [-0.3, 0.0, 1] }
+        [[layers]]
+        interface = { kind = "conductor", preset = "Au", roughness = [0.1, 0.3], normal = [0.0, 0.25, 1] }
+        "#,
+    ),
+    (
+        "tilted normals: rough transmissive slab",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.4, roughness = 0.3, normal = [0.15, -0.1, 1] }
+        medium = { thickness = 1.0, sigma_t = 1.0, albedo = 0.9 }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.0, normal = [0.0, 0.3, 1] }
         "#,
     ),
 ];

@@ -194,7 +194,7 @@ fn varied(stack: &LayerStack, k: u64) -> LayerStack {
                     Roughness::Anisotropic(a) => Roughness::Anisotropic(a.map(|x| x * f)),
                 };
             }
-            InterfaceDesc::Diffuse { albedo } => *albedo = scale(*albedo, 0.8 + 0.2 * u(i)),
+            InterfaceDesc::Diffuse { albedo, .. } => *albedo = scale(*albedo, 0.8 + 0.2 * u(i)),
         }
         if let Some(m) = &mut layer.medium {
             m.thickness *= 0.5 + u(i + 1);

@@ -482,6 +482,7 @@ impl LayeredBsdf {
     /// directions (and the seed), and the number [`Sample::pdf`] carries is
     /// the one a later `pdf` call gives, whatever the length of the vectors.
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
+        self.check_flow()?;
         Ok(self.pdf_validated(Per::OWN, &directions2(pairs)?))
     }
 
@@ -512,6 +513,27 @@ impl LayeredBsdf {
 
     // ------------------------------------ the batch calls' checks, for any `per`
 
+    /// Whether the BSDF's walks serve a sample, pdf or albedo call: they
+    /// follow the radiance flow, which is also importance's only where the
+    /// stack is reciprocal (untilted).
+    pub(super) fn check_flow(&self) -> Result<(), BatchError> {
+        if self.shape.tilted() && self.transport == Transport::Importance {
+            return Err(BatchError::call(QueryError::NotReciprocal));
+        }
+        Ok(())
+    }
+
+    /// Whether the walks of a query `(a, b)` start from `b`: as `eval_start`
+    /// says on a reciprocal stack; on a tilted one, exactly in importance
+    /// mode (the adjoint `f*(a → b)` is the radiance `f(b → a)`).
+    fn swaps(&self, a_z: f64, b_z: f64) -> bool {
+        if self.shape.tilted() {
+            self.transport == Transport::Importance
+        } else {
+            self.eval_start.swaps(a_z, b_z)
+        }
+    }
+
     /// Eval after checking the directions, keys and walk count.
     pub(super) fn eval_checked(
         &self,
@@ -534,6 +556,7 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
+        self.check_flow()?;
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
@@ -547,6 +570,7 @@ impl LayeredBsdf {
         pairs: &[(Vec3, Vec3)],
         samples: u64,
     ) -> Result<Vec<PdfEstimate>, BatchError> {
+        self.check_flow()?;
         let dirs = directions2(pairs)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
         Ok(self.pdf_unbiased_validated(per, &dirs, samples))
@@ -560,6 +584,7 @@ impl LayeredBsdf {
         n: u64,
         keys: &[u64],
     ) -> Result<Vec<Albedo>, BatchError> {
+        self.check_flow()?;
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         check_walks("n", n).map_err(BatchError::call)?;
@@ -603,12 +628,12 @@ impl LayeredBsdf {
         // Each query's walks start from the side `eval_start` chooses.
         let walked = |k: usize| {
             let ((a, b), key) = query(k);
-            let s = self.eval_start.swaps(a[2], b[2]);
+            let s = self.swaps(a[2], b[2]);
             (if s { (b, a) } else { (a, b) }, key)
         };
         let finish = |k: usize, e: Estimate| {
             let ((a, b), _) = query(k);
-            let swapped = self.eval_start.swaps(a[2], b[2]);
+            let swapped = self.swaps(a[2], b[2]);
             out(k, self.scaled(self.stack_in(per, k), e, a, b, swapped));
         };
         let serial = self.serial();
@@ -631,7 +656,7 @@ impl LayeredBsdf {
         if let (Estimator::Auto, Some(exact)) = (self.estimator, self.exact_in(per, k)) {
             return self.exact_eval(stack, exact, a, b, samples);
         }
-        let s = self.eval_start.swaps(a[2], b[2]);
+        let s = self.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
         let e = self.scalar_in(per, k).eval(x, y, samples, self.seed, key);
         self.scaled(stack, e, a, b, s)

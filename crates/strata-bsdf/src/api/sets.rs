@@ -278,6 +278,7 @@ impl LayeredBsdf {
         set: &[u32],
         pairs: &[(Vec3, Vec3)],
     ) -> Result<Vec<f32>, BatchError> {
+        self.check_flow()?;
         let per = self.check_sets(sets, set, pairs.len())?;
         Ok(self.pdf_validated(per, &directions2(pairs)?))
     }

@@ -66,7 +66,9 @@ impl SmoothCoatLambertian {
     /// does not scatter it is the whole BSDF. `None` for other stacks, and
     /// under a depth cap (which truncates these paths too).
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        if stack.len() != 2 || settings.max_depth.is_some() {
+        // A tilted normal breaks the closed form's planar geometry.
+        let tilted = stack.interfaces().iter().any(|i| i.tilted());
+        if stack.len() != 2 || settings.max_depth.is_some() || tilted {
             return None;
         }
         let (coat, base) = (stack.interface(0), stack.interface(1));

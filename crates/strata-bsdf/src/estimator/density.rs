@@ -182,12 +182,14 @@ impl<L: Lane> Target<L> {
 
 /// How a delta event at `it` from `a` to `b` changes a density of
 /// directions: the solid-angle ratio `dω_a / dω_b` of a refraction,
-/// `(n_b² |cos b|) / (n_a² |cos a|)`; 1 for a reflection.
+/// `(n_b² |cos b|) / (n_a² |cos a|)`, cosines in the interface's shading
+/// frame; 1 for a reflection.
 fn refraction_jacobian<L: Lane>(it: &InterfaceLanes<L>, a: V3<L>, b: V3<L>) -> L {
     let refracted = (a.z * b.z).lt(L::zero());
     let (n_a, n_b) = it.sides(a);
-    let ok = refracted & (n_a * a.z).abs().gt(L::zero());
-    let j = L::div_or_zero(n_b * n_b * b.z.abs(), n_a * n_a * a.z.abs(), ok);
+    let (ca, cb) = (it.cos_local(a), it.cos_local(b));
+    let ok = refracted & (n_a * ca).gt(L::zero());
+    let j = L::div_or_zero(n_b * n_b * cb, n_a * n_a * ca, ok);
     L::select(refracted, j, L::one())
 }
 

@@ -3,23 +3,47 @@
 use crate::stack::LayerStack;
 
 /// A query after orientation: directions in the stack's frame with the top
-/// facing `+z`, and whether they were mirrored (two-sided opaque stacks).
+/// facing `+z`, and whether they were turned over (two-sided opaque stacks).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Oriented {
-    /// The incident direction, mirrored if `flipped`.
+    /// The incident direction, turned over if `flipped`.
     pub wi: [f64; 3],
-    /// The query was mirrored in z.
+    /// The query was turned over: mirrored in z, or (a stack with tilted
+    /// normals, whose mirror image would tilt them the other way) negated.
+    /// For an untilted stack the two are the same BSDF, which is symmetric
+    /// under the half turn about z that tells them apart.
     pub flipped: bool,
+    /// Turning over negates every component.
+    negates: bool,
 }
 
 impl Oriented {
-    /// Applies the same mirroring to another direction.
+    /// Applies the same turning over to another direction (its own inverse).
     pub fn apply(&self, mut w: [f64; 3]) -> [f64; 3] {
         if self.flipped {
             w[2] = -w[2];
+            if self.negates {
+                w[0] = -w[0];
+                w[1] = -w[1];
+            }
         }
         w
     }
+}
+
+/// `w` turned over as [`orient`] turns a query on `stack` over (for
+/// results in single precision).
+pub fn turned_over(stack: &LayerStack, w: [f32; 3]) -> [f32; 3] {
+    let o = Oriented {
+        wi: [0.0; 3],
+        flipped: true,
+        negates: tilted(stack),
+    };
+    o.apply(w.map(f64::from)).map(|x| x as f32)
+}
+
+fn tilted(stack: &LayerStack) -> bool {
+    stack.interfaces().iter().any(|i| i.tilted())
 }
 
 /// Directions closer to the horizon than this (`|cos θ| < MIN_COS`) are
@@ -38,13 +62,18 @@ pub fn orient(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> Option<
     if wi[2].is_nan() || wi[2].abs() < MIN_COS {
         return None;
     }
-    let mut o = Oriented { wi, flipped: false };
+    let negates = tilted(stack);
+    let mut o = Oriented {
+        wi,
+        flipped: false,
+        negates,
+    };
     if wi[2] < 0.0 && !stack.transmissive() {
         if !stack.two_sided() {
             return None;
         }
-        o.wi[2] = -wi[2];
         o.flipped = true;
+        o.wi = o.apply(wi);
     }
     if let Some(wo) = wo {
         let wo = o.apply(wo);

@@ -15,7 +15,7 @@ use super::layout::MediumLanes;
 use super::wavefront::walks::load16;
 use super::Settings;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES};
+use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::microfacet::Microfacet;
 use crate::stack::LayerStack;
 
@@ -39,7 +39,7 @@ pub struct SetTable {
 }
 
 /// An interface's row: `n_above`, `n_below`, `alpha_x`, `alpha_y`, `eta`
-/// (3), `k` (3), `albedo` (3); three unused.
+/// (3), `k` (3), `albedo` (3), `normal` (3).
 pub const IFACE_ROW: usize = 16;
 
 /// A medium's row: `sigma_t` (3), `albedo` (3), `g`; one unused.
@@ -61,6 +61,9 @@ fn iface_row(t: &InterfaceLanes<f32>) -> [f32; 16] {
         t.albedo.r,
         t.albedo.g,
         t.albedo.b,
+        t.normal.x,
+        t.normal.y,
+        t.normal.z,
     ];
     r[..v.len()].copy_from_slice(&v);
     r
@@ -215,6 +218,7 @@ impl<'a> LaneSets<'a> {
             eta: Rgb::new(f[4], f[5], f[6]),
             k: Rgb::new(f[7], f[8], f[9]),
             albedo: Rgb::new(f[10], f[11], f[12]),
+            normal: V3::new(f[13], f[14], f[15]),
             ..*own
         }
     }

@@ -27,6 +27,11 @@ impl<L: Lane> Frame<L> {
             n,
         }
     }
+    /// World coordinates to local.
+    #[inline]
+    pub fn to_local(&self, v: V3<L>) -> V3<L> {
+        V3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
     /// Local coordinates to world.
     #[inline]
     pub fn to_world(&self, v: V3<L>) -> V3<L> {

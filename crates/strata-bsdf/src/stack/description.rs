@@ -156,6 +156,10 @@ pub enum InterfaceDesc {
         /// Shadowing form.
         #[serde(default)]
         shadowing: Shadowing,
+        /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal: Option<[f64; 3]>,
     },
     /// An opaque conductor; complex IOR relative to vacuum, by preset or value.
     Conductor {
@@ -177,13 +181,32 @@ pub enum InterfaceDesc {
         /// Shadowing form.
         #[serde(default)]
         shadowing: Shadowing,
+        /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal: Option<[f64; 3]>,
     },
     /// An opaque Lambertian reflector.
     Diffuse {
         /// Reflectance per channel.
         #[serde(deserialize_with = "field::albedo")]
         albedo: RgbParam,
+        /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal: Option<[f64; 3]>,
     },
+}
+
+impl InterfaceDesc {
+    /// The shading normal as given (`None`: untilted).
+    pub fn normal(&self) -> Option<[f64; 3]> {
+        match self {
+            InterfaceDesc::Dielectric { normal, .. }
+            | InterfaceDesc::Conductor { normal, .. }
+            | InterfaceDesc::Diffuse { normal, .. } => *normal,
+        }
+    }
 }
 
 /// Phase function of a medium.

@@ -20,7 +20,7 @@ pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};
 
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb};
+use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::microfacet::Microfacet;
 use std::path::Path;
 
@@ -101,6 +101,17 @@ pub struct Interface {
     pub k: [f64; 3],
     /// Diffuse albedo.
     pub albedo: [f64; 3],
+    /// Unit shading normal in the slab's frame; `[0, 0, 1]` when untilted
+    /// (also for an index-matched dielectric, which no normal can make
+    /// visible).
+    pub normal: [f64; 3],
+}
+
+impl Interface {
+    /// Its shading normal is not the slab's.
+    pub fn tilted(&self) -> bool {
+        self.normal != [0.0, 0.0, 1.0]
+    }
 }
 
 /// A validated homogeneous medium.
@@ -170,6 +181,36 @@ fn finite(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> 
     } else {
         Err(StackError::new(layer, field, v, "must be a finite number"))
     }
+}
+
+/// The slab's normal: an untilted interface's shading normal.
+const Z: [f64; 3] = [0.0, 0.0, 1.0];
+
+/// A shading normal as given (`None`: untilted), normalized: finite, of
+/// nonzero length and pointing into the region above (`z > 0`).
+fn shading_normal(layer: Option<usize>, n: Option<[f64; 3]>) -> Result<[f64; 3], StackError> {
+    let Some(n) = n else { return Ok(Z) };
+    let field = "interface.normal";
+    if !n.iter().all(|x| x.is_finite()) {
+        return Err(StackError::new_rgb(layer, field, n, "must be finite"));
+    }
+    // Scaled by the largest component first, so no finite vector overflows.
+    let m = n.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 {
+        return Err(StackError::new_rgb(layer, field, n, "has zero length"));
+    }
+    let s = n.map(|x| x / m);
+    let l = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+    let u = s.map(|x| x / l);
+    if u[2] <= 0.0 {
+        return Err(StackError::new_rgb(
+            layer,
+            field,
+            n,
+            "must point into the region above the interface (z > 0)",
+        ));
+    }
+    Ok(if u[0] == 0.0 && u[1] == 0.0 { Z } else { u })
 }
 
 fn finite_rgb(layer: Option<usize>, field: &str, v: [f64; 3]) -> Result<[f64; 3], StackError> {
@@ -250,12 +291,14 @@ impl LayerStack {
         for (i, layer) in desc.layers.iter().enumerate() {
             let li = Some(i);
             let last = i + 1 == n;
+            let normal = layer.interface.normal();
             let iface = match &layer.interface {
                 InterfaceDesc::Dielectric {
                     ior,
                     roughness: r,
                     distribution,
                     shadowing,
+                    ..
                 } => {
                     let ior = ior_in_range(li, "interface.ior", *ior)?;
                     let (alpha, smooth) = roughness(i, *r)?;
@@ -271,6 +314,11 @@ impl LayerStack {
                         eta: [1.0; 3],
                         k: [0.0; 3],
                         albedo: [0.0; 3],
+                        normal: if matched {
+                            Z
+                        } else {
+                            shading_normal(li, normal)?
+                        },
                     }
                 }
                 InterfaceDesc::Conductor {
@@ -280,6 +328,7 @@ impl LayerStack {
                     roughness: r,
                     distribution,
                     shadowing,
+                    ..
                 } => {
                     if !last {
                         return Err(StackError::msg(
@@ -346,9 +395,10 @@ impl LayerStack {
                         eta: e.map(|x| x / n_above),
                         k: kk.map(|x| x / n_above),
                         albedo: [0.0; 3],
+                        normal: shading_normal(li, normal)?,
                     }
                 }
-                InterfaceDesc::Diffuse { albedo } => {
+                InterfaceDesc::Diffuse { albedo, .. } => {
                     if !last {
                         return Err(StackError::msg(
                             li,
@@ -376,6 +426,7 @@ impl LayerStack {
                         eta: [1.0; 3],
                         k: [0.0; 3],
                         albedo: a,
+                        normal: shading_normal(li, normal)?,
                     }
                 }
             };
@@ -585,6 +636,12 @@ impl LayerStack {
             eta: Rgb::from_array(it.eta),
             k: Rgb::from_array(it.k),
             albedo: Rgb::from_array(it.albedo),
+            normal: V3::new(
+                L::splat(it.normal[0]),
+                L::splat(it.normal[1]),
+                L::splat(it.normal[2]),
+            ),
+            tilted: it.tilted(),
             run_all: false,
         }
     }

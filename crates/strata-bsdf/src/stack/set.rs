@@ -48,6 +48,7 @@ enum InterfaceField {
     Eta,
     K,
     Albedo,
+    Normal,
 }
 
 impl InterfaceField {
@@ -58,6 +59,7 @@ impl InterfaceField {
             InterfaceField::Eta => "eta",
             InterfaceField::K => "k",
             InterfaceField::Albedo => "albedo",
+            InterfaceField::Normal => "normal",
         }
     }
 }
@@ -82,11 +84,11 @@ impl MediumField {
     }
 }
 
-const INTERFACE_FIELDS: &str = "ior, roughness, eta, k, albedo";
+const INTERFACE_FIELDS: &str = "ior, roughness, eta, k, albedo, normal";
 const MEDIUM_FIELDS: &str = "thickness, sigma_t, albedo, phase.g";
 
 /// A path to a numeric parameter of a material, parsed and checked once:
-/// `exterior_ior`, `layers[i].interface.<ior|roughness|eta|k|albedo>` or
+/// `exterior_ior`, `layers[i].interface.<ior|roughness|eta|k|albedo|normal>` or
 /// `layers[i].medium.<thickness|sigma_t|albedo|phase.g>`.
 ///
 /// Whether the path exists in a given material (the layer, the interface's
@@ -153,6 +155,7 @@ impl SetPath {
                 "eta" => InterfaceField::Eta,
                 "k" => InterfaceField::K,
                 "albedo" => InterfaceField::Albedo,
+                "normal" => InterfaceField::Normal,
                 "kind" | "preset" | "distribution" | "shadowing" => return Err(not_numeric(field)),
                 _ => {
                     return Err(bad(format!(
@@ -383,7 +386,7 @@ impl MaterialDesc {
                         ("diffuse", matches!(f, InterfaceField::Albedo))
                     }
                 };
-                if !has {
+                if !has && f != InterfaceField::Normal {
                     return Err(missing(format!(
                         "layer {layer}'s interface is a {kind}, which has no `{}`",
                         f.name()

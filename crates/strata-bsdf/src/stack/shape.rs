@@ -10,7 +10,7 @@
 //! parameters may all differ: the engines take those per query
 //! (`LayeredBsdf::eval_batch_sets`). A value that changes the shape (a
 //! roughness of 0 on a rough interface, an IOR that matches the region
-//! above, a single-scattering albedo of 0 in a scattering layer) gives a
+//! above, a tilted normal on an untilted interface or back, a single-scattering albedo of 0 in a scattering layer) gives a
 //! stack of another shape, which an engine of this one does not run.
 
 use super::{Distribution, InterfaceKind, LayerStack, Medium, Shadowing};
@@ -55,6 +55,8 @@ pub struct InterfaceShape {
     pub distribution: Distribution,
     /// Shadowing form.
     pub shadowing: Shadowing,
+    /// Its shading normal is tilted (the frame change runs).
+    pub tilted: bool,
 }
 
 /// The shape of one layer: its medium's class, if it has one.
@@ -83,6 +85,12 @@ pub struct Shape {
 }
 
 impl Shape {
+    /// Some interface has a tilted shading normal: the stack's BSDF is then
+    /// not reciprocal (method.md §8), so no engine may use reciprocity.
+    pub fn tilted(&self) -> bool {
+        self.interfaces.iter().any(|i| i.tilted)
+    }
+
     /// The first difference from `other`, in words (`None` if the shapes
     /// are the same), for errors that say why a parameter set does not fit.
     pub fn difference(&self, other: &Shape) -> Option<String> {
@@ -123,6 +131,7 @@ impl LayerStack {
                     smooth: it.smooth,
                     distribution: it.distribution,
                     shadowing: it.shadowing,
+                    tilted: it.tilted(),
                 })
                 .collect(),
             layers: (self.media.iter())

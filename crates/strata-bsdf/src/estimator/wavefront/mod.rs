@@ -1000,10 +1000,11 @@ impl<W: Wide> Wavefront<W> {
                 }
                 next = q + 1;
                 let s = o.exited.then(|| {
-                    let mut d = o.dir;
-                    if queries.flipped[q] {
-                        d[2] = -d[2];
-                    }
+                    let d = if queries.flipped[q] {
+                        super::orient::turned_over(&self.stack, o.dir)
+                    } else {
+                        o.dir
+                    };
                     WalkSample {
                         wo: glam::Vec3::from(d),
                         weight: o.value,
