@@ -8,6 +8,10 @@
 //! layout of `wi`. Each batch runs with the GIL released, through the
 //! library's slice calls ([`LayeredBsdf::eval_into`] and the others), so the
 //! numbers are bit for bit those of the Rust API for the same seed and keys.
+//! With `params` (per-query parameter arrays, e.g. a texture's values at
+//! every hit) a batch runs through [`Materials::per_query`] instead, query
+//! `k` on the material with row `k`'s values (one helper, `Bsdf::run`, for
+//! every method).
 
 use glam::Vec3;
 use numpy::prelude::*;
