@@ -346,9 +346,29 @@ impl From<BatchError> for CallError {
 }
 
 impl CallError {
-    fn into_py(self, py: Python<'_>) -> PyErr {
+    /// The Python exception, `params` being the call's parameters.
+    fn into_py(self, py: Python<'_>, params: &[Param<'_>]) -> PyErr {
         match self {
             CallError::Batch(e) => batch_err(py, e),
+            // Finite numbers the field's deserializer refuses: a triple for a
+            // field of one number (or the reverse), whatever the values.
+            CallError::Columns(ColumnsError::Query {
+                query,
+                error: error @ SetError::Value { .. },
+            }) if shape_fault(params, &error, query).is_some() => {
+                let p = shape_fault(params, &error, query).expect("checked");
+                let shape = shape_text(p.values.shape());
+                let per = if p.width == 3 {
+                    "a triple per query"
+                } else {
+                    "one number per query"
+                };
+                PyValueError::new_err(format!(
+                    "params[\"{}\"] has shape {shape} ({per}), which this field does not take: \
+                     {error}",
+                    p.path
+                ))
+            }
             // A path this material does not have (a layer, a field of its
             // interface's kind, a medium), or one path twice: the whole
             // call's fault, whatever the values.
@@ -368,6 +388,22 @@ impl CallError {
             CallError::Columns(e) => PyValueError::new_err(format!("params: {e}")),
         }
     }
+}
+
+/// The parameter of a [`SetError::Value`] at `query` if that query's values
+/// of it are finite (then the width is at fault, not the values).
+fn shape_fault<'a, 'py>(
+    params: &'a [Param<'py>],
+    error: &SetError,
+    query: usize,
+) -> Option<&'a Param<'py>> {
+    let SetError::Value { path, .. } = error else {
+        return None;
+    };
+    let p = params.iter().find(|p| p.path.to_string() == *path)?;
+    let values = p.values.as_slice().ok()?;
+    let row = values.get(query * p.width..(query + 1) * p.width)?;
+    row.iter().all(|x| x.is_finite()).then_some(p)
 }
 
 fn f32x3(v: [f64; 3]) -> [f32; 3] {
@@ -557,7 +593,7 @@ impl Bsdf {
             };
             Ok(call(&answerer)?)
         })
-        .map_err(|e: CallError| e.into_py(py))
+        .map_err(|e: CallError| e.into_py(py, params))
     }
 }
 

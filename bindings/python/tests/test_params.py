@@ -183,8 +183,16 @@ def test_bad_params_name_the_path_and_shape(p, exc, words):
             assert w in str(e.value), (method, w, str(e.value))
 
 
-def test_triple_for_a_number_names_path_and_value():
+@pytest.mark.parametrize("method", METHODS)
+def test_triple_for_a_number_names_path_and_shape(method):
     with pytest.raises(ValueError) as e:
-        call("eval", {TH: np.ones((4, 3), np.float32)})
+        call(method, {TH: np.ones((4, 3), np.float32)})
     msg = str(e.value)
-    assert "layers[0].medium.thickness" in msg and "[1.0,1.0,1.0]" in msg, msg
+    assert msg.startswith('params["layers[0].medium.thickness"] has shape (4, 3) (a triple per query)'), msg
+    assert "[1.0,1.0,1.0]" in msg and not isinstance(e.value, QueryError), msg
+    # A non-finite triple is the query's fault, named as such.
+    v = np.ones((4, 3), np.float32)
+    v[2, 1] = np.inf
+    with pytest.raises(QueryError) as e:
+        call(method, {"layers[0].medium.sigma_t": v})
+    assert str(e.value).startswith("query 2: set `layers[0].medium.sigma_t` = inf"), str(e.value)
