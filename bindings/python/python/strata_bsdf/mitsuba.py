@@ -267,12 +267,16 @@ class _Param:
         self.key = key
         self.path = key[len("param:"):].replace(":", ".")
         self.texture = texture
-        m = texture.mean()
+        self.refresh()
+        self.width = _param_width(bsdf, key, self.path, self.mean)
+
+    def refresh(self):
+        """Re-reads the texture's mean (after a change through mi.traverse)."""
+        m = self.texture.mean()
         try:
             self.mean = float(m)
         except TypeError:  # a JIT variant's Float of width 1
             self.mean = float(m[0])
-        self.width = _param_width(bsdf, key, self.path, self.mean)
 
     def values(self, si, active, n, ok, jit):
         """The texture at the lanes of ``si`` as a float32 array (n,) or (n, 3);
@@ -527,7 +531,8 @@ def _make_class():
                 callback.put(p.key, p.texture, mi.ParamFlags.NonDifferentiable)
 
         def parameters_changed(self, keys):
-            pass
+            for p in self._params:
+                p.refresh()
 
         def to_string(self):
             params = "".join(f", {p.path}={str(p.texture).split('[')[0]}" for p in self._params)
