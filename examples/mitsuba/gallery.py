@@ -1,12 +1,21 @@
 """Renders strata's example materials in Mitsuba 3 into docs/gallery/.
 
     python examples/mitsuba/gallery.py [--spp 64] [--size 256] [--variant llvm_ad_rgb]
+    python examples/mitsuba/gallery.py --textured [--spp 64] [--size 256]
 
 Each material of examples/materials/ listed below on a sphere (a checkered
 ground, a sky-gradient environment and a sun), one PNG each, and one image
 of a strata one-interface stack (rough conductor, GGX alpha 0.3) beside
 Mitsuba's own roughconductor with the same parameters. Prints the time of
 each render.
+
+With --textured, instead: two spatially varying materials, their textures
+made here with numpy (nothing read from disk) and handed to the plugin as
+``param:`` properties (per-query parameters): a clear coat with an amber
+absorber whose thickness follows a bitmap of bands (textured_thickness.png),
+and a rough coat over silver whose absorber's sigma_t is an RGB bitmap of
+tinted cells (textured_sigma_t.png). Both bitmaps take a few distinct values
+(nearest filtering), so a wavefront has a few distinct materials.
 """
 
 import argparse
@@ -29,6 +38,64 @@ ONE_INTERFACE = (
 )
 
 
+# A smooth clear coat with an amber absorber over a near-white Lambertian base:
+# the thicker the coat, the deeper the amber (optical depth thickness x sigma_t).
+AMBER_COAT = """description = "Clear coat with an amber absorber, thickness from a texture"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+medium = { thickness = 0.5, sigma_t = [0.15, 0.6, 1.8], albedo = 0.0 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.85 }
+"""
+
+# A rough coat over silver, its absorber's colour from a texture.
+TINTED_SILVER = """description = "Rough coat over silver, the absorber's sigma_t from an RGB texture"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.08 }
+medium = { thickness = 1.0, sigma_t = [0.5, 0.5, 0.5], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", preset = "Ag", roughness = 0.15 }
+"""
+
+
+def thickness_bands(width=512, height=256, levels=8):
+    """Thickness in (u, v) (Mitsuba's sphere: u around the axis, v from pole
+    to pole): wavy bands in 8 steps from 0.05 to 2.0 (nearest filtering keeps
+    the steps, so a wavefront holds 8 distinct materials)."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    uu, vv = np.meshgrid(u, v)
+    t = 0.5 + 0.5 * np.sin(2 * np.pi * (6 * vv + 0.6 * np.sin(2 * np.pi * 3 * uu)))
+    q = np.minimum(np.floor(t * levels), levels - 1) / (levels - 1)
+    return (0.05 + 1.95 * q).astype(np.float32)[:, :, None]
+
+
+PALETTE = np.array(
+    [[0.05, 0.6, 1.6], [1.4, 0.35, 0.1], [0.1, 1.2, 0.9], [1.0, 1.2, 0.08], [0.9, 0.1, 0.9], [0.02, 0.02, 0.02]],
+    np.float32,
+)
+
+
+def sigma_cells(width=256, height=128, seed=1):
+    """An RGB sigma_t in (u, v): Voronoi cells (24 random sites, distances
+    wrapped in u), each one colour of a palette of absorbers (clear,
+    blue, red, green-blue, yellow, magenta tints)."""
+    rng = np.random.default_rng(seed)
+    sites = rng.random((24, 2))
+    colours = rng.integers(0, len(PALETTE), size=24)
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    uu, vv = np.meshgrid(u, v)
+    du = np.abs(uu[..., None] - sites[:, 0])
+    du = np.minimum(du, 1 - du) * 2  # u spans twice v's length on the sphere
+    d = du**2 + (vv[..., None] - sites[:, 1]) ** 2
+    return PALETTE[colours[d.argmin(axis=-1)]]
+
+
+def bitmap(mi, data):
+    return {"type": "bitmap", "bitmap": mi.Bitmap(data), "raw": True, "filter_type": "nearest"}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--spp", type=int, default=64)
@@ -36,6 +103,7 @@ def main():
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery"))
     ap.add_argument("--only", nargs="*", help="render only these materials")
+    ap.add_argument("--textured", action="store_true", help="render the two textured materials instead")
     args = ap.parse_args()
 
     mi.set_variant(args.variant)
@@ -56,6 +124,21 @@ def main():
         assert np.isfinite(img).all(), name
         print(f"{name}: {dt:.1f} s", flush=True)
         return img
+
+    if args.textured:
+        with tempfile.TemporaryDirectory() as d:
+            coat, silver = pathlib.Path(d) / "amber_coat.toml", pathlib.Path(d) / "tinted_silver.toml"
+            coat.write_text(AMBER_COAT)
+            silver.write_text(TINTED_SILVER)
+            img = render({"type": "strata", "filename": str(coat),
+                          "param:layers[0]:medium:thickness": bitmap(mi, thickness_bands())},
+                         "textured_thickness")
+            mi.util.write_bitmap(str(out / "textured_thickness.png"), img)
+            img = render({"type": "strata", "filename": str(silver),
+                          "param:layers[0]:medium:sigma_t": bitmap(mi, sigma_cells())},
+                         "textured_sigma_t")
+            mi.util.write_bitmap(str(out / "textured_sigma_t.png"), img)
+        return
 
     for m in args.only if args.only else MATERIALS:
         path = ROOT / "examples" / "materials" / f"{m}.toml"

@@ -8,19 +8,28 @@
 //! layout of `wi`. Each batch runs with the GIL released, through the
 //! library's slice calls ([`LayeredBsdf::eval_into`] and the others), so the
 //! numbers are bit for bit those of the Rust API for the same seed and keys.
+//! With `params` (per-query parameter arrays, e.g. a texture's values at
+//! every hit) a batch runs through [`Materials::per_query`] instead, query
+//! `k` on the material with row `k`'s values (one helper, `Bsdf::run`, for
+//! every method).
 
+use glam::Vec3;
 use numpy::prelude::*;
 use numpy::{
-    dtype, PyArray1, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
+    dtype, PyArray1, PyArrayDyn, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::create_exception;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
+use std::collections::HashMap;
+use strata_bsdf::api::direction_key;
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf,
-    MaterialError as StackMaterialError, Transport, Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
+    MaterialError as StackMaterialError, Materials, QueryError as StrataQueryError, SampleFlags,
+    SetError, SetPath, Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -229,6 +238,427 @@ fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyAr
     Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
 }
 
+// ------------------------------------------------------- per-query parameters
+
+/// What a `params` value must be, for error messages.
+const PARAMS_EXPECTED: &str = "a C-contiguous float32 numpy array of shape (N,) (one number per \
+     query) or (N, 3) (a triple per query: RGB, a normal), N the number of queries";
+
+/// One per-query parameter: a path of the material and its column of
+/// values, borrowed from numpy.
+struct Param<'py> {
+    path: SetPath,
+    width: usize,
+    values: PyReadonlyArrayDyn<'py, f32>,
+}
+
+/// Parses the `params` argument: `None`, or a dict from a parameter path
+/// (`layers[0].medium.thickness`, docs/materials.md) to a float32 array of
+/// shape `(n,)` or `(n, 3)`. The fields and the widths they take are the
+/// library's to check (each value goes through the material's own
+/// deserializer); only the path's grammar and the arrays are checked here.
+fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Param<'py>>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(Vec::new());
+    };
+    let dict = obj.cast::<PyDict>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "params must be None or a dict from a parameter path (e.g. \
+             \"layers[0].medium.thickness\") to {PARAMS_EXPECTED}; got {}",
+            type_name(obj)
+        ))
+    })?;
+    let mut out = Vec::with_capacity(dict.len());
+    for (key, value) in dict.iter() {
+        let key: String = key.extract().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "params keys must be parameter paths (str), e.g. \"layers[0].medium.thickness\"; \
+                 got {}",
+                type_name(&key)
+            ))
+        })?;
+        let path =
+            SetPath::parse(&key).map_err(|e| PyValueError::new_err(format!("params: {e}")))?;
+        let name = format!("params[{key:?}]");
+        let a = value.cast::<PyUntypedArray>().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "{name} must be {PARAMS_EXPECTED}; got {}",
+                type_name(&value)
+            ))
+        })?;
+        let shape = a.shape();
+        if !a.dtype().is_equiv_to(&dtype::<f32>(a.py())) {
+            return Err(PyTypeError::new_err(format!(
+                "{name} must have dtype float32; got {} (shape {}): convert with \
+                 numpy.asarray(value, dtype=numpy.float32)",
+                a.dtype(),
+                shape_text(shape)
+            )));
+        }
+        let width = match shape {
+            [m] if *m == n => 1,
+            [m, 3] if *m == n => 3,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "{name} must have shape ({n},) or ({n}, 3) for {n} queries; got shape {}",
+                    shape_text(shape)
+                )))
+            }
+        };
+        if !a.is_c_contiguous() || !a.is_aligned() {
+            return Err(PyValueError::new_err(format!(
+                "{name} (shape {}) must be C-contiguous and aligned: pass \
+                 numpy.ascontiguousarray(value)",
+                shape_text(shape)
+            )));
+        }
+        let values = borrow(&name, a.cast::<PyArrayDyn<f32>>()?)?;
+        out.push(Param {
+            path,
+            width,
+            values,
+        });
+    }
+    Ok(out)
+}
+
+/// What answers a batch: the BSDF's own material, or one material per
+/// query (its own with query `k`'s `params` row, [`Materials::per_query`]).
+enum Answerer<'a> {
+    Own(&'a LayeredBsdf),
+    PerQuery {
+        template: &'a LayeredBsdf,
+        materials: Materials,
+        ids: Vec<u32>,
+    },
+}
+
+/// Why a call with `params` did not run.
+enum CallError {
+    Columns(ColumnsError),
+    Batch(BatchError),
+}
+
+impl From<BatchError> for CallError {
+    fn from(e: BatchError) -> Self {
+        CallError::Batch(e)
+    }
+}
+
+impl CallError {
+    /// The Python exception, `params` being the call's parameters.
+    fn into_py(self, py: Python<'_>, params: &[Param<'_>]) -> PyErr {
+        match self {
+            CallError::Batch(e) => batch_err(py, e),
+            // Finite numbers the field's deserializer refuses: a triple for a
+            // field of one number (or the reverse), whatever the values.
+            CallError::Columns(ColumnsError::Query {
+                query,
+                error: error @ SetError::Value { .. },
+            }) if shape_fault(params, &error, query).is_some() => {
+                let p = shape_fault(params, &error, query).expect("checked");
+                let shape = shape_text(p.values.shape());
+                let per = if p.width == 3 {
+                    "a triple per query"
+                } else {
+                    "one number per query"
+                };
+                PyValueError::new_err(format!(
+                    "params[\"{}\"] has shape {shape} ({per}), which this field does not take: \
+                     {error}",
+                    p.path
+                ))
+            }
+            // A path this material does not have (a layer, a field of its
+            // interface's kind, a medium), or one path twice: the whole
+            // call's fault, whatever the values.
+            CallError::Columns(ColumnsError::Query {
+                error:
+                    error @ (SetError::Path { .. }
+                    | SetError::Missing { .. }
+                    | SetError::Duplicate { .. }),
+                ..
+            }) => PyValueError::new_err(format!("params: {error}")),
+            // A row that makes an invalid material: that query's fault.
+            CallError::Columns(ColumnsError::Query { query, error }) => {
+                let err = QueryError::new_err(format!("query {query}: {error}"));
+                let _ = err.value(py).setattr("index", query as i64);
+                err
+            }
+            CallError::Columns(e) => PyValueError::new_err(format!("params: {e}")),
+        }
+    }
+}
+
+/// The parameter of a [`SetError::Value`] at `query` if that query's values
+/// of it are finite (then the width is at fault, not the values).
+fn shape_fault<'a, 'py>(
+    params: &'a [Param<'py>],
+    error: &SetError,
+    query: usize,
+) -> Option<&'a Param<'py>> {
+    let SetError::Value { path, .. } = error else {
+        return None;
+    };
+    let p = params.iter().find(|p| p.path.to_string() == *path)?;
+    let values = p.values.as_slice().ok()?;
+    let row = values.get(query * p.width..(query + 1) * p.width)?;
+    row.iter().all(|x| x.is_finite()).then_some(p)
+}
+
+fn f32x3(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+/// The pairs of a per-query batch (one `wo` per `wi`).
+fn pairs_of(wi: &Vectors, wo: &Vectors) -> Result<Vec<(Vec3, Vec3)>, BatchError> {
+    if wo.len() != wi.len() {
+        return Err(BatchError {
+            index: None,
+            error: StrataQueryError::LengthMismatch {
+                argument: "wo",
+                len: wo.len(),
+                queries: wi.len(),
+            },
+        });
+    }
+    Ok((0..wi.len()).map(|k| (wi.get(k), wo.get(k))).collect())
+}
+
+fn dirs_of(wi: &Vectors) -> Vec<Vec3> {
+    (0..wi.len()).map(|k| wi.get(k)).collect()
+}
+
+/// The batch calls, on either kind of answerer, with the same outputs: the
+/// per-query ones through [`Materials`], keyed as the own ones are (by the
+/// directions without `keys`; sample index `k` for query `k` of an unkeyed
+/// `sample`), so that query `k` answers what a BSDF of its material does.
+impl Answerer<'_> {
+    fn eval(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut se: VectorsMut,
+    ) -> Result<(), BatchError> {
+        let (template, materials, ids) = match self {
+            Answerer::Own(b) => return b.eval_into(wi, wo, keys, f, Some(se)),
+            Answerer::PerQuery {
+                template,
+                materials,
+                ids,
+            } => (template, materials, ids),
+        };
+        let pairs = pairs_of(&wi, &wo)?;
+        let est = match keys {
+            None => materials.eval_batch(ids, &pairs)?,
+            Some(k) => materials.eval_batch_keyed(ids, &pairs, template.samples_per_eval(), k)?,
+        };
+        for (i, e) in est.iter().enumerate() {
+            f.set(i, f32x3(e.value));
+            se.set(i, f32x3(e.stderr));
+        }
+        Ok(())
+    }
+
+    fn sample(
+        &self,
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        mut wo: VectorsMut,
+        mut weight: VectorsMut,
+        pdf: &mut [f32],
+        flags: &mut [u32],
+    ) -> Result<(), BatchError> {
+        let (materials, ids) = match self {
+            Answerer::Own(b) => return b.sample_into(wi, keys, wo, weight, pdf, flags),
+            Answerer::PerQuery { materials, ids, .. } => (materials, ids),
+        };
+        let wis = dirs_of(&wi);
+        let n = wis.len();
+        let samples = match keys {
+            None => materials.sample_batch(ids, &wis, &(0..n as u64).collect::<Vec<_>>())?,
+            Some(k) => materials.sample_batch_keyed(ids, &wis, k, &vec![0; n])?,
+        };
+        for (i, s) in samples.iter().enumerate() {
+            let (w, wt, p) = s.map_or(([0.0; 3], [0.0; 3], 0.0), |s| {
+                (s.wo.to_array(), s.weight, s.pdf)
+            });
+            wo.set(i, w);
+            weight.set(i, wt);
+            pdf[i] = p;
+            flags[i] = SampleFlags::of(s.as_ref()).0;
+        }
+        Ok(())
+    }
+
+    fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
+        match self {
+            Answerer::Own(b) => b.pdf_into(wi, wo, pdf),
+            Answerer::PerQuery { materials, ids, .. } => {
+                let p = materials.pdf_batch(ids, &pairs_of(&wi, &wo)?)?;
+                pdf.copy_from_slice(&p);
+                Ok(())
+            }
+        }
+    }
+
+    fn pdf_unbiased(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        samples: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> Result<(), BatchError> {
+        match self {
+            Answerer::Own(b) => b.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
+            Answerer::PerQuery { materials, ids, .. } => {
+                let est = materials.pdf_unbiased_batch(ids, &pairs_of(&wi, &wo)?, samples)?;
+                for (i, e) in est.iter().enumerate() {
+                    pdf[i] = e.value as f32;
+                    stderr[i] = e.stderr as f32;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn albedo(
+        &self,
+        wi: Vectors,
+        n: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> Result<(), BatchError> {
+        match self {
+            Answerer::Own(b) => b.albedo_records(wi, n, keys, out),
+            Answerer::PerQuery { materials, ids, .. } => {
+                let wis = dirs_of(&wi);
+                let own_keys;
+                let keys = match keys {
+                    Some(k) => k,
+                    None => {
+                        own_keys = wis.iter().map(|&w| direction_key(w, w)).collect::<Vec<_>>();
+                        &own_keys
+                    }
+                };
+                let albedo = materials.albedo_batch_keyed(ids, &wis, n, keys)?;
+                for (r, a) in out.iter_mut().zip(&albedo) {
+                    *r = AlbedoRecord {
+                        reflected: f32x3(a.reflected.value),
+                        transmitted: f32x3(a.transmitted.value),
+                        reflected_stderr: f32x3(a.reflected.stderr),
+                        transmitted_stderr: f32x3(a.transmitted.stderr),
+                    };
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+impl Bsdf {
+    /// Runs `call` with the GIL released on the answerer `params` makes
+    /// for `n` queries: the BSDF itself without params, else one material
+    /// per query ([`Materials::per_query`], every row checked first). The
+    /// one path of every batch method.
+    fn run<R: Send>(
+        &self,
+        py: Python<'_>,
+        params: &[Param<'_>],
+        n: usize,
+        call: impl FnOnce(&Answerer<'_>) -> Result<R, BatchError> + Send,
+    ) -> PyResult<R> {
+        let columns: Vec<Column<'_>> = params
+            .iter()
+            .map(|p| Column {
+                path: &p.path,
+                width: p.width,
+                values: p.values.as_slice().expect("checked contiguous"),
+            })
+            .collect();
+        let bsdf = &self.inner;
+        py.detach(|| {
+            let answerer = if columns.is_empty() {
+                Answerer::Own(bsdf)
+            } else {
+                let (materials, ids) = per_query_distinct(bsdf, n, &columns)?;
+                Answerer::PerQuery {
+                    template: bsdf,
+                    materials,
+                    ids,
+                }
+            };
+            Ok(call(&answerer)?)
+        })
+        .map_err(|e: CallError| e.into_py(py, params))
+    }
+}
+
+/// [`Materials::per_query`] on the distinct rows of `columns` (a texture
+/// gives many queries the same values: one material each, not one per
+/// query), with each query's material. Equal rows (bit for bit) make equal
+/// materials, so every query answers as with one material per query; an
+/// invalid row is reported at the first query that has it.
+fn per_query_distinct(
+    bsdf: &LayeredBsdf,
+    n: usize,
+    columns: &[Column<'_>],
+) -> Result<(Materials, Vec<u32>), CallError> {
+    let mut index: HashMap<Vec<u32>, u32> = HashMap::new();
+    let mut first: Vec<usize> = Vec::new();
+    let mut ids = Vec::with_capacity(n);
+    let mut row = Vec::new();
+    for k in 0..n {
+        row.clear();
+        for c in columns {
+            row.extend(
+                c.values[k * c.width..(k + 1) * c.width]
+                    .iter()
+                    .map(|x| x.to_bits()),
+            );
+        }
+        let id = match index.get(&row) {
+            Some(&id) => id,
+            None => {
+                let id = first.len() as u32;
+                index.insert(row.clone(), id);
+                first.push(k);
+                id
+            }
+        };
+        ids.push(id);
+    }
+    let distinct: Vec<Vec<f32>> = columns
+        .iter()
+        .map(|c| {
+            (first.iter())
+                .flat_map(|&k| &c.values[k * c.width..(k + 1) * c.width])
+                .copied()
+                .collect()
+        })
+        .collect();
+    let cols: Vec<Column<'_>> = (columns.iter().zip(&distinct))
+        .map(|(c, values)| Column {
+            path: c.path,
+            width: c.width,
+            values,
+        })
+        .collect();
+    let materials = Materials::per_query(bsdf, first.len(), &cols).map_err(|e| {
+        CallError::Columns(match e {
+            ColumnsError::Query { query, error } => ColumnsError::Query {
+                query: first[query],
+                error,
+            },
+            e => e,
+        })
+    })?;
+    Ok((materials, ids))
+}
+
 /// How results are laid out: as the `wi` argument was.
 #[derive(Clone, Copy)]
 enum Layout {
@@ -424,18 +854,29 @@ impl Bsdf {
     /// `keys` (uint64, shape (N,)) selects each query's random stream; by
     /// default a query is keyed by its directions' bits (the same pair
     /// always gives the same estimate). Delta lobes are never returned.
-    #[pyo3(signature = (wi, wo, keys=None))]
+    ///
+    /// `params` (every batch method takes it) gives each query its own
+    /// parameters: a dict from a parameter path of the material
+    /// (`"layers[0].medium.thickness"`, `"layers[1].interface.albedo"`,
+    /// `"exterior_ior"`; docs/materials.md) to a float32 array of shape
+    /// (N,), or (N, 3) for a triple (RGB) per query. Query k then answers
+    /// bit for bit what the material with row k's values answers, with the
+    /// same seed and keys. Every row is checked first: an invalid one raises
+    /// `QueryError` naming the query, the path and the value.
+    #[pyo3(signature = (wi, wo, keys=None, *, params=None))]
     fn eval<'py>(
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
+        params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let keys = keys_in(keys)?;
         let n = wi.len();
+        let params = params_in(params, n)?;
         let mut f = VecOut::new(wi.layout(), n);
         let mut se = VecOut::new(wi.layout(), n);
         {
@@ -444,9 +885,7 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (fm, sm) = (f.as_mut(), se.as_mut());
-            let bsdf = &self.inner;
-            py.detach(|| bsdf.eval_into(wiv, wov, k, fm, Some(sm)))
-                .map_err(|e| batch_err(py, e))?;
+            self.run(py, &params, n, |a| a.eval(wiv, wov, k, fm, sm))?;
         }
         Ok((f.into_py(py)?, se.into_py(py)?))
     }
@@ -459,13 +898,14 @@ impl Bsdf {
     /// for an absorbed walk (then everything is zero: count it as a zero
     /// sample). With `keys`, query k draws from the stream (seed, keys[k]);
     /// without, from sample index k of its direction's key.
-    #[pyo3(signature = (wi, keys=None))]
+    #[pyo3(signature = (wi, keys=None, *, params=None))]
     #[allow(clippy::type_complexity)]
     fn sample<'py>(
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
+        params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(
         Bound<'py, PyAny>,
         Bound<'py, PyAny>,
@@ -475,6 +915,7 @@ impl Bsdf {
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
         let n = wi.len();
+        let params = params_in(params, n)?;
         let mut wo = VecOut::new(wi.layout(), n);
         let mut weight = VecOut::new(wi.layout(), n);
         let mut pdf = vec![0.0f32; n];
@@ -486,9 +927,7 @@ impl Bsdf {
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (wom, wm) = (wo.as_mut(), weight.as_mut());
             let (p, fl) = (&mut pdf[..], &mut flags[..]);
-            let bsdf = &self.inner;
-            py.detach(|| bsdf.sample_into(wiv, k, wom, wm, p, fl))
-                .map_err(|e| batch_err(py, e))?;
+            self.run(py, &params, n, |a| a.sample(wiv, k, wom, wm, p, fl))?;
         }
         Ok((
             wo.into_py(py)?,
@@ -500,22 +939,24 @@ impl Bsdf {
 
     /// The approximate density of `sample`'s direction `wo` for each pair
     /// (float32, shape (N,)), keyed by the directions: a function of
-    /// `(wi, wo)` and the seed.
+    /// `(wi, wo)`, the seed and the query's `params` (see `eval`).
+    #[pyo3(signature = (wi, wo, *, params=None))]
     fn pdf<'py>(
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
+        params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
-        let mut pdf = vec![0.0f32; wi.len()];
+        let n = wi.len();
+        let params = params_in(params, n)?;
+        let mut pdf = vec![0.0f32; n];
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
-            let bsdf = &self.inner;
-            py.detach(|| bsdf.pdf_into(wiv, wov, p))
-                .map_err(|e| batch_err(py, e))?;
+            self.run(py, &params, n, |a| a.pdf(wiv, wov, p))?;
         }
         Ok(pdf.into_pyarray(py))
     }
@@ -523,6 +964,8 @@ impl Bsdf {
     /// The unbiased pdf of each pair from `samples` density walks:
     /// `(pdf, stderr)`, float32 arrays of shape (N,), the density of
     /// `sample`'s directions with its standard error. Slow: for references.
+    /// `params` as for `eval`.
+    #[pyo3(signature = (wi, wo, samples, *, params=None))]
     #[allow(clippy::type_complexity)]
     fn pdf_unbiased<'py>(
         &self,
@@ -530,17 +973,18 @@ impl Bsdf {
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
         samples: u64,
+        params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
-        let mut pdf = vec![0.0f32; wi.len()];
-        let mut stderr = vec![0.0f32; wi.len()];
+        let n = wi.len();
+        let params = params_in(params, n)?;
+        let mut pdf = vec![0.0f32; n];
+        let mut stderr = vec![0.0f32; n];
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
-            let bsdf = &self.inner;
-            py.detach(|| bsdf.pdf_unbiased_into(wiv, wov, samples, p, s))
-                .map_err(|e| batch_err(py, e))?;
+            self.run(py, &params, n, |a| a.pdf_unbiased(wiv, wov, samples, p, s))?;
         }
         Ok((pdf.into_pyarray(py), stderr.into_pyarray(py)))
     }
@@ -548,7 +992,8 @@ impl Bsdf {
     /// Directional albedo from `n` walks per direction:
     /// `(R, T, R_stderr, T_stderr)`, reflected and transmitted fractions per
     /// channel with their standard errors, each in the layout of `wi`.
-    #[pyo3(signature = (wi, n, keys=None))]
+    /// `keys` and `params` as for `eval`.
+    #[pyo3(signature = (wi, n, keys=None, *, params=None))]
     #[allow(clippy::type_complexity)]
     fn albedo<'py>(
         &self,
@@ -556,6 +1001,7 @@ impl Bsdf {
         wi: &Bound<'py, PyAny>,
         n: u64,
         keys: Option<&Bound<'py, PyAny>>,
+        params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(
         Bound<'py, PyAny>,
         Bound<'py, PyAny>,
@@ -565,6 +1011,7 @@ impl Bsdf {
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
         let m = wi.len();
+        let params = params_in(params, m)?;
         let mut rec = vec![AlbedoRecord::default(); m];
         {
             let wiv = wi.vectors();
@@ -572,9 +1019,7 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let out = &mut rec[..];
-            let bsdf = &self.inner;
-            py.detach(|| bsdf.albedo_records(wiv, n, k, out))
-                .map_err(|e| batch_err(py, e))?;
+            self.run(py, &params, m, |a| a.albedo(wiv, n, k, out))?;
         }
         let layout = wi.layout();
         let mut outs = [(); 4].map(|_| VecOut::new(layout, m));

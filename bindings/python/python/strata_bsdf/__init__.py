@@ -17,6 +17,13 @@ without a copy); results have the layout of ``wi``. Each batch runs with the
 GIL released. The numbers are bit for bit those of the Rust API and the
 ``strata`` CLI for the same seed and keys.
 
+Every batch method takes ``params=``, per-query parameters: a dict from a
+parameter path (``"layers[0].medium.thickness"``, docs/materials.md) to a
+float32 array of shape (N,) or (N, 3); query k answers as the material with
+row k's values::
+
+    f, stderr = bsdf.eval(wi, wo, params={"layers[0].medium.thickness": np.float32([0.1, 2.0])})
+
 ``strata_bsdf.mitsuba`` is a Mitsuba 3 plugin (BSDF type ``"strata"``).
 """
 

@@ -1,7 +1,7 @@
 """Type stubs of the compiled module (re-exported by ``strata_bsdf``)."""
 
 from os import PathLike
-from typing import Literal, Optional, Tuple, TypedDict, Union
+from typing import Dict, Literal, Optional, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -11,6 +11,10 @@ F32 = npt.NDArray[np.float32]
 Vectors = Union[F32, Tuple[F32, F32, F32]]
 Keys = Optional[npt.NDArray[np.uint64]]
 Transport = Literal["radiance", "importance"]
+#: Per-query parameters: a parameter path of the material ("layers[0].medium.thickness",
+#: "layers[0].medium.sigma_t", "exterior_ior"; docs/materials.md) to a C-contiguous float32
+#: array of shape (N,) (a number per query) or (N, 3) (a triple per query).
+Params = Optional[Dict[str, F32]]
 
 REFLECTION: int
 TRANSMISSION: int
@@ -55,15 +59,27 @@ class Bsdf:
         pdf_samples: int = 4,
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
-    def eval(self, wi: Vectors, wo: Vectors, keys: Keys = None) -> Tuple[Vectors, Vectors]:
-        """(f, stderr): f(wi, wo) per channel without the cosine, and its standard error."""
+    def eval(
+        self, wi: Vectors, wo: Vectors, keys: Keys = None, *, params: Params = None
+    ) -> Tuple[Vectors, Vectors]:
+        """(f, stderr): f(wi, wo) per channel without the cosine, and its standard error.
+
+        params: query k answers as the material with row k of every array set
+        (bit for bit, same seed and keys); an invalid row raises QueryError
+        naming the query, the path and the value."""
     def sample(
-        self, wi: Vectors, keys: Keys = None
+        self, wi: Vectors, keys: Keys = None, *, params: Params = None
     ) -> Tuple[Vectors, Vectors, F32, npt.NDArray[np.uint32]]:
         """(wo, weight, pdf, flags): weight = f |cos θo| / p; flags REFLECTION | TRANSMISSION | DELTA, 0 if absorbed."""
-    def pdf(self, wi: Vectors, wo: Vectors) -> F32:
+    def pdf(self, wi: Vectors, wo: Vectors, *, params: Params = None) -> F32:
         """The approximate density of sample's wo (what sample reports as pdf)."""
-    def albedo(self, wi: Vectors, n: int, keys: Keys = None) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
+    def pdf_unbiased(
+        self, wi: Vectors, wo: Vectors, samples: int, *, params: Params = None
+    ) -> Tuple[F32, F32]:
+        """(pdf, stderr): the density of sample's directions from `samples` density walks (slow)."""
+    def albedo(
+        self, wi: Vectors, n: int, keys: Keys = None, *, params: Params = None
+    ) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
         """(R, T, R_stderr, T_stderr) from n walks per direction."""
     @property
     def samples(self) -> int: ...

@@ -21,6 +21,22 @@ Parameters of ``"strata"``:
 * ``samples`` (int, default 1): walks per ``eval`` (each eval is an unbiased
   estimate; more walks, less noise per call).
 * ``seed`` (int, default 0): seeds strata's random streams.
+* ``param:<path>`` (float, RGB or texture, any number of them): a parameter
+  of the material that varies over the surface, e.g.
+  ``"param:layers[0]:medium:thickness": {"type": "bitmap", ...}``. The path
+  is a strata parameter path (``layers[0].medium.thickness``,
+  ``layers[0].medium.sigma_t``, ``layers[1].interface.roughness``,
+  ``exterior_ior``; docs/materials.md) with ``:`` for ``.`` (Mitsuba
+  reserves ``.`` in property names). The value is any Mitsuba texture
+  (``bitmap``, ``checkerboard``, ...) or a constant, read unbounded (a
+  ``sigma_t`` of 5 stays 5). At every hit the texture is evaluated at the
+  surface interaction, with ``eval_1`` for a field that takes one number and
+  ``eval`` (RGB) for a field that takes a triple, and the values go to
+  strata as per-query parameters (``Bsdf.eval(..., params=...)``): the hit
+  answers bit for bit what the material with those values answers. Which of
+  the two a field takes is asked of strata when the BSDF is built (with the
+  texture's mean, which must make a valid material); an invalid texel (a
+  negative thickness) raises an error naming the query, path and value.
 
 Importing registers the plugin for the variant that is set at that moment;
 after switching variants call :func:`register` again.
@@ -227,6 +243,58 @@ def _valid_dirs(wi, active):
     return wi, ok
 
 
+def _param_width(bsdf, key: str, path: str, mean: float) -> int:
+    """3 if the field at ``path`` takes a triple (strata accepts one per
+    query), else 1; an error naming the property if it takes neither."""
+    wi = np.array([[0.0, 0.0, 1.0]], np.float32)
+    err = None
+    for width in (3, 1):
+        shape = (1, 3) if width == 3 else (1,)
+        try:
+            bsdf.pdf(wi, wi, params={path: np.full(shape, mean, np.float32)})
+            return width
+        except ValueError as e:
+            err = e
+    raise ValueError(f"strata: property {key!r} (parameter {path!r}, texture mean {mean}): {err}")
+
+
+class _Param:
+    """A ``param:`` property: a texture, the strata path it drives, the
+    number of floats per query, and the value given to lanes that are not
+    queried (the texture's mean)."""
+
+    def __init__(self, key, texture, bsdf):
+        self.key = key
+        self.path = key[len("param:"):].replace(":", ".")
+        self.texture = texture
+        self.refresh()
+        self.width = _param_width(bsdf, key, self.path, self.mean)
+
+    def refresh(self):
+        """Re-reads the texture's mean (after a change through mi.traverse)."""
+        m = self.texture.mean()
+        try:
+            self.mean = float(m)
+        except TypeError:  # a JIT variant's Float of width 1
+            self.mean = float(m[0])
+
+    def values(self, si, active, n, ok, jit):
+        """The texture at the lanes of ``si`` as a float32 array (n,) or (n, 3);
+        lanes not ``ok`` get the mean."""
+        if self.width == 1:
+            v = self.texture.eval_1(si, active)
+            a = _floats(v, n) if jit else np.full(n, float(v), np.float32)
+        else:
+            c = self.texture.eval(si, active)
+            if jit:
+                a = np.stack([_floats(c[i], n) for i in range(3)], axis=1)
+            else:
+                a = np.array([[float(c[0]), float(c[1]), float(c[2])]], np.float32)
+        if ok is not None and not ok.all():
+            a = np.where(ok[:, None] if self.width == 3 else ok, a, np.float32(self.mean))
+        return np.ascontiguousarray(a, dtype=np.float32)
+
+
 def _make_class():
     F = mi.BSDFFlags
 
@@ -273,6 +341,19 @@ def _make_class():
             self.m_components = comps
             self.m_flags = flags
             self._nondelta = bool(lobes["glossy"] or lobes["diffuse"])
+            self._params = [
+                _Param(k, props.get_unbounded_texture(k), self._camera)
+                for k in sorted(props.keys())
+                if k.startswith("param:")
+            ]
+
+        def _params_at(self, si, active, n, ok=None):
+            """The per-query parameters at the lanes of ``si`` (None without
+            ``param:`` properties)."""
+            if not self._params:
+                return None
+            jit = self._host.jit
+            return {p.path: p.values(si, active, n, ok, jit) for p in self._params}
 
         def _bsdf(self, ctx):
             return self._camera if ctx.mode == mi.TransportMode.Radiance else self._light
@@ -294,9 +375,10 @@ def _make_class():
             if not (active and all(map(math.isfinite, wi)) and any(wi)):
                 return bs, mi.Color3f(0)
             key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
+            params = self._params_at(si, active, 1)
             t1 = time.perf_counter()
             wo, weight, pdf, flags = self._bsdf(ctx).sample(
-                np.array([wi], np.float32), np.array([key], np.uint64)
+                np.array([wi], np.float32), np.array([key], np.uint64), params=params
             )
             t_strata = time.perf_counter() - t1
             fl = int(flags[0])
@@ -334,11 +416,12 @@ def _make_class():
             if ok:
                 bsdf = self._bsdf(ctx)
                 a, b = np.array([wi], np.float32), np.array([w], np.float32)
+                params = self._params_at(si, active, 1)
                 t1 = time.perf_counter()
                 if method != "pdf":
-                    f, _ = bsdf.eval(a, b)
+                    f, _ = bsdf.eval(a, b, params=params)
                 if method != "eval":
-                    p = bsdf.pdf(a, b)
+                    p = bsdf.pdf(a, b, params=params)
                 t_strata = time.perf_counter() - t1
                 if method != "pdf":
                     cos = abs(float(np.float32(w[2])))
@@ -358,8 +441,9 @@ def _make_class():
             t0 = time.perf_counter()
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
             keys = sample_keys(_floats(sample1, n), _floats(sample2.x, n), _floats(sample2.y, n))
+            params = self._params_at(si, active, n, ok)
             t1 = time.perf_counter()
-            (wx, wy, wz), (r, g, b), pdf, flags = self._bsdf(ctx).sample(wi, keys)
+            (wx, wy, wz), (r, g, b), pdf, flags = self._bsdf(ctx).sample(wi, keys, params=params)
             t_strata = time.perf_counter() - t1
             refl = (flags & REFLECTION) != 0
             trans = (flags & TRANSMISSION) != 0
@@ -405,17 +489,18 @@ def _make_class():
             if not self._nondelta or not (int(ctx.type_mask) & int(F.Smooth)):
                 ok[:] = False
             bsdf = self._bsdf(ctx)
+            params = self._params_at(si, active, n, ok) if ok.any() else None
             value = pdf = None
             t_strata = 0.0
             if method in ("eval", "eval_pdf"):
                 t1 = time.perf_counter()
-                (r, g, b), _ = bsdf.eval(wi, w)
+                (r, g, b), _ = bsdf.eval(wi, w, params=params)
                 t_strata += time.perf_counter() - t1
                 cos = np.abs(w[2])
                 value = tuple(np.where(ok, c * cos, 0).astype(np.float32) for c in (r, g, b))
             if method in ("pdf", "eval_pdf"):
                 t1 = time.perf_counter()
-                p = bsdf.pdf(wi, w)
+                p = bsdf.pdf(wi, w, params=params)
                 t_strata += time.perf_counter() - t1
                 pdf = np.where(ok, p, 0).astype(np.float32)
             _count(method, n, t0, t_strata)
@@ -440,13 +525,18 @@ def _make_class():
             return self._host.color_out(value), self._host.float_out(pdf)
 
         def traverse(self, callback):
-            pass
+            # The textures, so that mi.traverse reaches their parameters
+            # (a bitmap's data): they are evaluated at every call.
+            for p in self._params:
+                callback.put(p.key, p.texture, mi.ParamFlags.NonDifferentiable)
 
         def parameters_changed(self, keys):
-            pass
+            for p in self._params:
+                p.refresh()
 
         def to_string(self):
-            return f"StrataBSDF[filename={self._filename!r}, {self._camera!r}]"
+            params = "".join(f", {p.path}={str(p.texture).split('[')[0]}" for p in self._params)
+            return f"StrataBSDF[filename={self._filename!r}, {self._camera!r}{params}]"
 
     return StrataBSDF
 

@@ -1,0 +1,198 @@
+"""Per-query parameters (`params=`): bit for bit the material with those values, and errors."""
+
+import numpy as np
+import pytest
+
+from strata_bsdf import Bsdf, QueryError
+
+from test_api import fixed_directions, soa
+
+# A coat with a tinted, slightly scattering medium over a rough conductor:
+# every kind of settable field (a dielectric's ior and roughness, a medium's
+# thickness, sigma_t (RGB), albedo and phase.g, a conductor's eta and k (RGB)).
+TEMPLATE = """
+[[layers]]
+interface = {{ kind = "dielectric", ior = {ior}, roughness = {rough} }}
+medium = {{ thickness = {thickness}, sigma_t = {sigma_t}, albedo = {albedo}, phase = {{ kind = "hg", g = {g} }} }}
+[[layers]]
+interface = {{ kind = "conductor", eta = {eta}, k = [3.9, 2.45, 2.2], roughness = 0.25 }}
+"""
+BASE = dict(ior=1.5, rough=0.1, thickness=0.5, sigma_t=[0.2, 0.6, 1.2], albedo=0.3, g=0.2, eta=[0.2, 0.92, 1.1])
+
+
+def toml(**values):
+    """The material with `values` (floats as the f64 of their f32, which is what a
+    float32 params array hands over)."""
+    def text(v):
+        if isinstance(v, (list, tuple, np.ndarray)):
+            return "[" + ", ".join(repr(float(np.float32(x))) for x in v) + "]"
+        return repr(float(np.float32(v)))
+    return TEMPLATE.format(**{k: text(v) for k, v in dict(BASE, **values).items()})
+
+
+N = 6
+ROWS = {
+    "layers[0].medium.thickness": ("thickness", np.float32([0.1, 0.5, 2.0, 0.5, 0.0, 1.3])),
+    "layers[0].interface.roughness": ("rough", np.float32([0.1, 0.3, 0.05, 0.6, 0.2, 0.1])),
+    "layers[0].medium.sigma_t": ("sigma_t", np.float32([[0.2, 0.6, 1.2], [1, 1, 1], [0, 0.1, 3],
+                                                       [0.2, 0.6, 1.2], [5, 0.3, 0.3], [0.7, 0.7, 0.1]])),
+    "layers[1].interface.eta": ("eta", np.float32([[0.2, 0.92, 1.1], [1.1, 0.9, 0.3], [0.2, 0.92, 1.1],
+                                                  [0.5, 0.5, 0.5], [2, 1, 0.4], [0.3, 0.3, 0.9]])),
+    "layers[0].medium.phase.g": ("g", np.float32([0.2, -0.5, 0.9, 0.0, 0.2, 0.4])),
+}
+
+
+def per_row(samples, seed, transport="radiance"):
+    """The BSDF of each row's material."""
+    out = []
+    for k in range(N):
+        vals = {field: col[k] for field, col in ROWS.values()}
+        out.append(Bsdf.from_toml(toml(**vals), samples=samples, seed=seed, transport=transport))
+    return out
+
+
+def params():
+    return {path: col for path, (_, col) in ROWS.items()}
+
+
+def rows(a, k):
+    return a[k : k + 1]
+
+
+@pytest.mark.parametrize("transport", ["radiance", "importance"])
+def test_params_bit_identical_to_the_materials(transport):
+    rng = np.random.default_rng(5)
+    samples, seed = 8, 77
+    wi = fixed_directions(N, rng)
+    wo = fixed_directions(N, rng)
+    keys = rng.integers(0, 2**63, size=N, dtype=np.uint64)
+    base = Bsdf.from_toml(toml(), samples=samples, seed=seed, transport=transport)
+    ones = per_row(samples, seed, transport)
+    p = params()
+
+    for k_arg in (None, keys):
+        f, se = base.eval(wi, wo, k_arg, params=p)
+        for k, b in enumerate(ones):
+            fk, sk = b.eval(rows(wi, k), rows(wo, k), None if k_arg is None else rows(keys, k))
+            np.testing.assert_array_equal(f[k], fk[0])
+            np.testing.assert_array_equal(se[k], sk[0])
+        # Samples: unkeyed, query k draws sample index k of its direction's key;
+        # a batch of identical rows with the one BSDF does the same.
+        wo_s, w_s, p_s, fl_s = base.sample(wi, k_arg, params=p)
+        for k, b in enumerate(ones):
+            if k_arg is None:
+                ref = b.sample(np.repeat(rows(wi, k), N, axis=0))
+                ref = tuple(r[k : k + 1] for r in ref)
+            else:
+                ref = b.sample(rows(wi, k), rows(keys, k))
+            for got, want in zip((wo_s, w_s, p_s, fl_s), ref):
+                np.testing.assert_array_equal(got[k], want[0])
+        r = base.albedo(wi, 16, k_arg, params=p)
+        for k, b in enumerate(ones):
+            ref = b.albedo(rows(wi, k), 16, None if k_arg is None else rows(keys, k))
+            for got, want in zip(r, ref):
+                np.testing.assert_array_equal(got[k], want[0])
+
+    pdf = base.pdf(wi, wo, params=p)
+    pu, pu_se = base.pdf_unbiased(wi, wo, 8, params=p)
+    for k, b in enumerate(ones):
+        np.testing.assert_array_equal(pdf[k], b.pdf(rows(wi, k), rows(wo, k))[0])
+        u, u_se = b.pdf_unbiased(rows(wi, k), rows(wo, k), 8)
+        assert (pu[k], pu_se[k]) == (u[0], u_se[0])
+    # The parameters matter: not the base material's answers.
+    assert not np.array_equal(f, base.eval(wi, wo, keys)[0])
+    # Structure of arrays in, structure of arrays out, the same numbers.
+    f_soa, _ = base.eval(soa(wi), soa(wo), keys, params=p)
+    np.testing.assert_array_equal(np.stack(f_soa, axis=1), f)
+
+
+def test_repeated_rows_and_width_one_rgb():
+    """Rows that repeat (as a texture's do) answer as distinct ones; an RGB field
+    also takes one number per query (grey), as a material file does."""
+    base = Bsdf.from_toml(toml(), samples=4, seed=3)
+    wi = np.tile(np.float32([0.0, 0.6, 0.8]), (4, 1))
+    th = np.float32([0.25, 1.0, 0.25, 1.0])
+    sig = np.float32([0.5, 0.5, 2.0, 2.0])
+    f, _ = base.eval(wi, wi, np.arange(4, dtype=np.uint64),
+                     params={"layers[0].medium.thickness": th, "layers[0].medium.sigma_t": sig})
+    for k in range(4):
+        b = Bsdf.from_toml(toml(thickness=th[k], sigma_t=sig[k]), samples=4, seed=3)
+        np.testing.assert_array_equal(f[k], b.eval(wi[:1], wi[:1], np.uint64([k]))[0][0])
+    # Empty params and no params: the BSDF itself.
+    np.testing.assert_array_equal(base.eval(wi, wi, params={})[0], base.eval(wi, wi)[0])
+    e = np.zeros((0, 3), np.float32)
+    assert base.eval(e, e, params={"layers[0].medium.thickness": np.zeros(0, np.float32)})[0].shape == (0, 3)
+
+
+GOOD = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8], [0.8, 0, 0.6]], np.float32)
+TH = "layers[0].medium.thickness"
+
+
+def call(method, p):
+    b = Bsdf.from_toml(toml())
+    return {
+        "eval": lambda: b.eval(GOOD, GOOD, params=p),
+        "sample": lambda: b.sample(GOOD, params=p),
+        "pdf": lambda: b.pdf(GOOD, GOOD, params=p),
+        "pdf_unbiased": lambda: b.pdf_unbiased(GOOD, GOOD, 4, params=p),
+        "albedo": lambda: b.albedo(GOOD, 4, params=p),
+    }[method]()
+
+
+METHODS = ["eval", "sample", "pdf", "pdf_unbiased", "albedo"]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_invalid_value_names_query_path_and_value(method):
+    th = np.float32([0.5, 0.5, 0.5, -1.0])
+    with pytest.raises(QueryError) as e:
+        call(method, {TH: th})
+    msg = str(e.value)
+    assert msg.startswith("query 3: set `layers[0].medium.thickness` = -1"), msg
+    assert "invalid material" in msg and e.value.index == 3
+    th[1] = np.nan  # the first bad query is reported
+    with pytest.raises(QueryError) as e:
+        call(method, {TH: th})
+    assert str(e.value).startswith("query 1: set `layers[0].medium.thickness` = NaN"), str(e.value)
+    assert e.value.index == 1
+
+
+@pytest.mark.parametrize(
+    "p,exc,words",
+    [
+        ({TH: np.zeros(3, np.float32)}, ValueError, ['params["layers[0].medium.thickness"]', "(4,) or (4, 3)", "(3,)"]),
+        ({TH: np.zeros((4, 2), np.float32)}, ValueError, ["layers[0].medium.thickness", "(4, 2)"]),
+        ({TH: np.zeros((4, 3, 1), np.float32)}, ValueError, ["layers[0].medium.thickness", "(4, 3, 1)"]),
+        ({TH: np.zeros(4)}, TypeError, ["layers[0].medium.thickness", "float32", "float64", "(4,)"]),
+        ({TH: [0.5] * 4}, TypeError, ["layers[0].medium.thickness", "list"]),
+        ({TH: np.zeros(8, np.float32)[::2]}, ValueError, ["layers[0].medium.thickness", "C-contiguous"]),
+        ({"layers[0].medium.thicknes": np.zeros(4, np.float32)}, ValueError,
+         ["layers[0].medium.thicknes", "unknown medium field"]),
+        ({"layers[0].interface.kind": np.zeros(4, np.float32)}, ValueError, ["kind", "not a numeric parameter"]),
+        ({"layers[5].medium.thickness": np.ones(4, np.float32)}, ValueError, ["layers[5].medium.thickness", "no layer 5"]),
+        ({"layers[1].interface.ior": np.ones(4, np.float32)}, ValueError, ["layers[1].interface.ior", "conductor"]),
+        ({3: np.ones(4, np.float32)}, TypeError, ["params keys", "int"]),
+        ([1, 2], TypeError, ["params must be None or a dict", "list"]),
+    ],
+)
+def test_bad_params_name_the_path_and_shape(p, exc, words):
+    for method in METHODS:
+        with pytest.raises(exc) as e:
+            call(method, p)
+        for w in words:
+            assert w in str(e.value), (method, w, str(e.value))
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_triple_for_a_number_names_path_and_shape(method):
+    with pytest.raises(ValueError) as e:
+        call(method, {TH: np.ones((4, 3), np.float32)})
+    msg = str(e.value)
+    assert msg.startswith('params["layers[0].medium.thickness"] has shape (4, 3) (a triple per query)'), msg
+    assert "[1.0,1.0,1.0]" in msg and not isinstance(e.value, QueryError), msg
+    # A non-finite triple is the query's fault, named as such.
+    v = np.ones((4, 3), np.float32)
+    v[2, 1] = np.inf
+    with pytest.raises(QueryError) as e:
+        call(method, {"layers[0].medium.sigma_t": v})
+    assert str(e.value).startswith("query 2: set `layers[0].medium.sigma_t` = inf"), str(e.value)
