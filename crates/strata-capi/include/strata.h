@@ -118,6 +118,36 @@ typedef struct StrataStackInfo {
 } StrataStackInfo;
 
 /**
+ * One per-query parameter of a `*_columns` batch call: the values of the
+ * material parameter `path` for each of the call's `n` queries, `width`
+ * floats per query, query after query (`values[k * width + c]`).
+ *
+ * `path` is a settable parameter of the BSDF's material, as in
+ * docs/materials.md "Per-query overrides (set)": `"exterior_ior"`,
+ * `"layers[i].interface.ior"` (or `roughness`, `eta`, `k`, `albedo`),
+ * `"layers[i].medium.thickness"` (or `sigma_t`, `albedo`, `phase.g`).
+ * `width` is 1 (a number per query) or 3 (an RGB triple per query: `eta`,
+ * `k`, `sigma_t`, an albedo); a number where the field takes a triple sets
+ * all three channels. Query `k` then answers bit for bit what a BSDF made
+ * from a material file with row `k`'s values answers (same seed and key).
+ */
+typedef struct StrataColumn {
+  /**
+   * The parameter's path, NUL-terminated UTF-8 (e.g.
+   * `"layers[0].medium.thickness"`).
+   */
+  const char *path;
+  /**
+   * Floats per query: 1 or 3.
+   */
+  size_t width;
+  /**
+   * `width × n` floats, query after query.
+   */
+  const float *values;
+} StrataColumn;
+
+/**
  * One sample of `strata_sample_batch`. An absorbed walk is all zeros
  * (flags 0): count it as a zero-weight sample.
  */
@@ -304,6 +334,47 @@ int32_t strata_eval_batch_keyed(const struct StrataBsdf *b,
                                 float *stderr_out);
 
 /**
+ * `strata_eval_batch` with per-query parameters: query `k` is evaluated on
+ * the BSDF's material with row `k` of every column set (see
+ * `StrataColumn`), and answers bit for bit what a BSDF made from a material
+ * file with those values answers. `ncolumns` = 0 is `strata_eval_batch`.
+ * If any query's values are invalid nothing runs and nothing is written:
+ * the status is `STRATA_ERR_MATERIAL` (the values make an invalid
+ * material) or `STRATA_ERR_INVALID_ARGUMENT`, and `strata_last_error()`
+ * names the query, the path and the value.
+ *
+ * # Safety
+ * As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
+ * each with a NUL-terminated `path` and `width × n` `values` that nothing
+ * writes during the call.
+ */
+int32_t strata_eval_batch_columns(const struct StrataBsdf *b,
+                                  size_t n,
+                                  const float *wi,
+                                  const float *wo,
+                                  const struct StrataColumn *columns,
+                                  size_t ncolumns,
+                                  float *f_out,
+                                  float *stderr_out);
+
+/**
+ * `strata_eval_batch_keyed` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_eval_batch_keyed` and `strata_eval_batch_columns`.
+ */
+int32_t strata_eval_batch_keyed_columns(const struct StrataBsdf *b,
+                                        size_t n,
+                                        const float *wi,
+                                        const float *wo,
+                                        const uint64_t *keys,
+                                        const struct StrataColumn *columns,
+                                        size_t ncolumns,
+                                        float *f_out,
+                                        float *stderr_out);
+
+/**
  * `strata_eval_batch` over component arrays (structure of arrays): `n`
  * floats each of `wi_x, wi_y, wi_z, wo_x, wo_y, wo_z`, results to `f_r,
  * f_g, f_b` and, unless all three are NULL, the standard errors to `se_r,
@@ -331,6 +402,31 @@ int32_t strata_eval_batch_soa(const struct StrataBsdf *b,
                               float *se_b);
 
 /**
+ * `strata_eval_batch_soa` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_eval_batch_soa` and `strata_eval_batch_columns`.
+ */
+int32_t strata_eval_batch_soa_columns(const struct StrataBsdf *b,
+                                      size_t n,
+                                      const float *wi_x,
+                                      const float *wi_y,
+                                      const float *wi_z,
+                                      const float *wo_x,
+                                      const float *wo_y,
+                                      const float *wo_z,
+                                      const uint64_t *keys,
+                                      const struct StrataColumn *columns,
+                                      size_t ncolumns,
+                                      float *f_r,
+                                      float *f_g,
+                                      float *f_b,
+                                      float *se_r,
+                                      float *se_g,
+                                      float *se_b);
+
+/**
  * Samples one outgoing direction per incident direction `wi[k]` (`3 n`
  * floats), into `out[k]`. `keys` NULL: query `k` is keyed by its
  * direction's bits and draws sample index `k` (as line `k` of `strata
@@ -348,6 +444,22 @@ int32_t strata_sample_batch(const struct StrataBsdf *b,
                             const float *wi,
                             const uint64_t *keys,
                             struct StrataSample *out);
+
+/**
+ * `strata_sample_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`: query `k` samples the material with row `k`
+ * of every column, from the same stream as the plain call.
+ *
+ * # Safety
+ * As `strata_sample_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_sample_batch_columns(const struct StrataBsdf *b,
+                                    size_t n,
+                                    const float *wi,
+                                    const uint64_t *keys,
+                                    const struct StrataColumn *columns,
+                                    size_t ncolumns,
+                                    struct StrataSample *out);
 
 /**
  * `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
@@ -375,6 +487,30 @@ int32_t strata_sample_batch_soa(const struct StrataBsdf *b,
                                 uint32_t *flags);
 
 /**
+ * `strata_sample_batch_soa` with per-query parameters, as
+ * `strata_sample_batch_columns`.
+ *
+ * # Safety
+ * As `strata_sample_batch_soa` and `strata_eval_batch_columns`.
+ */
+int32_t strata_sample_batch_soa_columns(const struct StrataBsdf *b,
+                                        size_t n,
+                                        const float *wi_x,
+                                        const float *wi_y,
+                                        const float *wi_z,
+                                        const uint64_t *keys,
+                                        const struct StrataColumn *columns,
+                                        size_t ncolumns,
+                                        float *wo_x,
+                                        float *wo_y,
+                                        float *wo_z,
+                                        float *weight_r,
+                                        float *weight_g,
+                                        float *weight_b,
+                                        float *pdf,
+                                        uint32_t *flags);
+
+/**
  * The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
  * each), per solid angle, into `pdf_out` (`n` floats). A function of the two
  * directions and the seed: it is the number a sample of that direction
@@ -389,6 +525,22 @@ int32_t strata_pdf_batch(const struct StrataBsdf *b,
                          const float *wi,
                          const float *wo,
                          float *pdf_out);
+
+/**
+ * `strata_pdf_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`: the pdf a sample of query `k`'s material
+ * carries.
+ *
+ * # Safety
+ * As `strata_pdf_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_pdf_batch_columns(const struct StrataBsdf *b,
+                                 size_t n,
+                                 const float *wi,
+                                 const float *wo,
+                                 const struct StrataColumn *columns,
+                                 size_t ncolumns,
+                                 float *pdf_out);
 
 /**
  * The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
@@ -410,6 +562,23 @@ int32_t strata_pdf_unbiased_batch(const struct StrataBsdf *b,
                                   float *stderr_out);
 
 /**
+ * `strata_pdf_unbiased_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_pdf_unbiased_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_pdf_unbiased_batch_columns(const struct StrataBsdf *b,
+                                          size_t n,
+                                          const float *wi,
+                                          const float *wo,
+                                          uint64_t walks,
+                                          const struct StrataColumn *columns,
+                                          size_t ncolumns,
+                                          float *pdf_out,
+                                          float *stderr_out);
+
+/**
  * The directional albedo of each incident direction `wi[k]` (`3 n` floats)
  * from `walks` walks each (1 to 2^40), into `out[k]`. `keys` NULL: keyed by
  * the directions' bits; otherwise `n` keys. n = 0 does nothing.
@@ -425,6 +594,22 @@ int32_t strata_albedo_batch(const struct StrataBsdf *b,
                             uint64_t walks,
                             const uint64_t *keys,
                             struct StrataAlbedo *out);
+
+/**
+ * `strata_albedo_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_albedo_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_albedo_batch_columns(const struct StrataBsdf *b,
+                                    size_t n,
+                                    const float *wi,
+                                    uint64_t walks,
+                                    const uint64_t *keys,
+                                    const struct StrataColumn *columns,
+                                    size_t ncolumns,
+                                    struct StrataAlbedo *out);
 
 /**
  * The message of this thread's last failed call: the function, the
