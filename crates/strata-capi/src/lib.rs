@@ -15,6 +15,12 @@
 //! batch functions are its slice calls (`eval_into`, `sample_records`, ...)
 //! over the caller's flat arrays, so they give the Rust API's numbers bit for
 //! bit (tested in `tests/abi.rs`).
+//!
+//! Per-query parameters (a renderer's textures) are `StrataColumn`s, taken by
+//! the `*_columns` form of every batch call: the call builds one material per
+//! query with [`Materials::per_query`] and answers query `k` as a BSDF made
+//! from a material file with row `k`'s values (`tests/columns.rs`). Each
+//! batch call has one body that both its forms share.
 
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
@@ -42,11 +48,14 @@ pub const STRATA_ERR_NULL: i32 = -1;
 /// An argument has a value strata cannot use: a direction that is NaN,
 /// infinite or of zero length (the message names the query index and the
 /// argument), a walk count of 0 or above 2^40, an unknown transport mode, a
-/// batch too large to address, a misaligned or overlapping array, or text
-/// that is not UTF-8.
+/// batch too large to address, a misaligned or overlapping array, text
+/// that is not UTF-8, or a bad `StrataColumn` (a width other than 1 or 3, a
+/// path that is not settable or not in the material, a NaN or infinite
+/// value, a value of the wrong shape for its field).
 pub const STRATA_ERR_INVALID_ARGUMENT: i32 = -2;
-/// The material text is malformed or describes an invalid stack (the
-/// message names the layer, the field and the value).
+/// The material text is malformed or describes an invalid stack, or a
+/// query's `StrataColumn` values make an invalid material (the message names
+/// the query, the layer, the field and the value).
 pub const STRATA_ERR_MATERIAL: i32 = -3;
 /// A material file could not be read (the message names the path).
 pub const STRATA_ERR_IO: i32 = -4;
@@ -179,8 +188,23 @@ pub struct StrataStackInfo {
 /// `"layers[i].medium.thickness"` (or `sigma_t`, `albedo`, `phase.g`).
 /// `width` is 1 (a number per query) or 3 (an RGB triple per query: `eta`,
 /// `k`, `sigma_t`, an albedo); a number where the field takes a triple sets
-/// all three channels. Query `k` then answers bit for bit what a BSDF made
-/// from a material file with row `k`'s values answers (same seed and key).
+/// all three channels (an anisotropic roughness, two numbers, cannot be a
+/// column). Query `k` then answers bit for bit what a BSDF made from a
+/// material file with row `k`'s values answers (same seed and key), with the
+/// BSDF's walk count, seed, transport mode and threads.
+///
+/// Errors: every column and every row is checked before anything runs, and a
+/// failed call writes nothing to its outputs. A bad column is named by its
+/// index (`columns[1].path is NULL`, `columns[0].values is NULL (n = 4)`,
+/// `columns[0].width = 2 ...`, `columns[0]: set path ...: unknown medium
+/// field ...`; `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`). The first
+/// query whose values are invalid fails the whole batch, naming the query,
+/// the path and the value: `STRATA_ERR_MATERIAL` if they make an invalid
+/// material (``columns: query 3: set `layers[0].medium.thickness` = -1.0:
+/// invalid material: layer 0: medium.thickness = -1: must be >= 0``), else
+/// `STRATA_ERR_INVALID_ARGUMENT` (``columns: query 1: set
+/// `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
+/// its textures, or drops the query and calls again for the rest.
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StrataColumn {
@@ -1025,11 +1049,14 @@ pub unsafe extern "C" fn strata_eval_batch_keyed(
 /// `strata_eval_batch` with per-query parameters: query `k` is evaluated on
 /// the BSDF's material with row `k` of every column set (see
 /// `StrataColumn`), and answers bit for bit what a BSDF made from a material
-/// file with those values answers. `ncolumns` = 0 is `strata_eval_batch`.
-/// If any query's values are invalid nothing runs and nothing is written:
-/// the status is `STRATA_ERR_MATERIAL` (the values make an invalid
-/// material) or `STRATA_ERR_INVALID_ARGUMENT`, and `strata_last_error()`
-/// names the query, the path and the value.
+/// file with those values answers. `ncolumns` = 0 is `strata_eval_batch`
+/// (and `columns` may then be NULL); n = 0 does nothing. If any column or any
+/// query's values are invalid nothing runs and nothing is written: the
+/// status is `STRATA_ERR_MATERIAL` (the values make an invalid material),
+/// `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`, and
+/// `strata_last_error()` names the column or the query, the path and the
+/// value (see `StrataColumn`). The columns' values must not overlap an
+/// output (checked).
 ///
 /// # Safety
 /// As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
