@@ -752,7 +752,11 @@ unsafe fn read_columns<'a>(args: ColumnArgs, n: usize) -> Result<Columns<'a>, Fa
             )));
         }
         let values = format!("{name}.values");
-        let (start, len) = (c.values as usize, c.width * n);
+        let len = c
+            .width
+            .checked_mul(n)
+            .ok_or_else(|| too_large(&values, n))?;
+        let start = c.values as usize;
         check_array(&values, c.values, len, n)?;
         cols.spans
             .push((values.into(), start, len * size_of::<f32>(), false));

@@ -684,6 +684,24 @@ fn a_column_may_not_overlap_an_output_and_n_zero_does_nothing() {
     contains_all(&last_error(), &["f_out and columns[0].values overlap"]);
     assert_eq!(f, [0.3; 9]);
 
+    // A batch too large to address: an error, not an overflow.
+    let c = one(thickness.as_ptr(), 3, f.as_ptr());
+    // SAFETY: the call fails on the columns' length before reading anything.
+    let status = unsafe {
+        strata_eval_batch_columns(
+            b.0,
+            usize::MAX / 2,
+            wi.as_ptr(),
+            wo.as_ptr(),
+            c.as_ptr(),
+            1,
+            f.as_mut_ptr(),
+            null_mut(),
+        )
+    };
+    assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT);
+    contains_all(&last_error(), &["too large", "columns[0].values"]);
+
     // n = 0: nothing is read, whatever the columns.
     let c = one(null(), 5, null());
     // SAFETY: n = 0: no array is read.
