@@ -14,8 +14,21 @@ use strata_capi::*;
 /// and conductor roughness. The values are printed as the f64 of the f32 a
 /// column holds, so the file and the column give the same number.
 fn material(thickness: f32, sigma_t: [f32; 3], eta: [f32; 3], roughness: f32) -> String {
-    let n = |x: f32| format!("{:?}", x as f64);
-    let v = |x: [f32; 3]| format!("[{}, {}, {}]", n(x[0]), n(x[1]), n(x[2]));
+    material_text(thickness, &v(sigma_t), eta, roughness)
+}
+
+/// A value as TOML: the f64 of the f32.
+fn n(x: f32) -> String {
+    format!("{:?}", x as f64)
+}
+
+/// A triple as TOML.
+fn v(x: [f32; 3]) -> String {
+    format!("[{}, {}, {}]", n(x[0]), n(x[1]), n(x[2]))
+}
+
+/// [`material`] with `sigma_t` as TOML text (a number or a triple).
+fn material_text(thickness: f32, sigma_t: &str, eta: [f32; 3], roughness: f32) -> String {
     format!(
         "[[layers]]\n\
          interface = {{ kind = \"dielectric\", ior = 1.5, roughness = 0.15 }}\n\
@@ -23,7 +36,7 @@ fn material(thickness: f32, sigma_t: [f32; 3], eta: [f32; 3], roughness: f32) ->
          [[layers]]\n\
          interface = {{ kind = \"conductor\", eta = {}, k = [3.9, 2.4, 2.1], roughness = {} }}\n",
         n(thickness),
-        v(sigma_t),
+        sigma_t,
         v(eta),
         n(roughness)
     )
@@ -267,6 +280,52 @@ fn columns_answer_what_toml_materials_with_those_values_answer() {
     let albedo = &got.iter().find(|(n, _)| *n == "albedo").unwrap().1;
     let red = |k: usize| f32::from_bits(albedo[k][0]);
     assert!(red(4) < red(0), "{} vs {}", red(4), red(0));
+}
+
+#[test]
+fn a_number_for_a_triple_field_is_one_grey_value() {
+    let grey = [0.7f32, 1.3, 2.1, 0.2, 3.3];
+    let cols = Owned::new(&[("layers[0].medium.sigma_t", 1, grey.to_vec())]);
+    let b = Capi::toml(&template());
+    let got = answers(&b, Some(&cols.columns()));
+    for (k, &g) in grey.iter().enumerate() {
+        let own = Capi::toml(&material_text(0.5, &n(g), [0.2, 0.9, 1.1], 0.3));
+        let want = answers(&own, None);
+        for ((name, g), (_, w)) in got.iter().zip(&want) {
+            assert_eq!(g[k], w[k], "{name}, query {k}");
+        }
+    }
+}
+
+#[test]
+fn the_bsdfs_transport_mode_holds_for_every_query() {
+    // A rough glass slab: transmission between exteriors of different IOR,
+    // where importance transport differs from radiance.
+    let glass = |ior: f32| {
+        format!(
+            "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = {}, roughness = 0.3 }}\n",
+            n(ior)
+        )
+    };
+    let importance = |text: &str| {
+        let b = Capi::toml(text);
+        // SAFETY: `b.0` is live and used by this thread only.
+        let status = unsafe { strata_bsdf_set_transport(b.0, STRATA_TRANSPORT_IMPORTANCE) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        b
+    };
+    let iors = [1.2f32, 1.45, 1.7, 2.0, 1.33];
+    let cols = Owned::new(&[("layers[0].interface.ior", 1, iors.to_vec())]);
+    let b = importance(&glass(1.5));
+    let got = answers(&b, Some(&cols.columns()));
+    let radiance = answers(&Capi::toml(&glass(1.5)), Some(&cols.columns()));
+    assert_ne!(got, radiance, "the transport mode changed nothing");
+    for (k, &ior) in iors.iter().enumerate() {
+        let want = answers(&importance(&glass(ior)), None);
+        for ((name, g), (_, w)) in got.iter().zip(&want) {
+            assert_eq!(g[k], w[k], "{name}, query {k}");
+        }
+    }
 }
 
 #[test]
