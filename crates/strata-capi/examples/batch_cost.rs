@@ -2,8 +2,9 @@
 //! n = 4096 (on one thread, `strata_bsdf_set_threads(b, 1)`, and on the
 //! default pool of one thread per core), for eval (1 and 64 walks) and
 //! sample, on
-//! examples/materials/coated_copper.toml. Calls the extern "C" functions, as
-//! a C program does. Not a test: run it and read the table.
+//! examples/materials/coated_copper.toml; then one call with and without a
+//! thickness per query (`strata_eval_batch_columns`). Calls the extern "C"
+//! functions, as a C program does. Not a test: run it and read the tables.
 //!
 //! ```text
 //! cargo run --release -p strata-capi --example batch_cost
@@ -154,4 +155,72 @@ fn main() {
         cells[1],
         cells[2],
     );
+    columns_cost(budget, path, &wi, &wo);
+}
+
+/// The cost of per-query parameters: one call of n = N on one thread with
+/// the BSDF's own parameters against the `*_columns` call with a thickness
+/// per query (every query its own material, built and checked per call).
+fn columns_cost(budget: Duration, path: &str, wi: &[f32], wo: &[f32]) {
+    let thickness: Vec<f32> = (0..N).map(|k| 0.1 + 0.9 * k as f32 / N as f32).collect();
+    let p = CString::new("layers[0].medium.thickness").unwrap();
+    let cols = [StrataColumn {
+        path: p.as_ptr(),
+        width: 1,
+        values: thickness.as_ptr(),
+    }];
+    let mut f = vec![0.0f32; 3 * N];
+    let mut s = vec![StrataSample::default(); N];
+    println!();
+    println!("| one call of n = {N}, 1 thread | own parameters | a thickness per query | ratio |");
+    println!("|---|---|---|---|");
+    for samples in [1u64, 64] {
+        let b = create(path, samples, Some(1));
+        let mut cell = |c: Option<&[StrataColumn]>| {
+            let (cp, nc) = c.map_or((null(), 0), |c| (c.as_ptr(), c.len()));
+            per_query(budget, || {
+                // SAFETY: N queries in every array, N values per column; a
+                // live BSDF.
+                let st = unsafe {
+                    strata_eval_batch_columns(
+                        b,
+                        N,
+                        wi.as_ptr(),
+                        wo.as_ptr(),
+                        cp,
+                        nc,
+                        f.as_mut_ptr(),
+                        null_mut(),
+                    )
+                };
+                assert_eq!(st, STRATA_OK);
+            })
+        };
+        let (own, per) = (cell(None), cell(Some(&cols)));
+        println!(
+            "| `strata_eval_batch_columns`, samples {samples} | {own:.0} ns | {per:.0} ns | {:.2}× |",
+            own / per
+        );
+        // SAFETY: from `create`, freed once.
+        unsafe { strata_bsdf_free(b) };
+    }
+    let b = create(path, 1, Some(1));
+    let mut cell = |c: Option<&[StrataColumn]>| {
+        let (cp, nc) = c.map_or((null(), 0), |c| (c.as_ptr(), c.len()));
+        per_query(budget, || {
+            // SAFETY: N queries in every array, N values per column; a live
+            // BSDF.
+            let st = unsafe {
+                strata_sample_batch_columns(b, N, wi.as_ptr(), null(), cp, nc, s.as_mut_ptr())
+            };
+            assert_eq!(st, STRATA_OK);
+        })
+    };
+    let (own, per) = (cell(None), cell(Some(&cols)));
+    println!(
+        "| `strata_sample_batch_columns` | {own:.0} ns | {per:.0} ns | {:.2}× |",
+        own / per
+    );
+    // SAFETY: from `create`, freed once.
+    unsafe { strata_bsdf_free(b) };
 }

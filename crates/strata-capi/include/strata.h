@@ -31,14 +31,17 @@
  * An argument has a value strata cannot use: a direction that is NaN,
  * infinite or of zero length (the message names the query index and the
  * argument), a walk count of 0 or above 2^40, an unknown transport mode, a
- * batch too large to address, a misaligned or overlapping array, or text
- * that is not UTF-8.
+ * batch too large to address, a misaligned or overlapping array, text
+ * that is not UTF-8, or a bad `StrataColumn` (a width other than 1 or 3, a
+ * path that is not settable or not in the material, a NaN or infinite
+ * value, a value of the wrong shape for its field).
  */
 #define STRATA_ERR_INVALID_ARGUMENT -2
 
 /**
- * The material text is malformed or describes an invalid stack (the
- * message names the layer, the field and the value).
+ * The material text is malformed or describes an invalid stack, or a
+ * query's `StrataColumn` values make an invalid material (the message names
+ * the query, the layer, the field and the value).
  */
 #define STRATA_ERR_MATERIAL -3
 
@@ -116,6 +119,51 @@ typedef struct StrataStackInfo {
    */
   uint32_t two_sided;
 } StrataStackInfo;
+
+/**
+ * One per-query parameter of a `*_columns` batch call: the values of the
+ * material parameter `path` for each of the call's `n` queries, `width`
+ * floats per query, query after query (`values[k * width + c]`).
+ *
+ * `path` is a settable parameter of the BSDF's material, as in
+ * docs/materials.md "Per-query overrides (set)": `"exterior_ior"`,
+ * `"layers[i].interface.ior"` (or `roughness`, `eta`, `k`, `albedo`),
+ * `"layers[i].medium.thickness"` (or `sigma_t`, `albedo`, `phase.g`).
+ * `width` is 1 (a number per query) or 3 (an RGB triple per query: `eta`,
+ * `k`, `sigma_t`, an albedo); a number where the field takes a triple sets
+ * all three channels (an anisotropic roughness, two numbers, cannot be a
+ * column). Query `k` then answers bit for bit what a BSDF made from a
+ * material file with row `k`'s values answers (same seed and key), with the
+ * BSDF's walk count, seed, transport mode and threads.
+ *
+ * Errors: every column and every row is checked before anything runs, and a
+ * failed call writes nothing to its outputs. A bad column is named by its
+ * index (`columns[1].path is NULL`, `columns[0].values is NULL (n = 4)`,
+ * `columns[0].width = 2 ...`, `columns[0]: set path ...: unknown medium
+ * field ...`; `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`). The first
+ * query whose values are invalid fails the whole batch, naming the query,
+ * the path and the value: `STRATA_ERR_MATERIAL` if they make an invalid
+ * material (``columns: query 3: set `layers[0].medium.thickness` = -1.0:
+ * invalid material: layer 0: medium.thickness = -1: must be >= 0``), else
+ * `STRATA_ERR_INVALID_ARGUMENT` (``columns: query 1: set
+ * `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
+ * its textures, or drops the query and calls again for the rest.
+ */
+typedef struct StrataColumn {
+  /**
+   * The parameter's path, NUL-terminated UTF-8 (e.g.
+   * `"layers[0].medium.thickness"`).
+   */
+  const char *path;
+  /**
+   * Floats per query: 1 or 3.
+   */
+  size_t width;
+  /**
+   * `width × n` floats, query after query.
+   */
+  const float *values;
+} StrataColumn;
 
 /**
  * One sample of `strata_sample_batch`. An absorbed walk is all zeros
@@ -304,6 +352,50 @@ int32_t strata_eval_batch_keyed(const struct StrataBsdf *b,
                                 float *stderr_out);
 
 /**
+ * `strata_eval_batch` with per-query parameters: query `k` is evaluated on
+ * the BSDF's material with row `k` of every column set (see
+ * `StrataColumn`), and answers bit for bit what a BSDF made from a material
+ * file with those values answers. `ncolumns` = 0 is `strata_eval_batch`
+ * (and `columns` may then be NULL); n = 0 does nothing. If any column or any
+ * query's values are invalid nothing runs and nothing is written: the
+ * status is `STRATA_ERR_MATERIAL` (the values make an invalid material),
+ * `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`, and
+ * `strata_last_error()` names the column or the query, the path and the
+ * value (see `StrataColumn`). The columns' values must not overlap an
+ * output (checked).
+ *
+ * # Safety
+ * As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
+ * each with a NUL-terminated `path` and `width × n` `values` that nothing
+ * writes during the call.
+ */
+int32_t strata_eval_batch_columns(const struct StrataBsdf *b,
+                                  size_t n,
+                                  const float *wi,
+                                  const float *wo,
+                                  const struct StrataColumn *columns,
+                                  size_t ncolumns,
+                                  float *f_out,
+                                  float *stderr_out);
+
+/**
+ * `strata_eval_batch_keyed` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_eval_batch_keyed` and `strata_eval_batch_columns`.
+ */
+int32_t strata_eval_batch_keyed_columns(const struct StrataBsdf *b,
+                                        size_t n,
+                                        const float *wi,
+                                        const float *wo,
+                                        const uint64_t *keys,
+                                        const struct StrataColumn *columns,
+                                        size_t ncolumns,
+                                        float *f_out,
+                                        float *stderr_out);
+
+/**
  * `strata_eval_batch` over component arrays (structure of arrays): `n`
  * floats each of `wi_x, wi_y, wi_z, wo_x, wo_y, wo_z`, results to `f_r,
  * f_g, f_b` and, unless all three are NULL, the standard errors to `se_r,
@@ -331,6 +423,31 @@ int32_t strata_eval_batch_soa(const struct StrataBsdf *b,
                               float *se_b);
 
 /**
+ * `strata_eval_batch_soa` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_eval_batch_soa` and `strata_eval_batch_columns`.
+ */
+int32_t strata_eval_batch_soa_columns(const struct StrataBsdf *b,
+                                      size_t n,
+                                      const float *wi_x,
+                                      const float *wi_y,
+                                      const float *wi_z,
+                                      const float *wo_x,
+                                      const float *wo_y,
+                                      const float *wo_z,
+                                      const uint64_t *keys,
+                                      const struct StrataColumn *columns,
+                                      size_t ncolumns,
+                                      float *f_r,
+                                      float *f_g,
+                                      float *f_b,
+                                      float *se_r,
+                                      float *se_g,
+                                      float *se_b);
+
+/**
  * Samples one outgoing direction per incident direction `wi[k]` (`3 n`
  * floats), into `out[k]`. `keys` NULL: query `k` is keyed by its
  * direction's bits and draws sample index `k` (as line `k` of `strata
@@ -348,6 +465,22 @@ int32_t strata_sample_batch(const struct StrataBsdf *b,
                             const float *wi,
                             const uint64_t *keys,
                             struct StrataSample *out);
+
+/**
+ * `strata_sample_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`: query `k` samples the material with row `k`
+ * of every column, from the same stream as the plain call.
+ *
+ * # Safety
+ * As `strata_sample_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_sample_batch_columns(const struct StrataBsdf *b,
+                                    size_t n,
+                                    const float *wi,
+                                    const uint64_t *keys,
+                                    const struct StrataColumn *columns,
+                                    size_t ncolumns,
+                                    struct StrataSample *out);
 
 /**
  * `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
@@ -375,6 +508,30 @@ int32_t strata_sample_batch_soa(const struct StrataBsdf *b,
                                 uint32_t *flags);
 
 /**
+ * `strata_sample_batch_soa` with per-query parameters, as
+ * `strata_sample_batch_columns`.
+ *
+ * # Safety
+ * As `strata_sample_batch_soa` and `strata_eval_batch_columns`.
+ */
+int32_t strata_sample_batch_soa_columns(const struct StrataBsdf *b,
+                                        size_t n,
+                                        const float *wi_x,
+                                        const float *wi_y,
+                                        const float *wi_z,
+                                        const uint64_t *keys,
+                                        const struct StrataColumn *columns,
+                                        size_t ncolumns,
+                                        float *wo_x,
+                                        float *wo_y,
+                                        float *wo_z,
+                                        float *weight_r,
+                                        float *weight_g,
+                                        float *weight_b,
+                                        float *pdf,
+                                        uint32_t *flags);
+
+/**
  * The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
  * each), per solid angle, into `pdf_out` (`n` floats). A function of the two
  * directions and the seed: it is the number a sample of that direction
@@ -389,6 +546,22 @@ int32_t strata_pdf_batch(const struct StrataBsdf *b,
                          const float *wi,
                          const float *wo,
                          float *pdf_out);
+
+/**
+ * `strata_pdf_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`: the pdf a sample of query `k`'s material
+ * carries.
+ *
+ * # Safety
+ * As `strata_pdf_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_pdf_batch_columns(const struct StrataBsdf *b,
+                                 size_t n,
+                                 const float *wi,
+                                 const float *wo,
+                                 const struct StrataColumn *columns,
+                                 size_t ncolumns,
+                                 float *pdf_out);
 
 /**
  * The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
@@ -410,6 +583,23 @@ int32_t strata_pdf_unbiased_batch(const struct StrataBsdf *b,
                                   float *stderr_out);
 
 /**
+ * `strata_pdf_unbiased_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_pdf_unbiased_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_pdf_unbiased_batch_columns(const struct StrataBsdf *b,
+                                          size_t n,
+                                          const float *wi,
+                                          const float *wo,
+                                          uint64_t walks,
+                                          const struct StrataColumn *columns,
+                                          size_t ncolumns,
+                                          float *pdf_out,
+                                          float *stderr_out);
+
+/**
  * The directional albedo of each incident direction `wi[k]` (`3 n` floats)
  * from `walks` walks each (1 to 2^40), into `out[k]`. `keys` NULL: keyed by
  * the directions' bits; otherwise `n` keys. n = 0 does nothing.
@@ -425,6 +615,22 @@ int32_t strata_albedo_batch(const struct StrataBsdf *b,
                             uint64_t walks,
                             const uint64_t *keys,
                             struct StrataAlbedo *out);
+
+/**
+ * `strata_albedo_batch` with per-query parameters, as
+ * `strata_eval_batch_columns`.
+ *
+ * # Safety
+ * As `strata_albedo_batch` and `strata_eval_batch_columns`.
+ */
+int32_t strata_albedo_batch_columns(const struct StrataBsdf *b,
+                                    size_t n,
+                                    const float *wi,
+                                    uint64_t walks,
+                                    const uint64_t *keys,
+                                    const struct StrataColumn *columns,
+                                    size_t ncolumns,
+                                    struct StrataAlbedo *out);
 
 /**
  * The message of this thread's last failed call: the function, the

@@ -15,18 +15,28 @@
 //! batch functions are its slice calls (`eval_into`, `sample_records`, ...)
 //! over the caller's flat arrays, so they give the Rust API's numbers bit for
 //! bit (tested in `tests/abi.rs`).
+//!
+//! Per-query parameters (a renderer's textures) are `StrataColumn`s, taken by
+//! the `*_columns` form of every batch call: the call builds one material per
+//! query with [`Materials::per_query`] and answers query `k` as a BSDF made
+//! from a material file with row `k`'s values (`tests/columns.rs`). Each
+//! batch call has one body that both its forms share.
 
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
+use glam::Vec3;
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::ffi::{c_char, CStr, CString};
 use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use strata_bsdf::api::direction_key;
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, LayerStack, LayeredBsdf, SampleRecord, Transport,
-    Vectors, VectorsMut,
+    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
+    Materials, Sample, SampleFlags, SampleRecord, SetError, SetPath, Transport, Vectors,
+    VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -38,11 +48,14 @@ pub const STRATA_ERR_NULL: i32 = -1;
 /// An argument has a value strata cannot use: a direction that is NaN,
 /// infinite or of zero length (the message names the query index and the
 /// argument), a walk count of 0 or above 2^40, an unknown transport mode, a
-/// batch too large to address, a misaligned or overlapping array, or text
-/// that is not UTF-8.
+/// batch too large to address, a misaligned or overlapping array, text
+/// that is not UTF-8, or a bad `StrataColumn` (a width other than 1 or 3, a
+/// path that is not settable or not in the material, a NaN or infinite
+/// value, a value of the wrong shape for its field).
 pub const STRATA_ERR_INVALID_ARGUMENT: i32 = -2;
-/// The material text is malformed or describes an invalid stack (the
-/// message names the layer, the field and the value).
+/// The material text is malformed or describes an invalid stack, or a
+/// query's `StrataColumn` values make an invalid material (the message names
+/// the query, the layer, the field and the value).
 pub const STRATA_ERR_MATERIAL: i32 = -3;
 /// A material file could not be read (the message names the path).
 pub const STRATA_ERR_IO: i32 = -4;
@@ -163,6 +176,45 @@ pub struct StrataStackInfo {
     /// 1 if light from below an opaque stack is mirrored to the top (the
     /// material's `two_sided`), else 0.
     pub two_sided: u32,
+}
+
+/// One per-query parameter of a `*_columns` batch call: the values of the
+/// material parameter `path` for each of the call's `n` queries, `width`
+/// floats per query, query after query (`values[k * width + c]`).
+///
+/// `path` is a settable parameter of the BSDF's material, as in
+/// docs/materials.md "Per-query overrides (set)": `"exterior_ior"`,
+/// `"layers[i].interface.ior"` (or `roughness`, `eta`, `k`, `albedo`),
+/// `"layers[i].medium.thickness"` (or `sigma_t`, `albedo`, `phase.g`).
+/// `width` is 1 (a number per query) or 3 (an RGB triple per query: `eta`,
+/// `k`, `sigma_t`, an albedo); a number where the field takes a triple sets
+/// all three channels (an anisotropic roughness, two numbers, cannot be a
+/// column). Query `k` then answers bit for bit what a BSDF made from a
+/// material file with row `k`'s values answers (same seed and key), with the
+/// BSDF's walk count, seed, transport mode and threads.
+///
+/// Errors: every column and every row is checked before anything runs, and a
+/// failed call writes nothing to its outputs. A bad column is named by its
+/// index (`columns[1].path is NULL`, `columns[0].values is NULL (n = 4)`,
+/// `columns[0].width = 2 ...`, `columns[0]: set path ...: unknown medium
+/// field ...`; `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`). The first
+/// query whose values are invalid fails the whole batch, naming the query,
+/// the path and the value: `STRATA_ERR_MATERIAL` if they make an invalid
+/// material (``columns: query 3: set `layers[0].medium.thickness` = -1.0:
+/// invalid material: layer 0: medium.thickness = -1: must be >= 0``), else
+/// `STRATA_ERR_INVALID_ARGUMENT` (``columns: query 1: set
+/// `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
+/// its textures, or drops the query and calls again for the rest.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StrataColumn {
+    /// The parameter's path, NUL-terminated UTF-8 (e.g.
+    /// `"layers[0].medium.thickness"`).
+    pub path: *const c_char,
+    /// Floats per query: 1 or 3.
+    pub width: usize,
+    /// `width × n` floats, query after query.
+    pub values: *const f32,
 }
 
 // ---------------------------------------------------------- errors, guarding
@@ -340,7 +392,7 @@ fn triples(v: &[f32]) -> &[[f32; 3]] {
 
 /// One array argument of a call, checked: name, start, bytes, whether the
 /// call writes it.
-type Span = (&'static str, usize, usize, bool);
+type Span = (Cow<'static, str>, usize, usize, bool);
 
 /// Checks an array of `per * n` elements of `T` for a call of `n` queries:
 /// non-NULL (unless `optional`), aligned and addressable.
@@ -353,7 +405,7 @@ fn span<T>(
     optional: bool,
 ) -> Result<Span, Failure> {
     if optional && ptr.is_null() {
-        return Ok((name, 0, 0, written));
+        return Ok((name.into(), 0, 0, written));
     }
     let len = match per.checked_mul(n) {
         Some(len) => len,
@@ -361,7 +413,7 @@ fn span<T>(
         None => return Err(too_large(name, n)),
     };
     check_array(name, ptr, len, n)?;
-    Ok((name, ptr as usize, len * size_of::<T>(), written))
+    Ok((name.into(), ptr as usize, len * size_of::<T>(), written))
 }
 
 /// Checks that no array the call writes overlaps another array of the call
@@ -622,7 +674,330 @@ pub unsafe extern "C" fn strata_bsdf_free(b: *mut StrataBsdf) {
     }));
 }
 
+// ---------------------------------------------------- per-query parameters
+
+/// The column arguments of a batch call: `ncolumns` columns at `columns`
+/// (none for the plain calls).
+#[derive(Clone, Copy)]
+struct ColumnArgs {
+    columns: *const StrataColumn,
+    ncolumns: usize,
+}
+
+/// No columns: the BSDF's own parameters.
+const OWN: ColumnArgs = ColumnArgs {
+    columns: std::ptr::null(),
+    ncolumns: 0,
+};
+
+/// A call's columns, checked: their paths parsed, their values as slices.
+struct Columns<'a> {
+    paths: Vec<SetPath>,
+    widths: Vec<usize>,
+    values: Vec<&'a [f32]>,
+    /// The columns array and every column's values: inputs of the call.
+    spans: Vec<Span>,
+}
+
+/// Reads and checks the columns of a call of `n` queries (n > 0): the array
+/// not NULL (if `ncolumns` > 0), each column's path not NULL, UTF-8 and a
+/// settable path, its width 1 or 3 and its values not NULL, aligned and
+/// addressable. The rows' values are checked by [`Columns::target`].
+///
+/// # Safety
+/// A non-NULL `columns` points to `ncolumns` readable `StrataColumn`s whose
+/// non-NULL `path`s are NUL-terminated and whose non-NULL `values` hold
+/// `width × n` floats, none of them written during the call.
+unsafe fn read_columns<'a>(args: ColumnArgs, n: usize) -> Result<Columns<'a>, Failure> {
+    let ColumnArgs { columns, ncolumns } = args;
+    let mut cols = Columns {
+        paths: Vec::new(),
+        widths: Vec::new(),
+        values: Vec::new(),
+        spans: Vec::new(),
+    };
+    if ncolumns == 0 {
+        return Ok(cols);
+    }
+    if columns.is_null() {
+        return Err(Failure::new(
+            STRATA_ERR_NULL,
+            format!("columns is NULL (ncolumns = {ncolumns})"),
+        ));
+    }
+    cols.spans
+        .push(span("columns", columns, 1, ncolumns, false, false)?);
+    // SAFETY: `columns` is non-NULL, aligned and addressable (checked by
+    // `span`), and the caller guarantees `ncolumns` columns are readable.
+    let array = unsafe { input("columns", columns, 1, ncolumns)? };
+    for (i, c) in array.iter().enumerate() {
+        let name = format!("columns[{i}]");
+        if c.path.is_null() {
+            return Err(Failure::new(
+                STRATA_ERR_NULL,
+                format!("{name}.path is NULL"),
+            ));
+        }
+        // SAFETY: `c.path` is non-NULL and the caller guarantees it is
+        // NUL-terminated and not written during the call.
+        let path = unsafe { text(&format!("{name}.path"), c.path)? };
+        let path: SetPath = path
+            .parse()
+            .map_err(|e: SetError| Failure::invalid(format!("{name}: {e}")))?;
+        if c.width != 1 && c.width != 3 {
+            return Err(Failure::invalid(format!(
+                "{name}.width = {} (`{path}`): expected 1 (a number per query) or 3 \
+                 (an RGB triple or a normal per query)",
+                c.width
+            )));
+        }
+        let values = format!("{name}.values");
+        let len = c
+            .width
+            .checked_mul(n)
+            .ok_or_else(|| too_large(&values, n))?;
+        let start = c.values as usize;
+        check_array(&values, c.values, len, n)?;
+        cols.spans
+            .push((values.into(), start, len * size_of::<f32>(), false));
+        // SAFETY: `c.values` is non-NULL, aligned and `width × n` floats fit
+        // in isize (checked above); the caller guarantees they are readable
+        // and not written during the call.
+        cols.values
+            .push(unsafe { std::slice::from_raw_parts(c.values, len) });
+        cols.paths.push(path);
+        cols.widths.push(c.width);
+    }
+    Ok(cols)
+}
+
+impl Columns<'_> {
+    /// Checks that no output of the call (in `spans`) overlaps another array
+    /// of it, the columns' values included.
+    fn disjoint(&self, mut spans: Vec<Span>) -> Result<(), Failure> {
+        spans.extend(self.spans.iter().cloned());
+        disjoint(&spans)
+    }
+
+    /// What the call's `n` queries run on: `bsdf` itself without columns,
+    /// else one material per query (every row checked first: the error
+    /// names the query, the path and the value).
+    fn target<'b>(&self, bsdf: &'b LayeredBsdf, n: usize) -> Result<Target<'b>, Failure> {
+        if self.paths.is_empty() {
+            return Ok(Target::Own(bsdf));
+        }
+        let columns: Vec<Column> = (self.paths.iter().zip(&self.widths).zip(&self.values))
+            .map(|((path, &width), values)| Column {
+                path,
+                width,
+                values,
+            })
+            .collect();
+        match Materials::per_query(bsdf, n, &columns) {
+            Ok(m) => Ok(Target::PerQuery(bsdf, m)),
+            Err(e) => {
+                let code = match &e {
+                    ColumnsError::Query {
+                        error: SetError::Invalid { .. },
+                        ..
+                    } => STRATA_ERR_MATERIAL,
+                    _ => STRATA_ERR_INVALID_ARGUMENT,
+                };
+                Err(Failure::new(code, format!("columns: {e}")))
+            }
+        }
+    }
+}
+
+/// What a batch runs on.
+enum Target<'a> {
+    /// The BSDF's own parameters: its slice calls.
+    Own(&'a LayeredBsdf),
+    /// One material per query (query `k` on material `k`), with the BSDF's
+    /// configuration.
+    PerQuery(&'a LayeredBsdf, Materials),
+}
+
+/// Where samples go.
+enum SampleOut<'a> {
+    /// One record per query.
+    Records(&'a mut [SampleRecord]),
+    /// Component arrays.
+    Soa {
+        wo: VectorsMut<'a>,
+        weight: VectorsMut<'a>,
+        pdf: &'a mut [f32],
+        flags: &'a mut [u32],
+    },
+}
+
+impl SampleOut<'_> {
+    fn put(&mut self, k: usize, s: Option<&Sample>) {
+        let r = match s {
+            Some(s) => SampleRecord {
+                wo: s.wo.to_array(),
+                weight: s.weight,
+                pdf: s.pdf,
+                flags: SampleFlags::of(Some(s)).0,
+            },
+            None => SampleRecord::default(),
+        };
+        match self {
+            SampleOut::Records(out) => out[k] = r,
+            SampleOut::Soa {
+                wo,
+                weight,
+                pdf,
+                flags,
+            } => {
+                wo.set(k, r.wo);
+                weight.set(k, r.weight);
+                pdf[k] = r.pdf;
+                flags[k] = r.flags;
+            }
+        }
+    }
+}
+
+fn f32x3(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+/// The `n` pairs of a batch.
+fn pairs(wi: &Vectors, wo: &Vectors) -> Vec<(Vec3, Vec3)> {
+    (0..wi.len()).map(|k| (wi.get(k), wo.get(k))).collect()
+}
+
+/// The `n` directions of a batch.
+fn dirs(wi: &Vectors) -> Vec<Vec3> {
+    (0..wi.len()).map(|k| wi.get(k)).collect()
+}
+
+// The per-query forms key and index their queries as the slice calls do
+// (`strata_bsdf::slices`): unkeyed queries by their directions' bits (and an
+// unkeyed sample `k` draws sample index `k`), keyed ones from `keys[k]` (and
+// a keyed sample draws sample index 0). Nothing is written before every
+// query is known valid: the `Materials` calls check them all first.
+impl Target<'_> {
+    fn eval(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut se: Option<VectorsMut>,
+    ) -> Result<(), Failure> {
+        let (b, m) = match self {
+            Target::Own(b) => return Ok(b.eval_into(wi, wo, keys, f, se)?),
+            Target::PerQuery(b, m) => (b, m),
+        };
+        let (pairs, ids) = (pairs(&wi, &wo), Materials::identity(wi.len()));
+        let e = match keys {
+            None => m.eval_batch(&ids, &pairs)?,
+            Some(k) => m.eval_batch_keyed(&ids, &pairs, b.samples_per_eval(), k)?,
+        };
+        for (k, e) in e.iter().enumerate() {
+            f.set(k, f32x3(e.value));
+            if let Some(s) = &mut se {
+                s.set(k, f32x3(e.stderr));
+            }
+        }
+        Ok(())
+    }
+
+    fn sample(&self, wi: Vectors, keys: Option<&[u64]>, out: SampleOut) -> Result<(), Failure> {
+        let (m, mut out) = match (self, out) {
+            (Target::Own(b), SampleOut::Records(out)) => {
+                return Ok(b.sample_records(wi, keys, out)?)
+            }
+            (
+                Target::Own(b),
+                SampleOut::Soa {
+                    wo,
+                    weight,
+                    pdf,
+                    flags,
+                },
+            ) => return Ok(b.sample_into(wi, keys, wo, weight, pdf, flags)?),
+            (Target::PerQuery(_, m), out) => (m, out),
+        };
+        let (wis, ids) = (dirs(&wi), Materials::identity(wi.len()));
+        let s = match keys {
+            None => m.sample_batch(&ids, &wis, &(0..wis.len() as u64).collect::<Vec<_>>())?,
+            Some(k) => m.sample_batch_keyed(&ids, &wis, k, &vec![0; wis.len()])?,
+        };
+        for (k, s) in s.iter().enumerate() {
+            out.put(k, s.as_ref());
+        }
+        Ok(())
+    }
+
+    fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), Failure> {
+        let m = match self {
+            Target::Own(b) => return Ok(b.pdf_into(wi, wo, pdf)?),
+            Target::PerQuery(_, m) => m,
+        };
+        let p = m.pdf_batch(&Materials::identity(wi.len()), &pairs(&wi, &wo))?;
+        pdf.copy_from_slice(&p);
+        Ok(())
+    }
+
+    fn pdf_unbiased(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        walks: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> Result<(), Failure> {
+        let m = match self {
+            Target::Own(b) => return Ok(b.pdf_unbiased_into(wi, wo, walks, pdf, stderr)?),
+            Target::PerQuery(_, m) => m,
+        };
+        let ids = Materials::identity(wi.len());
+        let e = m.pdf_unbiased_batch(&ids, &pairs(&wi, &wo), walks)?;
+        for ((e, p), s) in e.iter().zip(pdf).zip(stderr) {
+            *p = e.value as f32;
+            *s = e.stderr as f32;
+        }
+        Ok(())
+    }
+
+    fn albedo(
+        &self,
+        wi: Vectors,
+        walks: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> Result<(), Failure> {
+        let m = match self {
+            Target::Own(b) => return Ok(b.albedo_records(wi, walks, keys, out)?),
+            Target::PerQuery(_, m) => m,
+        };
+        let wis = dirs(&wi);
+        let keys = match keys {
+            Some(k) => k.to_vec(),
+            None => wis.iter().map(|&w| direction_key(w, w)).collect(),
+        };
+        let a = m.albedo_batch_keyed(&Materials::identity(wis.len()), &wis, walks, &keys)?;
+        for (o, a) in out.iter_mut().zip(&a) {
+            *o = AlbedoRecord {
+                reflected: f32x3(a.reflected.value),
+                transmitted: f32x3(a.transmitted.value),
+                reflected_stderr: f32x3(a.reflected.stderr),
+                transmitted_stderr: f32x3(a.transmitted.stderr),
+            };
+        }
+        Ok(())
+    }
+}
+
 // ------------------------------------------------------------------- batches
+//
+// Each batch call has one body, `*_body`, that checks the arguments, makes
+// slices of them and runs the batch on a `Target`: the BSDF's own parameters
+// (the plain entry points, `OWN` columns) or one material per query built
+// from the caller's columns (the `*_columns` entry points).
 
 /// Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for `n`
 /// queries with the BSDF's walk count, keyed by the directions' bits (the
@@ -648,7 +1023,7 @@ pub unsafe extern "C" fn strata_eval_batch(
 ) -> i32 {
     guard("strata_eval_batch", || {
         // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, None, f_out, stderr_out) }
+        unsafe { eval_aos(b, n, wi, wo, None, OWN, f_out, stderr_out) }
     })
 }
 
@@ -671,7 +1046,65 @@ pub unsafe extern "C" fn strata_eval_batch_keyed(
 ) -> i32 {
     guard("strata_eval_batch_keyed", || {
         // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, Some(keys), f_out, stderr_out) }
+        unsafe { eval_aos(b, n, wi, wo, Some(keys), OWN, f_out, stderr_out) }
+    })
+}
+
+/// `strata_eval_batch` with per-query parameters: query `k` is evaluated on
+/// the BSDF's material with row `k` of every column set (see
+/// `StrataColumn`), and answers bit for bit what a BSDF made from a material
+/// file with those values answers. `ncolumns` = 0 is `strata_eval_batch`
+/// (and `columns` may then be NULL); n = 0 does nothing. If any column or any
+/// query's values are invalid nothing runs and nothing is written: the
+/// status is `STRATA_ERR_MATERIAL` (the values make an invalid material),
+/// `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`, and
+/// `strata_last_error()` names the column or the query, the path and the
+/// value (see `StrataColumn`). The columns' values must not overlap an
+/// output (checked).
+///
+/// # Safety
+/// As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
+/// each with a NUL-terminated `path` and `width × n` `values` that nothing
+/// writes during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    f_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `eval_aos`.
+        unsafe { eval_aos(b, n, wi, wo, None, cols, f_out, stderr_out) }
+    })
+}
+
+/// `strata_eval_batch_keyed` with per-query parameters, as
+/// `strata_eval_batch_columns`.
+///
+/// # Safety
+/// As `strata_eval_batch_keyed` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch_keyed_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    keys: *const u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    f_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch_keyed_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `eval_aos`.
+        unsafe { eval_aos(b, n, wi, wo, Some(keys), cols, f_out, stderr_out) }
     })
 }
 
@@ -679,13 +1112,15 @@ pub unsafe extern "C" fn strata_eval_batch_keyed(
 /// must not be NULL).
 ///
 /// # Safety
-/// As `strata_eval_batch_keyed`.
+/// As `strata_eval_batch_keyed_columns`.
+#[allow(clippy::too_many_arguments)]
 unsafe fn eval_aos(
     b: *const StrataBsdf,
     n: usize,
     wi: *const f32,
     wo: *const f32,
     keys: Option<*const u64>,
+    cols: ColumnArgs,
     f_out: *mut f32,
     stderr_out: *mut f32,
 ) -> Result<(), Failure> {
@@ -700,16 +1135,19 @@ unsafe fn eval_aos(
             format!("keys is NULL (n = {n}): use strata_eval_batch for unkeyed queries"),
         ));
     }
-    disjoint(&[
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    cols.disjoint(vec![
         span("wi", wi, 3, n, false, false)?,
         span("wo", wo, 3, n, false, false)?,
         span("keys", keys.unwrap_or(std::ptr::null()), 1, n, false, true)?,
         span("f_out", f_out, 3, n, true, false)?,
         span("stderr_out", stderr_out, 3, n, true, true)?,
     ])?;
+    let target = cols.target(bsdf, n)?;
     // SAFETY: the caller guarantees each non-NULL array holds 3 n floats
     // (n keys) and that inputs are not written during the call; the outputs
-    // were checked disjoint from every other array above.
+    // were checked disjoint from every other array (and column) above.
     let (wi, wo, keys, f, se) = unsafe {
         (
             input("wi", wi, 3, n)?,
@@ -725,14 +1163,13 @@ unsafe fn eval_aos(
     };
     let f = VectorsMut::Aos(triples_mut(f));
     let se = se.map(|s| VectorsMut::Aos(triples_mut(s)));
-    bsdf.eval_into(
+    target.eval(
         Vectors::Aos(triples(wi)),
         Vectors::Aos(triples(wo)),
         keys,
         f,
         se,
-    )?;
-    Ok(())
+    )
 }
 
 /// Writes to a float array of `3 n` as `n` triples.
@@ -771,85 +1208,150 @@ pub unsafe extern "C" fn strata_eval_batch_soa(
     se_b: *mut f32,
 ) -> i32 {
     guard("strata_eval_batch_soa", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        let with_stderr = match [se_r, se_g, se_b].map(|p| p.is_null()) {
-            [true, true, true] => false,
-            [false, false, false] => true,
-            nulls => {
-                let names = ["se_r", "se_g", "se_b"];
-                let null = (0..3).find(|&i| nulls[i]).unwrap_or(0);
-                let given = (0..3).find(|&i| !nulls[i]).unwrap_or(0);
-                return Err(Failure::new(
-                    STRATA_ERR_NULL,
-                    format!(
-                        "{} is NULL but {} is not (n = {n}): pass all three or none",
-                        names[null], names[given]
-                    ),
-                ));
-            }
-        };
-        disjoint(&[
-            span("wi_x", wi_x, 1, n, false, false)?,
-            span("wi_y", wi_y, 1, n, false, false)?,
-            span("wi_z", wi_z, 1, n, false, false)?,
-            span("wo_x", wo_x, 1, n, false, false)?,
-            span("wo_y", wo_y, 1, n, false, false)?,
-            span("wo_z", wo_z, 1, n, false, false)?,
-            span("keys", keys, 1, n, false, true)?,
-            span("f_r", f_r, 1, n, true, false)?,
-            span("f_g", f_g, 1, n, true, false)?,
-            span("f_b", f_b, 1, n, true, false)?,
-            span("se_r", se_r, 1, n, true, true)?,
-            span("se_g", se_g, 1, n, true, true)?,
-            span("se_b", se_b, 1, n, true, true)?,
-        ])?;
-        // SAFETY: the caller guarantees each non-NULL array holds n
-        // elements and that inputs are not written during the call; the
-        // outputs were checked disjoint from every other array above.
-        unsafe {
-            let wi = [
-                input("wi_x", wi_x, 1, n)?,
-                input("wi_y", wi_y, 1, n)?,
-                input("wi_z", wi_z, 1, n)?,
-            ];
-            let wo = [
-                input("wo_x", wo_x, 1, n)?,
-                input("wo_y", wo_y, 1, n)?,
-                input("wo_z", wo_z, 1, n)?,
-            ];
-            let keys = if keys.is_null() {
-                None
-            } else {
-                Some(input("keys", keys, 1, n)?)
-            };
-            let f = [
-                output("f_r", f_r, 1, n)?,
-                output("f_g", f_g, 1, n)?,
-                output("f_b", f_b, 1, n)?,
-            ];
-            let se = if with_stderr {
-                Some(VectorsMut::Soa([
-                    output("se_r", se_r, 1, n)?,
-                    output("se_g", se_g, 1, n)?,
-                    output("se_b", se_b, 1, n)?,
-                ]))
-            } else {
-                None
-            };
-            bsdf.eval_into(
-                Vectors::Soa(wi),
-                Vectors::Soa(wo),
-                keys,
-                VectorsMut::Soa(f),
-                se,
-            )?;
-        }
-        Ok(())
+        let (wi, wo, f, se) = (
+            [wi_x, wi_y, wi_z],
+            [wo_x, wo_y, wo_z],
+            [f_r, f_g, f_b],
+            [se_r, se_g, se_b],
+        );
+        // SAFETY: the caller's guarantees are those of `eval_soa`.
+        unsafe { eval_soa(b, n, wi, wo, keys, OWN, f, se) }
     })
+}
+
+/// `strata_eval_batch_soa` with per-query parameters, as
+/// `strata_eval_batch_columns`.
+///
+/// # Safety
+/// As `strata_eval_batch_soa` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval_batch_soa_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi_x: *const f32,
+    wi_y: *const f32,
+    wi_z: *const f32,
+    wo_x: *const f32,
+    wo_y: *const f32,
+    wo_z: *const f32,
+    keys: *const u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    f_r: *mut f32,
+    f_g: *mut f32,
+    f_b: *mut f32,
+    se_r: *mut f32,
+    se_g: *mut f32,
+    se_b: *mut f32,
+) -> i32 {
+    guard("strata_eval_batch_soa_columns", || {
+        let (wi, wo, f, se) = (
+            [wi_x, wi_y, wi_z],
+            [wo_x, wo_y, wo_z],
+            [f_r, f_g, f_b],
+            [se_r, se_g, se_b],
+        );
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `eval_soa`.
+        unsafe { eval_soa(b, n, wi, wo, keys, cols, f, se) }
+    })
+}
+
+/// The body of the SoA evals.
+///
+/// # Safety
+/// As `strata_eval_batch_soa_columns`.
+#[allow(clippy::too_many_arguments)]
+unsafe fn eval_soa(
+    b: *const StrataBsdf,
+    n: usize,
+    [wi_x, wi_y, wi_z]: [*const f32; 3],
+    [wo_x, wo_y, wo_z]: [*const f32; 3],
+    keys: *const u64,
+    cols: ColumnArgs,
+    [f_r, f_g, f_b]: [*mut f32; 3],
+    [se_r, se_g, se_b]: [*mut f32; 3],
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    let with_stderr = match [se_r, se_g, se_b].map(|p| p.is_null()) {
+        [true, true, true] => false,
+        [false, false, false] => true,
+        nulls => {
+            let names = ["se_r", "se_g", "se_b"];
+            let null = (0..3).find(|&i| nulls[i]).unwrap_or(0);
+            let given = (0..3).find(|&i| !nulls[i]).unwrap_or(0);
+            return Err(Failure::new(
+                STRATA_ERR_NULL,
+                format!(
+                    "{} is NULL but {} is not (n = {n}): pass all three or none",
+                    names[null], names[given]
+                ),
+            ));
+        }
+    };
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    cols.disjoint(vec![
+        span("wi_x", wi_x, 1, n, false, false)?,
+        span("wi_y", wi_y, 1, n, false, false)?,
+        span("wi_z", wi_z, 1, n, false, false)?,
+        span("wo_x", wo_x, 1, n, false, false)?,
+        span("wo_y", wo_y, 1, n, false, false)?,
+        span("wo_z", wo_z, 1, n, false, false)?,
+        span("keys", keys, 1, n, false, true)?,
+        span("f_r", f_r, 1, n, true, false)?,
+        span("f_g", f_g, 1, n, true, false)?,
+        span("f_b", f_b, 1, n, true, false)?,
+        span("se_r", se_r, 1, n, true, true)?,
+        span("se_g", se_g, 1, n, true, true)?,
+        span("se_b", se_b, 1, n, true, true)?,
+    ])?;
+    let target = cols.target(bsdf, n)?;
+    // SAFETY: the caller guarantees each non-NULL array holds n elements and
+    // that inputs are not written during the call; the outputs were checked
+    // disjoint from every other array (and column) above.
+    unsafe {
+        let wi = [
+            input("wi_x", wi_x, 1, n)?,
+            input("wi_y", wi_y, 1, n)?,
+            input("wi_z", wi_z, 1, n)?,
+        ];
+        let wo = [
+            input("wo_x", wo_x, 1, n)?,
+            input("wo_y", wo_y, 1, n)?,
+            input("wo_z", wo_z, 1, n)?,
+        ];
+        let keys = if keys.is_null() {
+            None
+        } else {
+            Some(input("keys", keys, 1, n)?)
+        };
+        let f = [
+            output("f_r", f_r, 1, n)?,
+            output("f_g", f_g, 1, n)?,
+            output("f_b", f_b, 1, n)?,
+        ];
+        let se = if with_stderr {
+            Some(VectorsMut::Soa([
+                output("se_r", se_r, 1, n)?,
+                output("se_g", se_g, 1, n)?,
+                output("se_b", se_b, 1, n)?,
+            ]))
+        } else {
+            None
+        };
+        target.eval(
+            Vectors::Soa(wi),
+            Vectors::Soa(wo),
+            keys,
+            VectorsMut::Soa(f),
+            se,
+        )
+    }
 }
 
 /// Samples one outgoing direction per incident direction `wi[k]` (`3 n`
@@ -872,32 +1374,73 @@ pub unsafe extern "C" fn strata_sample_batch(
     out: *mut StrataSample,
 ) -> i32 {
     guard("strata_sample_batch", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        disjoint(&[
-            span("wi", wi, 3, n, false, false)?,
-            span("keys", keys, 1, n, false, true)?,
-            span("out", out, 1, n, true, false)?,
-        ])?;
-        // SAFETY: the caller guarantees the arrays' lengths and that inputs
-        // are not written during the call; `out` was checked disjoint from
-        // them. `StrataSample` has the layout of `SampleRecord` (asserted at
-        // compile time), so `out`'s records may be written as those.
-        unsafe {
-            let wi = input("wi", wi, 3, n)?;
-            let keys = if keys.is_null() {
-                None
-            } else {
-                Some(input("keys", keys, 1, n)?)
-            };
-            let out = output("out", out.cast::<SampleRecord>(), 1, n)?;
-            bsdf.sample_records(Vectors::Aos(triples(wi)), keys, out)?;
-        }
-        Ok(())
+        // SAFETY: the caller's guarantees are those of `sample_aos`.
+        unsafe { sample_aos(b, n, wi, keys, OWN, out) }
     })
+}
+
+/// `strata_sample_batch` with per-query parameters, as
+/// `strata_eval_batch_columns`: query `k` samples the material with row `k`
+/// of every column, from the same stream as the plain call.
+///
+/// # Safety
+/// As `strata_sample_batch` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_sample_batch_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    keys: *const u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    out: *mut StrataSample,
+) -> i32 {
+    guard("strata_sample_batch_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `sample_aos`.
+        unsafe { sample_aos(b, n, wi, keys, cols, out) }
+    })
+}
+
+/// The body of the AoS samples.
+///
+/// # Safety
+/// As `strata_sample_batch_columns`.
+unsafe fn sample_aos(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    keys: *const u64,
+    cols: ColumnArgs,
+    out: *mut StrataSample,
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    cols.disjoint(vec![
+        span("wi", wi, 3, n, false, false)?,
+        span("keys", keys, 1, n, false, true)?,
+        span("out", out, 1, n, true, false)?,
+    ])?;
+    let target = cols.target(bsdf, n)?;
+    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
+    // not written during the call; `out` was checked disjoint from them.
+    // `StrataSample` has the layout of `SampleRecord` (asserted at compile
+    // time), so `out`'s records may be written as those.
+    unsafe {
+        let wi = input("wi", wi, 3, n)?;
+        let keys = if keys.is_null() {
+            None
+        } else {
+            Some(input("keys", keys, 1, n)?)
+        };
+        let out = output("out", out.cast::<SampleRecord>(), 1, n)?;
+        target.sample(Vectors::Aos(triples(wi)), keys, SampleOut::Records(out))
+    }
 }
 
 /// `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
@@ -926,62 +1469,122 @@ pub unsafe extern "C" fn strata_sample_batch_soa(
     flags: *mut u32,
 ) -> i32 {
     guard("strata_sample_batch_soa", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        disjoint(&[
-            span("wi_x", wi_x, 1, n, false, false)?,
-            span("wi_y", wi_y, 1, n, false, false)?,
-            span("wi_z", wi_z, 1, n, false, false)?,
-            span("keys", keys, 1, n, false, true)?,
-            span("wo_x", wo_x, 1, n, true, false)?,
-            span("wo_y", wo_y, 1, n, true, false)?,
-            span("wo_z", wo_z, 1, n, true, false)?,
-            span("weight_r", weight_r, 1, n, true, false)?,
-            span("weight_g", weight_g, 1, n, true, false)?,
-            span("weight_b", weight_b, 1, n, true, false)?,
-            span("pdf", pdf, 1, n, true, false)?,
-            span("flags", flags, 1, n, true, false)?,
-        ])?;
-        // SAFETY: the caller guarantees each non-NULL array holds n
-        // elements and that inputs are not written during the call; the
-        // outputs were checked disjoint from every other array above.
-        unsafe {
-            let wi = [
-                input("wi_x", wi_x, 1, n)?,
-                input("wi_y", wi_y, 1, n)?,
-                input("wi_z", wi_z, 1, n)?,
-            ];
-            let keys = if keys.is_null() {
-                None
-            } else {
-                Some(input("keys", keys, 1, n)?)
-            };
-            let wo = [
-                output("wo_x", wo_x, 1, n)?,
-                output("wo_y", wo_y, 1, n)?,
-                output("wo_z", wo_z, 1, n)?,
-            ];
-            let weight = [
-                output("weight_r", weight_r, 1, n)?,
-                output("weight_g", weight_g, 1, n)?,
-                output("weight_b", weight_b, 1, n)?,
-            ];
-            let pdf = output("pdf", pdf, 1, n)?;
-            let flags = output("flags", flags, 1, n)?;
-            bsdf.sample_into(
-                Vectors::Soa(wi),
-                keys,
-                VectorsMut::Soa(wo),
-                VectorsMut::Soa(weight),
-                pdf,
-                flags,
-            )?;
-        }
-        Ok(())
+        let (wi, wo, w) = (
+            [wi_x, wi_y, wi_z],
+            [wo_x, wo_y, wo_z],
+            [weight_r, weight_g, weight_b],
+        );
+        // SAFETY: the caller's guarantees are those of `sample_soa`.
+        unsafe { sample_soa(b, n, wi, keys, OWN, wo, w, pdf, flags) }
     })
+}
+
+/// `strata_sample_batch_soa` with per-query parameters, as
+/// `strata_sample_batch_columns`.
+///
+/// # Safety
+/// As `strata_sample_batch_soa` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_sample_batch_soa_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi_x: *const f32,
+    wi_y: *const f32,
+    wi_z: *const f32,
+    keys: *const u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    wo_x: *mut f32,
+    wo_y: *mut f32,
+    wo_z: *mut f32,
+    weight_r: *mut f32,
+    weight_g: *mut f32,
+    weight_b: *mut f32,
+    pdf: *mut f32,
+    flags: *mut u32,
+) -> i32 {
+    guard("strata_sample_batch_soa_columns", || {
+        let (wi, wo, w) = (
+            [wi_x, wi_y, wi_z],
+            [wo_x, wo_y, wo_z],
+            [weight_r, weight_g, weight_b],
+        );
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `sample_soa`.
+        unsafe { sample_soa(b, n, wi, keys, cols, wo, w, pdf, flags) }
+    })
+}
+
+/// The body of the SoA samples.
+///
+/// # Safety
+/// As `strata_sample_batch_soa_columns`.
+#[allow(clippy::too_many_arguments)]
+unsafe fn sample_soa(
+    b: *const StrataBsdf,
+    n: usize,
+    [wi_x, wi_y, wi_z]: [*const f32; 3],
+    keys: *const u64,
+    cols: ColumnArgs,
+    [wo_x, wo_y, wo_z]: [*mut f32; 3],
+    [weight_r, weight_g, weight_b]: [*mut f32; 3],
+    pdf: *mut f32,
+    flags: *mut u32,
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    cols.disjoint(vec![
+        span("wi_x", wi_x, 1, n, false, false)?,
+        span("wi_y", wi_y, 1, n, false, false)?,
+        span("wi_z", wi_z, 1, n, false, false)?,
+        span("keys", keys, 1, n, false, true)?,
+        span("wo_x", wo_x, 1, n, true, false)?,
+        span("wo_y", wo_y, 1, n, true, false)?,
+        span("wo_z", wo_z, 1, n, true, false)?,
+        span("weight_r", weight_r, 1, n, true, false)?,
+        span("weight_g", weight_g, 1, n, true, false)?,
+        span("weight_b", weight_b, 1, n, true, false)?,
+        span("pdf", pdf, 1, n, true, false)?,
+        span("flags", flags, 1, n, true, false)?,
+    ])?;
+    let target = cols.target(bsdf, n)?;
+    // SAFETY: the caller guarantees each non-NULL array holds n elements and
+    // that inputs are not written during the call; the outputs were checked
+    // disjoint from every other array (and column) above.
+    unsafe {
+        let wi = [
+            input("wi_x", wi_x, 1, n)?,
+            input("wi_y", wi_y, 1, n)?,
+            input("wi_z", wi_z, 1, n)?,
+        ];
+        let keys = if keys.is_null() {
+            None
+        } else {
+            Some(input("keys", keys, 1, n)?)
+        };
+        let wo = [
+            output("wo_x", wo_x, 1, n)?,
+            output("wo_y", wo_y, 1, n)?,
+            output("wo_z", wo_z, 1, n)?,
+        ];
+        let weight = [
+            output("weight_r", weight_r, 1, n)?,
+            output("weight_g", weight_g, 1, n)?,
+            output("weight_b", weight_b, 1, n)?,
+        ];
+        let out = SampleOut::Soa {
+            wo: VectorsMut::Soa(wo),
+            weight: VectorsMut::Soa(weight),
+            pdf: output("pdf", pdf, 1, n)?,
+            flags: output("flags", flags, 1, n)?,
+        };
+        target.sample(Vectors::Soa(wi), keys, out)
+    }
 }
 
 /// The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
@@ -1001,25 +1604,31 @@ pub unsafe extern "C" fn strata_pdf_batch(
     pdf_out: *mut f32,
 ) -> i32 {
     guard("strata_pdf_batch", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        disjoint(&[
-            span("wi", wi, 3, n, false, false)?,
-            span("wo", wo, 3, n, false, false)?,
-            span("pdf_out", pdf_out, 1, n, true, false)?,
-        ])?;
-        // SAFETY: the caller guarantees the arrays' lengths and that inputs
-        // are not written during the call; `pdf_out` was checked disjoint.
-        unsafe {
-            let wi = input("wi", wi, 3, n)?;
-            let wo = input("wo", wo, 3, n)?;
-            let pdf = output("pdf_out", pdf_out, 1, n)?;
-            bsdf.pdf_into(Vectors::Aos(triples(wi)), Vectors::Aos(triples(wo)), pdf)?;
-        }
-        Ok(())
+        // SAFETY: the caller's guarantees are those of `pdf_body`.
+        unsafe { pdf_body(b, n, wi, wo, None, OWN, pdf_out, std::ptr::null_mut()) }
+    })
+}
+
+/// `strata_pdf_batch` with per-query parameters, as
+/// `strata_eval_batch_columns`: the pdf a sample of query `k`'s material
+/// carries.
+///
+/// # Safety
+/// As `strata_pdf_batch` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf_batch_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    pdf_out: *mut f32,
+) -> i32 {
+    guard("strata_pdf_batch_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `pdf_body`.
+        unsafe { pdf_body(b, n, wi, wo, None, cols, pdf_out, std::ptr::null_mut()) }
     })
 }
 
@@ -1043,30 +1652,85 @@ pub unsafe extern "C" fn strata_pdf_unbiased_batch(
     stderr_out: *mut f32,
 ) -> i32 {
     guard("strata_pdf_unbiased_batch", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        walk_count("walks", walks)?;
-        disjoint(&[
-            span("wi", wi, 3, n, false, false)?,
-            span("wo", wo, 3, n, false, false)?,
-            span("pdf_out", pdf_out, 1, n, true, false)?,
-            span("stderr_out", stderr_out, 1, n, true, false)?,
-        ])?;
-        // SAFETY: the caller guarantees the arrays' lengths and that inputs
-        // are not written during the call; the outputs were checked disjoint.
-        unsafe {
-            let wi = input("wi", wi, 3, n)?;
-            let wo = input("wo", wo, 3, n)?;
-            let pdf = output("pdf_out", pdf_out, 1, n)?;
-            let se = output("stderr_out", stderr_out, 1, n)?;
-            let (wi, wo) = (Vectors::Aos(triples(wi)), Vectors::Aos(triples(wo)));
-            bsdf.pdf_unbiased_into(wi, wo, walks, pdf, se)?;
-        }
-        Ok(())
+        // SAFETY: the caller's guarantees are those of `pdf_body`.
+        unsafe { pdf_body(b, n, wi, wo, Some(walks), OWN, pdf_out, stderr_out) }
     })
+}
+
+/// `strata_pdf_unbiased_batch` with per-query parameters, as
+/// `strata_eval_batch_columns`.
+///
+/// # Safety
+/// As `strata_pdf_unbiased_batch` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf_unbiased_batch_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    walks: u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    pdf_out: *mut f32,
+    stderr_out: *mut f32,
+) -> i32 {
+    guard("strata_pdf_unbiased_batch_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `pdf_body`.
+        unsafe { pdf_body(b, n, wi, wo, Some(walks), cols, pdf_out, stderr_out) }
+    })
+}
+
+/// The body of the pdfs: approximate (`walks` `None`; `stderr_out` unused)
+/// or unbiased from `walks` density walks.
+///
+/// # Safety
+/// As `strata_pdf_unbiased_batch_columns`.
+#[allow(clippy::too_many_arguments)]
+unsafe fn pdf_body(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    wo: *const f32,
+    walks: Option<u64>,
+    cols: ColumnArgs,
+    pdf_out: *mut f32,
+    stderr_out: *mut f32,
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    if let Some(w) = walks {
+        walk_count("walks", w)?;
+    }
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    let mut spans = vec![
+        span("wi", wi, 3, n, false, false)?,
+        span("wo", wo, 3, n, false, false)?,
+        span("pdf_out", pdf_out, 1, n, true, false)?,
+    ];
+    if walks.is_some() {
+        spans.push(span("stderr_out", stderr_out, 1, n, true, false)?);
+    }
+    cols.disjoint(spans)?;
+    let target = cols.target(bsdf, n)?;
+    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
+    // not written during the call; the outputs were checked disjoint.
+    unsafe {
+        let wi = Vectors::Aos(triples(input("wi", wi, 3, n)?));
+        let wo = Vectors::Aos(triples(input("wo", wo, 3, n)?));
+        let pdf = output("pdf_out", pdf_out, 1, n)?;
+        match walks {
+            None => target.pdf(wi, wo, pdf),
+            Some(w) => {
+                let se = output("stderr_out", stderr_out, 1, n)?;
+                target.pdf_unbiased(wi, wo, w, pdf, se)
+            }
+        }
+    }
 }
 
 /// The directional albedo of each incident direction `wi[k]` (`3 n` floats)
@@ -1087,33 +1751,75 @@ pub unsafe extern "C" fn strata_albedo_batch(
     out: *mut StrataAlbedo,
 ) -> i32 {
     guard("strata_albedo_batch", || {
-        // SAFETY: the caller guarantees `b` is NULL or live.
-        let bsdf = unsafe { bsdf_ref(b)? };
-        if n == 0 {
-            return Ok(());
-        }
-        walk_count("walks", walks)?;
-        disjoint(&[
-            span("wi", wi, 3, n, false, false)?,
-            span("keys", keys, 1, n, false, true)?,
-            span("out", out, 1, n, true, false)?,
-        ])?;
-        // SAFETY: the caller guarantees the arrays' lengths and that inputs
-        // are not written during the call; `out` was checked disjoint.
-        // `StrataAlbedo` has the layout of `AlbedoRecord` (asserted at
-        // compile time).
-        unsafe {
-            let wi = input("wi", wi, 3, n)?;
-            let keys = if keys.is_null() {
-                None
-            } else {
-                Some(input("keys", keys, 1, n)?)
-            };
-            let out = output("out", out.cast::<AlbedoRecord>(), 1, n)?;
-            bsdf.albedo_records(Vectors::Aos(triples(wi)), walks, keys, out)?;
-        }
-        Ok(())
+        // SAFETY: the caller's guarantees are those of `albedo_body`.
+        unsafe { albedo_body(b, n, wi, walks, keys, OWN, out) }
     })
+}
+
+/// `strata_albedo_batch` with per-query parameters, as
+/// `strata_eval_batch_columns`.
+///
+/// # Safety
+/// As `strata_albedo_batch` and `strata_eval_batch_columns`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_albedo_batch_columns(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    walks: u64,
+    keys: *const u64,
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    out: *mut StrataAlbedo,
+) -> i32 {
+    guard("strata_albedo_batch_columns", || {
+        let cols = ColumnArgs { columns, ncolumns };
+        // SAFETY: the caller's guarantees are those of `albedo_body`.
+        unsafe { albedo_body(b, n, wi, walks, keys, cols, out) }
+    })
+}
+
+/// The body of the albedos.
+///
+/// # Safety
+/// As `strata_albedo_batch_columns`.
+unsafe fn albedo_body(
+    b: *const StrataBsdf,
+    n: usize,
+    wi: *const f32,
+    walks: u64,
+    keys: *const u64,
+    cols: ColumnArgs,
+    out: *mut StrataAlbedo,
+) -> Result<(), Failure> {
+    // SAFETY: the caller guarantees `b` is NULL or live.
+    let bsdf = unsafe { bsdf_ref(b)? };
+    if n == 0 {
+        return Ok(());
+    }
+    walk_count("walks", walks)?;
+    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+    let cols = unsafe { read_columns(cols, n)? };
+    cols.disjoint(vec![
+        span("wi", wi, 3, n, false, false)?,
+        span("keys", keys, 1, n, false, true)?,
+        span("out", out, 1, n, true, false)?,
+    ])?;
+    let target = cols.target(bsdf, n)?;
+    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
+    // not written during the call; `out` was checked disjoint.
+    // `StrataAlbedo` has the layout of `AlbedoRecord` (asserted at compile
+    // time).
+    unsafe {
+        let wi = input("wi", wi, 3, n)?;
+        let keys = if keys.is_null() {
+            None
+        } else {
+            Some(input("keys", keys, 1, n)?)
+        };
+        let out = output("out", out.cast::<AlbedoRecord>(), 1, n)?;
+        target.albedo(Vectors::Aos(triples(wi)), walks, keys, out)
+    }
 }
 
 // ------------------------------------------------------------------- strings

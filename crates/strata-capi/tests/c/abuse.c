@@ -170,6 +170,64 @@ int main(void) {
     expect("misaligned wi", strata_eval_batch(b, 1, (const float *)(raw + 1), wo, f, NULL),
            STRATA_ERR_INVALID_ARGUMENT, "not aligned", NULL);
 
+    /* ---- per-query columns: the message names the column or query, the
+     * path and the value; nothing is written */
+    const float thick[4] = {0.1f, 0.2f, -0.5f, 0.4f}; /* query 2 is invalid */
+    const float good_thick[4] = {0.1f, 0.2f, 0.3f, 0.4f};
+    StrataColumn col = {"layers[0].medium.thickness", 1, good_thick};
+    expect("columns, NULL array",
+           strata_eval_batch_columns(b, 4, wi, wo, NULL, 1, f, NULL), STRATA_ERR_NULL,
+           "columns is NULL (ncolumns = 1)", "strata_eval_batch_columns");
+    col.path = NULL;
+    expect("columns, NULL path", strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, NULL),
+           STRATA_ERR_NULL, "columns[0].path is NULL", NULL);
+    col.path = "layers[0].medium.thickness";
+    col.values = NULL;
+    expect("columns, NULL values", strata_sample_batch_columns(b, 4, wi, NULL, &col, 1, s),
+           STRATA_ERR_NULL, "columns[0].values is NULL (n = 4)", "strata_sample_batch_columns");
+    col.values = good_thick;
+    col.width = 2;
+    expect("columns, width 2", strata_pdf_batch_columns(b, 4, wi, wo, &col, 1, pdf),
+           STRATA_ERR_INVALID_ARGUMENT, "columns[0].width = 2", "layers[0].medium.thickness");
+    col.width = 1;
+    col.path = "layers[0].medium.kind";
+    expect("columns, not a settable path",
+           strata_albedo_batch_columns(b, 4, wi, 8, NULL, &col, 1, a),
+           STRATA_ERR_INVALID_ARGUMENT, "columns[0]", "layers[0].medium.kind");
+    col.path = "layers[0].medium.thick\xffness";
+    expect("columns, path not UTF-8", strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, NULL),
+           STRATA_ERR_INVALID_ARGUMENT, "columns[0].path is not UTF-8", NULL);
+    col.path = "layers[0].medium.thickness";
+    col.values = thick;
+    for (int i = 0; i < 12; i++) f[i] = -7.0f;
+    expect("columns, negative thickness at query 2",
+           strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, se), STRATA_ERR_MATERIAL,
+           "query 2: set `layers[0].medium.thickness` = -0.5",
+           "layer 0: medium.thickness = -0.5");
+    untouched = 1;
+    for (int i = 0; i < 12; i++) untouched &= f[i] == -7.0f;
+    checks++;
+    if (!untouched) {
+        failures++;
+        fprintf(stderr, "FAIL: a failed eval with columns wrote to f_out\n");
+    }
+    const float nan_sigma[12] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, NAN, 1}; /* query 3 */
+    StrataColumn two[2] = {{"layers[0].medium.thickness", 1, good_thick},
+                           {"layers[0].medium.sigma_t", 3, nan_sigma}};
+    expect("columns, NaN sigma_t at query 3",
+           strata_pdf_unbiased_batch_columns(b, 4, wi, wo, 8, two, 2, pdf, se),
+           STRATA_ERR_INVALID_ARGUMENT, "query 3: set `layers[0].medium.sigma_t` = NaN",
+           "not a finite number");
+    for (int i = 0; i < 12; i++) f[i] = 0.3f;
+    StrataColumn in_f = {"layers[0].medium.thickness", 1, f}; /* f is also f_out */
+    expect("columns, overlapping an output",
+           strata_eval_batch_keyed_columns(b, 4, wi, wo, keys, &in_f, 1, f, NULL),
+           STRATA_ERR_INVALID_ARGUMENT, "f_out and columns[0].values overlap", NULL);
+    expect("columns, n = 0", strata_eval_batch_columns(b, 0, NULL, NULL, NULL, 3, NULL, NULL),
+           STRATA_OK, NULL, NULL);
+    expect("columns, good", strata_eval_batch_columns(b, 4, wi, wo, two, 1, f, se), STRATA_OK,
+           NULL, NULL);
+
     /* ---- a good call clears the message */
     expect("good eval", strata_eval_batch(b, 4, wi, wo, f, se), STRATA_OK, NULL, NULL);
 
