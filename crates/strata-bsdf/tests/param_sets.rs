@@ -133,6 +133,35 @@ fn families() -> Vec<Family> {
                 )
             },
         },
+        // A normal per interface (a normal map per layer): every interface
+        // tilted, each set its own way, through a smooth chain.
+        Family {
+            name: "tilted normals: rough coat / scatterer / smooth inner / rough conductor",
+            toml: |r| {
+                format!(
+                    "[[layers]]\n\
+                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {}, normal = [{}, {}, 1] }}\n\
+                     medium = {{ thickness = {}, sigma_t = {}, albedo = {} }}\n\
+                     [[layers]]\n\
+                     interface = {{ kind = \"dielectric\", ior = {}, normal = [{}, {}, 1] }}\n\
+                     [[layers]]\n\
+                     interface = {{ kind = \"conductor\", preset = \"Cu\", roughness = {}, normal = [{}, {}, 1] }}\n",
+                    r(0, 1.3, 1.7),
+                    r(1, 0.1, 0.5),
+                    r(2, 0.05, 0.3),
+                    r(3, -0.3, -0.05),
+                    r(4, 0.3, 2.0),
+                    r(5, 0.3, 2.0),
+                    r(6, 0.5, 0.95),
+                    r(7, 1.1, 1.4),
+                    r(8, -0.3, -0.05),
+                    r(9, 0.05, 0.3),
+                    r(10, 0.1, 0.5),
+                    r(11, 0.05, 0.3),
+                    r(12, 0.05, 0.3),
+                )
+            },
+        },
     ]
 }
 
@@ -372,7 +401,7 @@ fn sets_that_do_not_fit_are_errors() {
     assert_eq!(e.error, QueryError::ForeignSets);
 }
 
-/// A heterogeneous batch: materials of four shapes (five of each) in one
+/// A heterogeneous batch: materials of five shapes (five of each) in one
 /// call, queries interleaved; each answers what its material alone answers
 /// with the template's configuration.
 #[test]
@@ -386,9 +415,11 @@ fn a_mixed_batch_answers_what_each_material_answers() {
             .samples(32)
             .seed(11);
         let mats = Materials::new(&template, stacks.clone());
-        assert_eq!((mats.len(), mats.shapes()), (20, 4));
+        let shapes = families().len();
+        let m = shapes * SETS as usize;
+        assert_eq!((mats.len(), mats.shapes()), (m, shapes));
         let (pairs, _) = queries(41);
-        let material: Vec<u32> = (0..pairs.len() as u32).map(|k| k * 7 % 20).collect();
+        let material: Vec<u32> = (0..pairs.len() as u32).map(|k| k * 7 % m as u32).collect();
         let own = |k: usize| template.with_stack(stacks[material[k] as usize].clone());
         let eval = mats.eval_batch(&material, &pairs).unwrap();
         let wis: Vec<glam::Vec3> = pairs.iter().map(|p| p.0).collect();
@@ -413,12 +444,15 @@ fn a_mixed_batch_answers_what_each_material_answers() {
         }
         // An index past the materials names the query.
         let mut bad = material.clone();
-        bad[9] = 20;
+        bad[9] = m as u32;
         let e = mats.eval_batch(&bad, &pairs).unwrap_err();
         assert_eq!(e.index, Some(9));
         assert_eq!(
             e.to_string(),
-            "query 9: material = 20: there are 20 materials (0 to 19)"
+            format!(
+                "query 9: material = {m}: there are {m} materials (0 to {})",
+                m - 1
+            )
         );
         // A bad direction is named by its index in the whole batch.
         let mut p2 = pairs.clone();

@@ -14,7 +14,7 @@ use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
 use strata_bsdf::{LayerStack, LayeredBsdf};
 
-const STACKS: [(&str, &str); 6] = [
+const STACKS: [(&str, &str); 7] = [
     (
         "smooth coat / white Lambertian",
         r#"
@@ -76,6 +76,18 @@ const STACKS: [(&str, &str); 6] = [
         medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
         [[layers]]
         interface = { kind = "conductor", preset = "Au", roughness = 0.1 }
+        "#,
+    ),
+    (
+        "tilted normals: smooth coat / rough inner / rough copper",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, normal = [0.2, -0.1, 1] }
+        medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.8 }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.8, roughness = 0.15, normal = [-0.25, 0.0, 1] }
+        [[layers]]
+        interface = { kind = "conductor", preset = "Cu", roughness = 0.2, normal = [0.0, 0.3, 1] }
         "#,
     ),
 ];

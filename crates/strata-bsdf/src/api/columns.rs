@@ -11,6 +11,7 @@
 use super::{LayeredBsdf, Materials};
 use crate::stack::{LayerStack, SetError, SetPath};
 use serde_json::Value;
+use std::collections::HashMap;
 use std::fmt;
 
 /// One parameter's values, `width` floats per query (1 for a number, 3 for
@@ -81,7 +82,8 @@ impl Materials {
     /// `template`'s configuration (see [`Materials::new`]). Query `k` of a
     /// batch call then passes material `k` (see [`Materials::identity`]).
     ///
-    /// Every row is checked before anything runs: the first query whose
+    /// Queries whose rows are equal share one material (a texture's texels
+    /// repeat). Every row is checked before anything runs: the first query whose
     /// values are invalid is an error naming it, and no material is built
     /// (a renderer clamps its textures, or drops the query and retries the
     /// rest; nothing is answered silently for it).
@@ -116,10 +118,27 @@ impl Materials {
                 });
             }
         }
-        let stacks = (0..queries)
-            .map(|k| query_stack(template.stack(), columns, k))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(Materials::new(template, stacks))
+        // Equal rows (bit for bit: a texture's texels repeat) share one
+        // material, built once.
+        let mut first: HashMap<Vec<u32>, u32> = HashMap::new();
+        let (mut stacks, mut of) = (Vec::new(), Vec::with_capacity(queries));
+        for k in 0..queries {
+            let row: Vec<u32> = (columns.iter())
+                .flat_map(|c| c.values[k * c.width..(k + 1) * c.width].iter())
+                .map(|x| x.to_bits())
+                .collect();
+            let u = match first.get(&row) {
+                Some(&u) => u,
+                None => {
+                    stacks.push(query_stack(template.stack(), columns, k)?);
+                    let u = stacks.len() as u32 - 1;
+                    first.insert(row, u);
+                    u
+                }
+            };
+            of.push(u);
+        }
+        Ok(Materials::new(template, stacks).repeated(&of))
     }
 
     /// `0, 1, …, n − 1`: the material indices of a batch whose query `k`

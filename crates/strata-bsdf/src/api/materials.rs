@@ -54,6 +54,13 @@ impl Materials {
         Materials { groups, of }
     }
 
+    /// Materials `unique[of[m]]` for `m` in `0..of.len()`: repeated ones
+    /// share one parameter set.
+    pub(super) fn repeated(mut self, of: &[u32]) -> Self {
+        self.of = of.iter().map(|&u| self.of[u as usize]).collect();
+        self
+    }
+
     /// Number of materials.
     pub fn len(&self) -> usize {
         self.of.len()

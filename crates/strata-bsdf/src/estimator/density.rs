@@ -94,6 +94,8 @@ struct Goal<L: Lane> {
     exit: InterfaceLanes<L>,
     e_out: L,
     n_out: L,
+    /// The region beyond the exit (`-1` above the stack, `n − 1` below).
+    outside: L,
     /// The exit's layer; the interface across it, `k`, and the depth there.
     layer: L,
     k: L,
@@ -141,6 +143,8 @@ impl<L: Lane> Vertex<'_, L> {
 struct Target<L: Lane> {
     t: V3<L>,
     n_t: L,
+    /// The region `t` travels in (layer index; `-1` above the stack).
+    region: L,
     q: L,
     pe: L,
     ok: L::Mask,
@@ -152,6 +156,7 @@ impl<L: Lane> Target<L> {
     /// density of `leave` for that arrival.
     fn sample(
         it: &InterfaceLanes<L>,
+        i: L,
         leave: V3<L>,
         transmit_only: L::Mask,
         m: L::Mask,
@@ -165,6 +170,7 @@ impl<L: Lane> Target<L> {
         Target {
             t: -b,
             n_t: L::select(b.z.gt(zero), it.n_above, it.n_below),
+            region: L::select(b.z.gt(zero), i - L::one(), i),
             q: L::select(ok, s.pdf, zero),
             pe: L::select(ok, it.pdf(b, leave, L::Mask::splat(false)), zero),
             ok,
@@ -244,12 +250,14 @@ impl<L: Lane> DensityWalk<'_, L> {
         let inner = self.at(k);
         let n_out = L::select(top, exit.n_above, exit.n_below);
         let on = L::Mask::splat(two) & exit.smooth & !inner.smooth;
-        let (u_w, j_w, ok) = self.candidate(layer, top, wo, n_out, on);
+        let outside = L::select(top, -L::one(), last);
+        let (u_w, j_w, ok) = self.candidate(layer, top, wo, n_out, outside, on);
         Goal {
             wo,
             exit,
             e_out,
             n_out,
+            outside,
             layer,
             k,
             z_k: L::select(top, self.thickness(layer), zero),
@@ -407,9 +415,17 @@ impl<L: Lane> DensityWalk<'_, L> {
         let last = L::splat(self.n() as f64 - 1.0);
         let top = g.wo.z.gt(zero);
         let rough_exit = m & !g.exit.smooth;
-        let exit_target = Target::sample(&g.exit, g.wo, L::Mask::splat(true), rough_exit, draw);
+        let exit_target = Target::sample(
+            &g.exit,
+            g.e_out,
+            g.wo,
+            L::Mask::splat(true),
+            rough_exit,
+            draw,
+        );
         let inner_on = m & g.inner_on;
-        let inner_target = Target::sample(&g.inner, g.u_w, L::Mask::splat(false), inner_on, draw);
+        let inner_target =
+            Target::sample(&g.inner, g.k, g.u_w, L::Mask::splat(false), inner_on, draw);
         // The sides a candidate can leave the vertex by: the layer, the
         // depth it starts from, the lanes where it exists.
         let sides = match v {
@@ -425,10 +441,10 @@ impl<L: Lane> DensityWalk<'_, L> {
         // A candidate whose first interface is rough, and not where it
         // stops, has no delta-only path: skipped before any work (it would
         // draw nothing either, so the walk is the same).
-        let leave = |l: L, up: bool, t: V3<L>, n_t: L, ok: L::Mask, stop: L| {
+        let leave = |l: L, up: bool, t: V3<L>, n_t: L, r_t: L, ok: L::Mask, stop: L| {
             let first = if up { l } else { l + L::one() };
             let ok = ok & (self.at(first).smooth | first.eq(stop));
-            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, ok);
+            let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, r_t, ok);
             let (pv, w) = v.density(u);
             let s = State {
                 beta: st.beta * w,
@@ -442,8 +458,9 @@ impl<L: Lane> DensityWalk<'_, L> {
             // To the exit: wo itself (smooth), or the rough exit's target.
             let t = V3::select(rough_exit, exit_target.t, g.wo);
             let n_t = L::select(rough_exit, exit_target.n_t, g.n_out);
+            let r_t = L::select(rough_exit, exit_target.region, g.outside);
             let ok = m & has & (exit_target.ok | g.exit.smooth);
-            let (u, pv, s, ok) = leave(l, up, t, n_t, ok, g.e_out);
+            let (u, pv, s, ok) = leave(l, up, t, n_t, r_t, ok, g.e_out);
             if ok.any() {
                 let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
                 let share = L::select(rough_exit, exit_target.value(pv), pv);
@@ -466,7 +483,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             // Through k to u_w: arrive at k along the sampled target.
             let t = inner_target.t;
             let ok = inner_on & has & inner_target.ok;
-            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, ok, g.k);
+            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, inner_target.region, ok, g.k);
             if ok.any() {
                 let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
                 let ok = ok & p1.gt(zero);
@@ -497,11 +514,76 @@ impl<L: Lane> DensityWalk<'_, L> {
         m & ok & bounded
     }
 
+    /// Some smooth interface is tilted: delta paths through it do not
+    /// conserve tangential momentum, so a candidate is traced interface by
+    /// interface and only the path that transmits at every delta event maps
+    /// to the target (one with reflections leaves another way: method.md
+    /// §8 says what this leaves out).
+    fn tilted_delta(&self) -> bool {
+        self.ifaces.iter().any(|it| it.tilted && it.smooth.any())
+    }
+
+    /// [`DensityWalk::candidate`] through tilted interfaces: `t` refracted
+    /// back through each interface between region `r_t` and layer `l`, the
+    /// nearest first, with the Jacobian of each refraction in its shading
+    /// frame; none where an interface on the way is rough or reflects
+    /// totally, or where the result does not head `up` (or down) as asked.
+    fn candidate_tilted(
+        &self,
+        l: L,
+        up: L::Mask,
+        t: V3<L>,
+        r_t: L,
+        m: L::Mask,
+    ) -> (V3<L>, L, L::Mask) {
+        let zero = L::zero();
+        let (mut u, mut jac, mut ok) = (t, L::one(), m);
+        let n = self.n();
+        let cross = |j: usize, act: L::Mask, u: &mut V3<L>, jac: &mut L, ok: &mut L::Mask| {
+            let act = act & *ok;
+            if !act.any() {
+                return;
+            }
+            let it = &self.ifaces[j];
+            let s = it.sample(*u, zero, zero, zero, L::Mask::splat(true));
+            let (n_a, n_b) = it.sides(*u);
+            let (ca, cb) = (it.cos_local(*u), it.cos_local(s.b));
+            let step = L::div_or_zero(n_a * n_a * ca, n_b * n_b * cb, act & cb.gt(zero));
+            *ok = *ok & !(act & !(it.smooth & s.valid));
+            *jac = L::select(act, *jac * step, *jac);
+            *u = V3::select(act, -s.b, *u);
+        };
+        for j in 0..n {
+            let jj = L::splat(j as f64);
+            let act = up & jj.gt(r_t) & l.ge(jj);
+            cross(j, act, &mut u, &mut jac, &mut ok);
+        }
+        for j in (0..n).rev() {
+            let jj = L::splat(j as f64);
+            let act = !up & r_t.ge(jj) & jj.gt(l);
+            cross(j, act, &mut u, &mut jac, &mut ok);
+        }
+        let heads = L::select(up, u.z, -u.z).gt(zero);
+        (u, jac, ok & heads)
+    }
+
     /// The travel direction in layer `l` (per lane), heading up (`up`) or
     /// down, that smooth interfaces map to the direction `t` in a region of
     /// IOR `n_t`; the Jacobian `dω_u / dω_t`; the lanes of `m` where it
     /// exists (not evanescent).
-    fn candidate(&self, l: L, up: L::Mask, t: V3<L>, n_t: L, m: L::Mask) -> (V3<L>, L, L::Mask) {
+    /// `t` travels in region `r_t` (a layer index, `-1` above the stack).
+    fn candidate(
+        &self,
+        l: L,
+        up: L::Mask,
+        t: V3<L>,
+        n_t: L,
+        r_t: L,
+        m: L::Mask,
+    ) -> (V3<L>, L, L::Mask) {
+        if self.tilted_delta() {
+            return self.candidate_tilted(l, up, t, r_t, m);
+        }
         let zero = L::zero();
         let n_l = self.at(l.max(zero)).n_below;
         let r = L::div_or_zero(n_t, n_l, m & n_l.gt(zero));
@@ -594,6 +676,10 @@ impl<L: Lane> DensityWalk<'_, L> {
             }
             let s = it.sample(-u, draw(live), zero, zero, L::Mask::splat(false));
             live = live & s.valid;
+            if self.tilted_delta() {
+                // Only the path that transmits throughout maps to the target.
+                live = live & (s.b.z * u.z).gt(zero);
+            }
             st.beta = Rgb::select(live, st.beta * s.weight, st.beta);
             st.events = L::select(live, st.events + L::one(), st.events);
             let b = s.b;
