@@ -14,7 +14,9 @@ made here with numpy (nothing read from disk) and handed to the plugin as
 ``param:`` properties (per-query parameters): a clear coat with an amber
 absorber whose thickness follows a bitmap of bands (textured_thickness.png),
 and a rough coat over silver whose absorber's sigma_t is an RGB bitmap of
-tinted cells (textured_sigma_t.png). Both bitmaps take a few distinct values
+tinted cells (textured_sigma_t.png); and a clear coat over rough copper whose
+coat alone follows a normal map of hammered dimples (textured_normal.png; the
+copper below keeps the slab's normal). The bitmaps take a few distinct values
 (nearest filtering), so a wavefront has a few distinct materials.
 """
 
@@ -46,6 +48,15 @@ interface = { kind = "dielectric", ior = 1.5 }
 medium = { thickness = 0.5, sigma_t = [0.15, 0.6, 1.8], albedo = 0.0 }
 [[layers]]
 interface = { kind = "diffuse", albedo = 0.85 }
+"""
+
+# A clear coat over rough copper, the coat alone normal-mapped (hammered).
+HAMMERED_COAT = """description = "Clear coat over rough copper, the coat's normal from a normal map"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+medium = { thickness = 0.3, sigma_t = [0.1, 0.25, 0.5], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", preset = "Cu", roughness = 0.25 }
 """
 
 # A rough coat over silver, its absorber's colour from a texture.
@@ -92,6 +103,36 @@ def sigma_cells(width=256, height=128, seed=1):
     return PALETTE[colours[d.argmin(axis=-1)]]
 
 
+def hammered_normals(width=256, height=128, seed=2, levels=4):
+    """A normal map in (u, v) (RGB c = (n + 1) / 2, as Mitsuba's normalmap
+    reads it): round dimples around 40 random sites (distances wrapped in
+    u), each a spherical cap tilting the normal up to 20 degrees, the tilt
+    quantized to a few values per axis so that a wavefront holds a few
+    distinct materials."""
+    rng = np.random.default_rng(seed)
+    sites = rng.random((40, 2))
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    uu, vv = np.meshgrid(u, v)
+    du = uu[..., None] - sites[:, 0]
+    du = (du + 0.5) % 1.0 - 0.5
+    dv = vv[..., None] - sites[:, 1]
+    d2 = (2 * du) ** 2 + dv**2
+    k = d2.argmin(axis=-1)
+    pick = lambda a: np.take_along_axis(a, k[..., None], axis=-1)[..., 0]  # noqa: E731
+    x, y, r = 2 * pick(du), pick(dv), np.sqrt(pick(d2))
+    radius = 0.09
+    s = np.clip(r / radius, 0.0, 1.0) * np.tan(np.radians(20.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tx = np.where(r > 0, s * x / r, 0.0)
+        ty = np.where(r > 0, s * y / r, 0.0)
+    tx = np.round(tx * levels) / levels
+    ty = np.round(ty * levels) / levels
+    n = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return ((n + 1.0) / 2.0).astype(np.float32)
+
+
 def bitmap(mi, data):
     return {"type": "bitmap", "bitmap": mi.Bitmap(data), "raw": True, "filter_type": "nearest"}
 
@@ -103,7 +144,7 @@ def main():
     ap.add_argument("--variant", default="llvm_ad_rgb")
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery"))
     ap.add_argument("--only", nargs="*", help="render only these materials")
-    ap.add_argument("--textured", action="store_true", help="render the two textured materials instead")
+    ap.add_argument("--textured", action="store_true", help="render the three textured materials instead")
     args = ap.parse_args()
 
     mi.set_variant(args.variant)
@@ -138,6 +179,12 @@ def main():
                           "param:layers[0]:medium:sigma_t": bitmap(mi, sigma_cells())},
                          "textured_sigma_t")
             mi.util.write_bitmap(str(out / "textured_sigma_t.png"), img)
+            hammered = pathlib.Path(d) / "hammered_coat.toml"
+            hammered.write_text(HAMMERED_COAT)
+            img = render({"type": "strata", "filename": str(hammered),
+                          "param:layers[0]:interface:normal": bitmap(mi, hammered_normals())},
+                         "textured_normal")
+            mi.util.write_bitmap(str(out / "textured_normal.png"), img)
         return
 
     for m in args.only if args.only else MATERIALS:

@@ -125,3 +125,26 @@ def test_traverse_exposes_the_textures(tmp_path):
     got = np.array(mi.render(s, seed=3))
     ref = render({"type": "strata", "filename": material(tmp_path, coat(1.25))}, 17, 13, 4)
     np.testing.assert_array_equal(got, ref)
+
+
+NRM = "param:layers[0]:interface:normal"
+
+
+def test_a_normal_map_tilts_the_coat(tmp_path):
+    """A normal texture is a normal map (n = 2c - 1): the flat texel renders bit
+    for bit the untilted material, a tilted one the material whose coat has
+    that normal."""
+    use_variant("llvm_ad_rgb")
+    w, h, spp = 29, 23, 8
+    base = material(tmp_path, coat())
+    flat = render({"type": "strata", "filename": base}, w, h, spp)
+    got = render({"type": "strata", "filename": base, NRM: {"type": "rgb", "value": [0.5, 0.5, 1.0]}}, w, h, spp)
+    np.testing.assert_array_equal(got, flat)
+    c = np.array([0.6, 0.5, 0.9], np.float32)
+    n = [float(x) for x in np.float32(2.0) * c - np.float32(1.0)]
+    tilted = coat().replace('roughness = 0.2 }', f"roughness = 0.2, normal = [{n[0]!r}, {n[1]!r}, {n[2]!r}] }}")
+    assert "normal" in tilted
+    ref = render({"type": "strata", "filename": material(tmp_path, tilted)}, w, h, spp)
+    got = render({"type": "strata", "filename": base, NRM: {"type": "rgb", "value": [0.6, 0.5, 0.9]}}, w, h, spp)
+    np.testing.assert_array_equal(got, ref)
+    assert not np.array_equal(ref, flat)

@@ -48,6 +48,11 @@ pub struct InterfaceLanes<L: Lane> {
     /// Some lane's normal is tilted: the frame change runs. Off, the
     /// interface runs exactly the untilted code.
     pub tilted: bool,
+    /// The lanes answer for the adjoint of a tilted interface (the flow of
+    /// importance): `eval` and `sample`'s weight carry Veach's factor
+    /// (method.md §9; the η² of refraction stays with the transport mode).
+    /// No effect where untilted.
+    pub adjoint: bool,
     /// Run every code path whatever the lanes need: the unspecialized walk
     /// that benchmarks compare against. Results are identical, only slower.
     /// (Normally a kind's code runs only if some lane is of that kind, and
@@ -99,6 +104,7 @@ impl<L: Lane> InterfaceLanes<L> {
             albedo: rgb(&|t| t.albedo),
             normal: V3::new(v(&|t| t.normal.x), v(&|t| t.normal.y), v(&|t| t.normal.z)),
             tilted: table.iter().any(|t| t.tilted),
+            adjoint: table.iter().any(|t| t.adjoint),
             run_all: table.iter().any(|t| t.run_all),
         }
     }
@@ -126,6 +132,7 @@ impl<L: Lane> InterfaceLanes<L> {
             albedo: rgb(a.albedo, b.albedo),
             normal: V3::select(m, a.normal, b.normal),
             tilted: a.tilted || b.tilted,
+            adjoint: a.adjoint || b.adjoint,
             run_all: a.run_all || b.run_all,
         }
     }
@@ -158,11 +165,14 @@ impl<L: Lane> InterfaceLanes<L> {
 
     /// `d` in the shading frame, and the lanes where it lies on the same
     /// side of the shading normal as of the slab's (the others carry no
-    /// light: method.md §8).
+    /// light: method.md §9). A direction closer to the shading horizon than
+    /// the engines' grazing limit counts as beyond it, as at the slab's
+    /// horizon: the kernels multiply cosines, which must stay normal numbers.
     #[inline]
     fn to_shading(f: &Frame<L>, flat: L::Mask, d: V3<L>) -> (V3<L>, L::Mask) {
         let dl = V3::select(flat, d, f.to_local(d));
-        (dl, flat | (dl.z * d.z).gt(L::zero()))
+        let open = (dl.z * d.z).gt(L::zero()) & dl.z.abs().ge(L::splat(crate::estimator::MIN_COS));
+        (dl, flat | open)
     }
 
     /// Samples `b` given `a`. `transmit_only` lanes sample the refraction lobe
@@ -171,7 +181,7 @@ impl<L: Lane> InterfaceLanes<L> {
     ///
     /// A tilted interface samples in its shading frame; a lane whose `a` or
     /// `b` lies on the other side of the shading normal than of the slab's
-    /// normal produces nothing (method.md §8). The weight is the shading
+    /// normal produces nothing (method.md §9). The weight is the shading
     /// frame's `f |b'.z| / pdf`.
     #[inline]
     pub fn sample(
@@ -189,11 +199,17 @@ impl<L: Lane> InterfaceLanes<L> {
         let (al, front) = Self::to_shading(&f, flat, a);
         let s = self.sample_local(al, u_select, u1, u2, transmit_only);
         let b = V3::select(flat, s.b, f.to_world(s.b));
-        let agree = flat | (s.b.z * b.z).gt(L::zero());
+        let agree = flat
+            | ((s.b.z * b.z).gt(L::zero()) & b.z.abs().ge(L::splat(crate::estimator::MIN_COS)));
         let valid = s.valid & front & agree;
+        let weight = if self.adjoint {
+            s.weight.scale(self.veach(a, b))
+        } else {
+            s.weight
+        };
         BsdfSample {
             b,
-            weight: Rgb::select(front & agree, s.weight, Rgb::zero()),
+            weight: Rgb::select(front & agree, weight, Rgb::zero()),
             valid,
             ..s
         }
@@ -213,6 +229,11 @@ impl<L: Lane> InterfaceLanes<L> {
         let (bl, agree) = Self::to_shading(&f, flat, b);
         let ok = front & agree;
         let c = L::div_or_zero(bl.z.abs(), b.z.abs(), ok & b.z.abs().gt(L::zero()));
+        let c = if self.adjoint {
+            c * self.veach(a, b)
+        } else {
+            c
+        };
         let c = L::select(flat, L::one(), c);
         Rgb::select(ok, self.eval_local(al, bl).scale(c), Rgb::zero())
     }
@@ -234,16 +255,28 @@ impl<L: Lane> InterfaceLanes<L> {
         )
     }
 
-    /// The factor that turns a sample drawn from the side light *leaves*
-    /// along (`depart`) into one of light arriving from `arrive`: Veach's
-    /// shading-normal correction `|depart'.z| |arrive.z| / (|depart.z|
-    /// |arrive'.z|)`, primes in the shading frame; 1 where untilted. The
-    /// adjoint chain applies it, since a tilted interface is not reciprocal.
+    /// `f(b → a) / f(a → b)` of these lanes, without the η² of refraction:
+    /// what turns a sample drawn from `a` (the side light *leaves* by) into
+    /// one of light arriving from `b`. Next-event chains, which sample
+    /// interfaces from the far side of the flow, apply it; 1 where untilted
+    /// (a tilted interface is not reciprocal: method.md §9).
     #[inline]
-    pub fn adjoint(&self, depart: V3<L>, arrive: V3<L>) -> L {
+    pub fn reverse(&self, a: V3<L>, b: V3<L>) -> L {
         if !self.tilted {
             return L::one();
         }
+        if self.adjoint {
+            self.veach(b, a)
+        } else {
+            self.veach(a, b)
+        }
+    }
+
+    /// Veach's shading-normal factor `|a'.z| |b.z| / (|a.z| |b'.z|)`,
+    /// primes in the shading frame (1 on flat lanes): `f(b → a) / f(a → b)`
+    /// of a tilted interface, η² aside.
+    #[inline]
+    fn veach(&self, depart: V3<L>, arrive: V3<L>) -> L {
         let (f, flat) = self.shading();
         let (dl, al) = (f.to_local(depart), f.to_local(arrive));
         let num = dl.z.abs() * arrive.z.abs();

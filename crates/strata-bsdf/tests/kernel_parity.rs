@@ -604,6 +604,7 @@ fn interface<L: Lane>(x: &[IfIn]) -> InterfaceLanes<L> {
         albedo: rgb(x, |t| t.albedo),
         normal: v3(x, |t| t.normal),
         tilted: x.iter().any(|t| t.normal != [0.0, 0.0, 1.0]),
+        adjoint: false,
         run_all: false,
     }
 }

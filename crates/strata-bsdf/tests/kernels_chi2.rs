@@ -92,6 +92,7 @@ fn base<L: Lane>(mf: Microfacet<L>) -> InterfaceLanes<L> {
         albedo: Rgb::zero(),
         normal: V3::z_axis(),
         tilted: false,
+        adjoint: false,
         run_all: false,
     }
 }
@@ -529,7 +530,7 @@ fn henyey_greenstein() {
 fn tilted_interfaces() {
     // The sampler's histogram against the pdf of the tilted interface: the
     // shading frame's density where both directions lie on the slab's side
-    // of the shading normal, 0 elsewhere (method.md §8).
+    // of the shading normal, 0 elsewhere (method.md §9).
     let tilt = |l: &mut InterfaceLanes<f32>, m: &mut InterfaceLanes<f64>| {
         let n = [0.35f32, -0.2, 0.915];
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();

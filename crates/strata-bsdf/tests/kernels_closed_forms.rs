@@ -124,6 +124,7 @@ impl Iface {
             albedo: Rgb::zero(),
             normal: V3::z_axis(),
             tilted: false,
+            adjoint: false,
             run_all: false,
         };
         match self.kind {

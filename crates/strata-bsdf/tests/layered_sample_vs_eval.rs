@@ -1,4 +1,4 @@
-//! `sample()` against `eval()` (method.md §8): the weighted histogram of
+//! `sample()` against `eval()` (method.md §9): the weighted histogram of
 //! sampled directions equals the integral of `eval · |cos θo|` over the same
 //! bins.
 //!
@@ -82,13 +82,17 @@ fn point_in(b: usize, s: f64, t: f64) -> [f64; 3] {
 struct Case {
     label: &'static str,
     toml: &'static str,
+    /// The walks follow the adjoint kernels (importance mode of a tilted
+    /// stack): sample and eval of the adjoint BSDF.
+    adjoint: bool,
     /// (θi, φi) in degrees; θi > 90° is light from below.
     wi: (f64, f64),
 }
 
 fn check(case: &Case, n_samples: u64, n_eval: u64, seed: u64) {
     let st = stack(case.toml);
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let mut eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    eng.set_adjoint(case.adjoint);
     let wi = dir(case.wi.0, case.wi.1);
 
     // Weighted histogram of sample(): Σ w and Σ w² per bin and channel.
@@ -275,6 +279,7 @@ fn scattering_varnish_sample_matches_eval() {
         let case = Case {
             label: "varnish",
             toml: VARNISH,
+            adjoint: false,
             wi: (theta, 0.0),
         };
         check(&case, 300_000, 125, 10 + q as u64);
@@ -286,6 +291,7 @@ fn coated_conductor_sample_matches_eval() {
     let case = Case {
         label: "coated Cu",
         toml: COATED_CONDUCTOR,
+        adjoint: false,
         wi: (50.0, 20.0),
     };
     check(&case, 300_000, 125, 20);
@@ -298,6 +304,7 @@ fn transmissive_slab_sample_matches_eval() {
         let case = Case {
             label: "rough slab",
             toml: ROUGH_SLAB,
+            adjoint: false,
             wi,
         };
         check(&case, 300_000, 125, 30 + q as u64);
@@ -305,6 +312,7 @@ fn transmissive_slab_sample_matches_eval() {
     let case = Case {
         label: "smooth slab",
         toml: SMOOTH_SLAB,
+        adjoint: false,
         wi: (65.0, 0.0),
     };
     check(&case, 300_000, 125, 32);
@@ -315,12 +323,14 @@ fn smooth_coat_and_three_interfaces_sample_matches_eval() {
     let case = Case {
         label: "smooth coat / medium / diffuse",
         toml: SMOOTH_COAT_MEDIUM,
+        adjoint: false,
         wi: (40.0, 0.0),
     };
     check(&case, 300_000, 125, 40);
     let case = Case {
         label: "3 interfaces",
         toml: THREE_INTERFACES,
+        adjoint: false,
         wi: (45.0, 90.0),
     };
     check(&case, 300_000, 125, 41);
@@ -334,6 +344,7 @@ fn anisotropic_and_beckmann_sample_matches_eval() {
     let case = Case {
         label: "anisotropic / Beckmann",
         toml: ANISOTROPIC,
+        adjoint: false,
         wi: (55.0, 30.0),
     };
     check(&case, 300_000, 125, 50);
@@ -347,6 +358,7 @@ fn smooth_chain_to_a_deep_medium_sample_matches_eval() {
     let case = Case {
         label: "smooth / absorber / smooth / scatterer / diffuse",
         toml: SMOOTH_STACK,
+        adjoint: false,
         wi: (35.0, 0.0),
     };
     check(&case, 300_000, 125, 60);
@@ -366,6 +378,7 @@ fn delta_bottom_and_denser_exterior_sample_matches_eval() {
             [[layers]]
             interface = { kind = "conductor", preset = "Ag" }
         "#,
+        adjoint: false,
         wi: (40.0, 0.0),
     };
     check(&case, 300_000, 125, 70);
@@ -379,14 +392,16 @@ fn delta_bottom_and_denser_exterior_sample_matches_eval() {
             [[layers]]
             interface = { kind = "dielectric", ior = 1.3, roughness = 0.4 }
         "#,
+        adjoint: false,
         wi: (50.0, 0.0),
     };
     check(&case, 300_000, 125, 71);
 }
 
-/// Tilted shading normals (method.md §8): eval's next-event chains take
+/// Tilted shading normals (method.md §9): eval's next-event chains take
 /// Veach's factor at every tilted interface they cross, sample()'s walks
-/// none, so the two agree only if the factors are right. A smooth coat and
+/// none (and in the adjoint flow the other way round), so the two agree
+/// only if the factors are right. A smooth coat and
 /// a smooth inner interface (delta chains through two tilted interfaces)
 /// over a rough conductor; a rough transmissive slab from both sides.
 const TILTED_SMOOTH_STACK: &str = r#"
@@ -411,11 +426,39 @@ const TILTED_ROUGH_SLAB: &str = r#"
 #[test]
 fn tilted_stacks_sample_matches_eval() {
     let cases = [
-        ("tilted smooth stack", TILTED_SMOOTH_STACK, (35.0, 30.0)),
-        ("tilted rough slab", TILTED_ROUGH_SLAB, (25.0, 0.0)),
-        ("tilted rough slab", TILTED_ROUGH_SLAB, (130.0, 200.0)),
+        (
+            "tilted smooth stack",
+            TILTED_SMOOTH_STACK,
+            (35.0, 30.0),
+            false,
+        ),
+        ("tilted rough slab", TILTED_ROUGH_SLAB, (25.0, 0.0), false),
+        (
+            "tilted rough slab",
+            TILTED_ROUGH_SLAB,
+            (130.0, 200.0),
+            false,
+        ),
+        (
+            "tilted smooth stack, adjoint",
+            TILTED_SMOOTH_STACK,
+            (35.0, 30.0),
+            true,
+        ),
+        (
+            "tilted rough slab, adjoint",
+            TILTED_ROUGH_SLAB,
+            (130.0, 200.0),
+            true,
+        ),
     ];
-    for (q, (label, toml, wi)) in cases.into_iter().enumerate() {
-        check(&Case { label, toml, wi }, 300_000, 125, 90 + q as u64);
+    for (q, (label, toml, wi, adjoint)) in cases.into_iter().enumerate() {
+        let case = Case {
+            label,
+            toml,
+            adjoint,
+            wi,
+        };
+        check(&case, 300_000, 125, 90 + q as u64);
     }
 }

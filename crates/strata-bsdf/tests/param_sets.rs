@@ -15,7 +15,7 @@ use strata_bsdf::lane::F32x8;
 use strata_bsdf::rng::{mix64, Stream, WalkRng};
 use strata_bsdf::{
     BatchError, Engine, Estimator, LayerStack, LayeredBsdf, Materials, QueryError, SetsError,
-    Settings,
+    Settings, Transport,
 };
 
 /// A uniform number in `[lo, hi)` from a counter (no state to thread).
@@ -195,17 +195,22 @@ fn bits(v: [f64; 3]) -> [u64; 3] {
 }
 
 /// Every call of a `*_batch_sets` batch against the same query on a BSDF
-/// of its set's own stack, on each engine and estimator.
+/// of its set's own stack, on each engine and estimator, in both transport
+/// modes (importance runs the adjoint walks of the tilted family).
 #[test]
 fn a_set_answers_what_its_material_file_answers() {
+    let modes = [Estimator::Auto, Estimator::Unidirectional]
+        .into_iter()
+        .flat_map(|e| [Transport::Radiance, Transport::Importance].map(|t| (e, t)));
     for f in families() {
         let stacks: Vec<LayerStack> = (0..SETS).map(|v| variant(&f, v)).collect();
         for engine in [Engine::Scalar, Engine::Wavefront, Engine::Auto] {
-            for estimator in [Estimator::Auto, Estimator::Unidirectional] {
+            for (estimator, transport) in modes.clone() {
                 let make = |s: &LayerStack| {
                     LayeredBsdf::new(s.clone())
                         .engine(engine)
                         .estimator(estimator)
+                        .transport(transport)
                         .samples(40)
                         .seed(7)
                 };
@@ -213,7 +218,12 @@ fn a_set_answers_what_its_material_file_answers() {
                 let sets = bsdf.param_sets(stacks.clone()).unwrap();
                 let (pairs, set) = queries(23);
                 let keys: Vec<u64> = (0..pairs.len() as u64).map(|k| 1000 + k).collect();
-                let what = |k: usize| format!("{} {engine:?} {estimator:?} query {k}", f.name);
+                let what = |k: usize| {
+                    format!(
+                        "{} {engine:?} {estimator:?} {transport:?} query {k}",
+                        f.name
+                    )
+                };
                 // eval
                 let got = bsdf
                     .eval_batch_sets_keyed(&sets, &set, &pairs, 40, &keys)

@@ -37,6 +37,10 @@ Parameters of ``"strata"``:
   the two a field takes is asked of strata when the BSDF is built (with the
   texture's mean, which must make a valid material); an invalid texel (a
   negative thickness) raises an error naming the query, path and value.
+  A ``normal`` path (``param:layers[i]:interface:normal``) is a **normal
+  map**: its RGB ``c`` is decoded as Mitsuba's ``normalmap`` decodes it,
+  ``n = 2c - 1`` in the surface's local frame, and lanes not queried get the
+  untilted ``[0, 0, 1]`` (method.md §9 says what a tilted interface does).
 
 Importing registers the plugin for the variant that is set at that moment;
 after switching variants call :func:`register` again.
@@ -268,7 +272,12 @@ class _Param:
         self.path = key[len("param:"):].replace(":", ".")
         self.texture = texture
         self.refresh()
-        self.width = _param_width(bsdf, key, self.path, self.mean)
+        # A normal map's texels encode n = 2c - 1, always a triple.
+        self.normal_map = self.path.endswith(".normal")
+        if self.normal_map:
+            self.width = 3
+        else:
+            self.width = _param_width(bsdf, key, self.path, self.mean)
 
     def refresh(self):
         """Re-reads the texture's mean (after a change through mi.traverse)."""
@@ -290,8 +299,13 @@ class _Param:
                 a = np.stack([_floats(c[i], n) for i in range(3)], axis=1)
             else:
                 a = np.array([[float(c[0]), float(c[1]), float(c[2])]], np.float32)
+        if self.normal_map:
+            a = np.float32(2.0) * a - np.float32(1.0)
+            unset = np.array([0.0, 0.0, 1.0], np.float32)
+        else:
+            unset = np.float32(self.mean)
         if ok is not None and not ok.all():
-            a = np.where(ok[:, None] if self.width == 3 else ok, a, np.float32(self.mean))
+            a = np.where(ok[:, None] if self.width == 3 else ok, a, unset)
         return np.ascontiguousarray(a, dtype=np.float32)
 
 

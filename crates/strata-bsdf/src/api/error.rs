@@ -57,10 +57,6 @@ pub enum QueryError {
         /// The number of materials.
         materials: usize,
     },
-    /// Sample, pdf or albedo in importance mode of a stack with a tilted
-    /// normal, which is not reciprocal: its walks follow the radiance flow
-    /// only (eval answers importance by walking from `wo`).
-    NotReciprocal,
 }
 
 impl fmt::Display for QueryError {
@@ -97,12 +93,6 @@ impl fmt::Display for QueryError {
                 sets.saturating_sub(1)
             ),
             QueryError::ForeignSets => write!(f, "{}", super::SetsError::Foreign),
-            QueryError::NotReciprocal => write!(
-                f,
-                "transport = importance: a stack with a tilted interface normal is not \
-                 reciprocal, and sample, pdf and albedo follow the radiance flow only \
-                 (eval answers in both modes)"
-            ),
             QueryError::NoSuchMaterial { value, materials } => write!(
                 f,
                 "material = {value}: there are {materials} materials (0 to {})",

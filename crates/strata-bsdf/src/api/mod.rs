@@ -220,12 +220,11 @@ impl LayeredBsdf {
             samples: self.samples,
             pdf_samples: self.pdf_samples,
             seed: self.seed,
-            transport: self.transport,
             eval_start: self.eval_start,
             threads: self.threads.clone(),
             ..Self::with_settings(stack, self.settings)
         };
-        b.estimator(self.estimator)
+        b.estimator(self.estimator).transport(self.transport)
     }
 
     /// Sets the number of walks per `eval` (at least 1; a call with more
@@ -252,7 +251,16 @@ impl LayeredBsdf {
     /// IOR only (see [`Transport`]).
     pub fn transport(mut self, transport: Transport) -> Self {
         self.transport = transport;
+        let adjoint = self.adjoint();
+        self.scalar.set_adjoint(adjoint);
+        self.wave.set_adjoint(adjoint);
         self
+    }
+
+    /// The walks follow the adjoint of tilted interfaces: importance mode on
+    /// a tilted stack (method.md §9).
+    pub(super) fn adjoint(&self) -> bool {
+        self.shape.tilted() && self.transport == Transport::Importance
     }
 
     /// Chooses where `eval` starts its walks (see [`EvalStart`]; by
@@ -482,7 +490,6 @@ impl LayeredBsdf {
     /// directions (and the seed), and the number [`Sample::pdf`] carries is
     /// the one a later `pdf` call gives, whatever the length of the vectors.
     pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
-        self.check_flow()?;
         Ok(self.pdf_validated(Per::OWN, &directions2(pairs)?))
     }
 
@@ -513,25 +520,10 @@ impl LayeredBsdf {
 
     // ------------------------------------ the batch calls' checks, for any `per`
 
-    /// Whether the BSDF's walks serve a sample, pdf or albedo call: they
-    /// follow the radiance flow, which is also importance's only where the
-    /// stack is reciprocal (untilted).
-    pub(super) fn check_flow(&self) -> Result<(), BatchError> {
-        if self.shape.tilted() && self.transport == Transport::Importance {
-            return Err(BatchError::call(QueryError::NotReciprocal));
-        }
-        Ok(())
-    }
-
     /// Whether the walks of a query `(a, b)` start from `b`: as `eval_start`
-    /// says on a reciprocal stack; on a tilted one, exactly in importance
-    /// mode (the adjoint `f*(a → b)` is the radiance `f(b → a)`).
+    /// says, on a reciprocal (untilted) stack only.
     fn swaps(&self, a_z: f64, b_z: f64) -> bool {
-        if self.shape.tilted() {
-            self.transport == Transport::Importance
-        } else {
-            self.eval_start.swaps(a_z, b_z)
-        }
+        !self.shape.tilted() && self.eval_start.swaps(a_z, b_z)
     }
 
     /// Eval after checking the directions, keys and walk count.
@@ -556,7 +548,6 @@ impl LayeredBsdf {
         keys: &[u64],
         sample_index: &[u64],
     ) -> Result<Vec<Option<Sample>>, BatchError> {
-        self.check_flow()?;
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         one_each("sample_index", sample_index.len(), wis.len())?;
@@ -570,7 +561,6 @@ impl LayeredBsdf {
         pairs: &[(Vec3, Vec3)],
         samples: u64,
     ) -> Result<Vec<PdfEstimate>, BatchError> {
-        self.check_flow()?;
         let dirs = directions2(pairs)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
         Ok(self.pdf_unbiased_validated(per, &dirs, samples))
@@ -584,7 +574,6 @@ impl LayeredBsdf {
         n: u64,
         keys: &[u64],
     ) -> Result<Vec<Albedo>, BatchError> {
-        self.check_flow()?;
         let dirs = directions1(wis)?;
         one_each("keys", keys.len(), wis.len())?;
         check_walks("n", n).map_err(BatchError::call)?;

@@ -28,6 +28,8 @@ pub struct ParamSets {
     shape: Shape,
     settings: Settings,
     estimator: Estimator,
+    /// The walks follow the adjoint of tilted interfaces (importance mode).
+    adjoint: bool,
     stacks: Vec<LayerStack>,
     /// The sets' numbers in the wavefront's one-lane form.
     table: SetTable,
@@ -65,7 +67,8 @@ pub enum SetsError {
         /// The first difference.
         why: String,
     },
-    /// The sets were built by a BSDF of another shape, settings or estimator.
+    /// The sets were built by a BSDF of another shape, settings, estimator
+    /// or (on a tilted stack) transport mode.
     Foreign,
 }
 
@@ -144,8 +147,11 @@ impl LayeredBsdf {
         for st in &stacks {
             let cv = self.control_variate_for(st);
             table.push(st, &settings, cv);
-            scalar.push(ScalarEngine::new(st, settings).with_control_variate(cv));
+            let mut eng = ScalarEngine::new(st, settings).with_control_variate(cv);
+            eng.set_adjoint(self.adjoint());
+            scalar.push(eng);
         }
+        table.set_adjoint(self.adjoint());
         let exact = (stacks.iter())
             .map(|st| SmoothCoatLambertian::of(st, &settings))
             .collect();
@@ -153,6 +159,7 @@ impl LayeredBsdf {
             shape,
             settings,
             estimator: self.estimator,
+            adjoint: self.adjoint(),
             stacks,
             table,
             scalar,
@@ -171,6 +178,7 @@ impl LayeredBsdf {
         if sets.shape != self.shape
             || sets.settings != self.settings
             || sets.estimator != self.estimator
+            || sets.adjoint != self.adjoint()
         {
             return Err(BatchError::call(QueryError::ForeignSets));
         }
@@ -278,7 +286,6 @@ impl LayeredBsdf {
         set: &[u32],
         pairs: &[(Vec3, Vec3)],
     ) -> Result<Vec<f32>, BatchError> {
-        self.check_flow()?;
         let per = self.check_sets(sets, set, pairs.len())?;
         Ok(self.pdf_validated(per, &directions2(pairs)?))
     }

@@ -311,7 +311,6 @@ impl LayeredBsdf {
         pdf: &mut [f32],
         flags: &mut [u32],
     ) -> Result<(), BatchError> {
-        self.check_flow()?;
         let n = wi.count("wi")?;
         wo.check("wo", n)?;
         weight.check("weight", n)?;
@@ -333,7 +332,6 @@ impl LayeredBsdf {
         keys: Option<&[u64]>,
         out: &mut [SampleRecord],
     ) -> Result<(), BatchError> {
-        self.check_flow()?;
         let n = wi.count("wi")?;
         one_each("out", out.len(), n)?;
         self.samples_of(&wi, keys, |k, s| out[k] = SampleRecord::of(s))
@@ -342,7 +340,6 @@ impl LayeredBsdf {
     /// The approximate pdf of every pair, written to `pdf` (keyed by the
     /// directions, as [`LayeredBsdf::pdf`]).
     pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
-        self.check_flow()?;
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         check_pairs(&wi, &wo)?;
@@ -383,7 +380,6 @@ impl LayeredBsdf {
         pdf: &mut [f32],
         stderr: &mut [f32],
     ) -> Result<(), BatchError> {
-        self.check_flow()?;
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("stderr", stderr.len(), n)?;
@@ -411,7 +407,6 @@ impl LayeredBsdf {
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
     ) -> Result<(), BatchError> {
-        self.check_flow()?;
         let m = wi.count("wi")?;
         one_each("out", out.len(), m)?;
         check_walks("n", n).map_err(BatchError::call)?;

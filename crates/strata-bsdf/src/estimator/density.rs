@@ -518,7 +518,7 @@ impl<L: Lane> DensityWalk<'_, L> {
     /// conserve tangential momentum, so a candidate is traced interface by
     /// interface and only the path that transmits at every delta event maps
     /// to the target (one with reflections leaves another way: method.md
-    /// §8 says what this leaves out).
+    /// §9 says what this leaves out).
     fn tilted_delta(&self) -> bool {
         self.ifaces.iter().any(|it| it.tilted && it.smooth.any())
     }

@@ -193,7 +193,7 @@ pub fn chain_start<L: Lane>(
     let dp = s.b; // pointing into the stack
                   // Smooth exit: (1 - F) (n_o / n_in)², the delta lobe of f(dp → wo) times |cos dp|.
     let (n_o, n_in) = exit.sides(wo);
-    let v_smooth = s.weight.scale((n_o / n_in).sqr() * exit.adjoint(wo, dp));
+    let v_smooth = s.weight.scale((n_o / n_in).sqr() * exit.reverse(wo, dp));
     // Rough exit: f(dp → wo) |cos dp| / p(dp | wo).
     let rough_ok = s.valid & !exit.smooth;
     let v_rough = exit
@@ -228,7 +228,7 @@ pub fn chain_step<L: Lane>(
     let eta2 = L::select(refracted, (n_a / n_b).sqr(), L::one());
     let conn = Connection {
         u: -b,
-        v: (prev.v * t * s.weight).scale(eta2 * iface.adjoint(a, b)),
+        v: (prev.v * t * s.weight).scale(eta2 * iface.reverse(a, b)),
         mis_pdf: L::zero(),
     };
     (conn, s.valid)

@@ -83,6 +83,14 @@ impl SetTable {
         }
     }
 
+    /// Makes the sets' interfaces answer for the adjoint of a tilted stack
+    /// (`ScalarEngine::set_adjoint`), as the engine that runs them does.
+    pub fn set_adjoint(&mut self, on: bool) {
+        for it in &mut self.ifaces {
+            it.adjoint = on;
+        }
+    }
+
     /// Adds `stack` (of the table's shape) as the next set; with
     /// `control_variate`, eval walks of its queries leave out what
     /// [`SmoothCoatLambertian::unscattered`] holds (where the stack has it).

@@ -177,6 +177,14 @@ impl<S: Scalar> ScalarEngine<S> {
             .flatten();
     }
 
+    /// Makes the walks follow the adjoint of the tilted interfaces (the
+    /// flow of importance; method.md §9): no effect on an untilted stack.
+    pub fn set_adjoint(&mut self, on: bool) {
+        for it in &mut self.ifaces {
+            it.adjoint = on;
+        }
+    }
+
     /// Whether `eval` uses the control variate (it is on and the stack has
     /// the shape it needs).
     pub fn control_variate(&self) -> bool {

@@ -157,7 +157,7 @@ pub enum InterfaceDesc {
         #[serde(default)]
         shadowing: Shadowing,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
-        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal: Option<[f64; 3]>,
     },
@@ -182,7 +182,7 @@ pub enum InterfaceDesc {
         #[serde(default)]
         shadowing: Shadowing,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
-        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal: Option<[f64; 3]>,
     },
@@ -192,7 +192,7 @@ pub enum InterfaceDesc {
         #[serde(deserialize_with = "field::albedo")]
         albedo: RgbParam,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
-        /// when read); absent or `[0, 0, 1]`: untilted (method.md §8).
+        /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal: Option<[f64; 3]>,
     },

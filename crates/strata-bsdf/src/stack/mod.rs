@@ -642,6 +642,7 @@ impl LayerStack {
                 L::splat(it.normal[2]),
             ),
             tilted: it.tilted(),
+            adjoint: false,
             run_all: false,
         }
     }

@@ -86,7 +86,7 @@ pub struct Shape {
 
 impl Shape {
     /// Some interface has a tilted shading normal: the stack's BSDF is then
-    /// not reciprocal (method.md §8), so no engine may use reciprocity.
+    /// not reciprocal (method.md §9), so no engine may use reciprocity.
     pub fn tilted(&self) -> bool {
         self.interfaces.iter().any(|i| i.tilted)
     }

@@ -460,6 +460,20 @@ impl<W: Wide> Wavefront<W> {
         self
     }
 
+    /// Makes the walks follow the adjoint of the tilted interfaces, as
+    /// `ScalarEngine::set_adjoint` does.
+    pub fn set_adjoint(&mut self, on: bool) {
+        for it in &mut self.ifaces {
+            it.adjoint = on;
+        }
+        for it in &mut self.table {
+            it.adjoint = on;
+        }
+        if let Some(t) = self.tail.as_mut() {
+            t.set_adjoint(on);
+        }
+    }
+
     /// [`Wavefront::with_control_variate`] in place.
     pub fn set_control_variate(&mut self, on: bool) {
         self.cv = on
