@@ -10,9 +10,10 @@
 //! already holds the exit interface's value, the cosine of `u` and the
 //! inverse density of `u` (next-event estimation "from the other side").
 
-use super::layout::Layout;
+use super::closed_form::SmoothCoatLambertian;
+use super::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes};
 use super::Settings;
-use crate::interface::InterfaceLanes;
+use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
 
@@ -232,4 +233,259 @@ pub fn chain_step<L: Lane>(
         mis_pdf: L::zero(),
     };
     (conn, s.valid)
+}
+
+// ---------------------------------------------------------------- the steps
+//
+// The event sequence of a walk, step by step, over lanes: both engines call
+// these in the same order, the scalar reference on one lane (`active` is then
+// `true`, and it returns early where a lane would be masked off), the
+// wavefront on a chunk of walks (it keeps the masks, and decides which queue
+// a lane joins next). What each step draws, and in which order, is fixed
+// here, so a lane of the wavefront replays a scalar walk by construction.
+
+/// The lanes of `active` whose contributions to `eval` count: with the
+/// control variate (`cv`), a walk scores nothing before its first collision
+/// (`order` 0), whose paths the exact part holds (their segment to the exit
+/// crosses the layer by a transmittance).
+#[inline(always)]
+pub fn scoring<L: Lane>(active: L::Mask, order: L, cv: L::Mask) -> L::Mask {
+    active & (order.gt(L::zero()) | !cv)
+}
+
+/// The interface event: scatter the light arriving from `a` at `iface` with
+/// the uniforms `u` (transmission only where `transmit_only`: the entrance of
+/// an eval walk, whose reflection is the exact first-order term). Updates the
+/// throughput, the specular flag and the event count of the lanes where a
+/// direction was produced, and returns the sample and those lanes.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn interface_scatter<L: Lane>(
+    iface: &InterfaceLanes<L>,
+    a: V3<L>,
+    u: (L, L, L),
+    transmit_only: L::Mask,
+    active: L::Mask,
+    beta: &mut Rgb<L>,
+    specular: &mut L::Mask,
+    events: &mut L,
+) -> (BsdfSample<L>, L::Mask) {
+    let s = iface.sample(a, u.0, u.1, u.2, transmit_only);
+    let alive = active & s.valid;
+    *beta = Rgb::select(alive, *beta * s.weight, *beta);
+    *specular = *specular & (s.delta | !alive);
+    *events = L::select(alive, *events + L::one(), *events);
+    (s, alive)
+}
+
+/// Russian roulette of the lanes `m` after an event that keeps them in the
+/// stack ([`walk_roulette`] with the uniform `u`): updates their throughput
+/// and returns those that survive.
+#[inline(always)]
+pub fn survive<L: Lane>(beta: &mut Rgb<L>, events: L, u: L, m: L::Mask, s: &Settings) -> L::Mask {
+    let (b, alive) = walk_roulette(*beta, events, u, s);
+    *beta = Rgb::select(m, b, *beta);
+    m & alive
+}
+
+/// The path continuation of an interface event (contribution, with the
+/// throughput `beta`): the walk left interface `k0`, across the rough exit's
+/// layer `med`, along `d` (its sample `s`), straight towards the exit.
+#[inline(always)]
+pub fn surface_continuation<L: Lane>(
+    exit: &InterfaceLanes<L>,
+    med: &MediumLanes<L>,
+    wo: V3<L>,
+    d: V3<L>,
+    s: &BsdfSample<L>,
+    beta: Rgb<L>,
+    mis: bool,
+) -> Rgb<L> {
+    let t = med.transmittance(med.thickness, d.z.abs());
+    beta * continue_to_exit(exit, wo, d, s.pdf, s.delta, t, mis)
+}
+
+/// Entering a layer that does not scatter (`med`: clear or absorbing) at
+/// depth `z` along `d`: it is crossed at once, the throughput of the lanes
+/// `m` taking its transmittance. Returns the lanes of `m` that travel exactly
+/// sideways, which never arrive (their walks end).
+#[inline(always)]
+pub fn cross_inert<L: Lane>(
+    med: &MediumLanes<L>,
+    z: L,
+    d: V3<L>,
+    m: L::Mask,
+    beta: &mut Rgb<L>,
+) -> L::Mask {
+    let mu = d.z.abs();
+    let flat = m & mu.le(L::zero());
+    if med.kind == LayerKind::Absorbing {
+        let ok = m & !flat;
+        let dz = depth_to_boundary(z, med.thickness, d.z.gt(L::zero()));
+        *beta = Rgb::select(ok, *beta * med.transmittance(dz, mu), *beta);
+    }
+    flat
+}
+
+/// The walk state a free flight updates.
+pub struct Flight<'a, L: Lane> {
+    /// Depth.
+    pub z: &'a mut L,
+    /// Throughput.
+    pub beta: &'a mut Rgb<L>,
+    /// Spectral MIS channel ratios.
+    pub ratios: &'a mut Rgb<L>,
+    /// Collisions so far.
+    pub order: &'a mut L,
+}
+
+/// A free flight in scattering layer `med` from the walk's depth along `d`
+/// (hero channel `hero`, uniform `u`), for the lanes `active`. Returns the
+/// lanes that collide (moved to the collision's depth; a lane past the
+/// optional scatter-order cap ends instead) and those that pass to the
+/// layer's boundary. A direction exactly parallel to the layer collides (see
+/// [`flight_limit`]); if it does not, it is in neither: its walk ends.
+#[inline(always)]
+pub fn free_flight<L: Lane>(
+    med: &MediumLanes<L>,
+    st: Flight<'_, L>,
+    d: V3<L>,
+    hero: L,
+    u: L,
+    active: L::Mask,
+    max_order: Option<u32>,
+) -> (L::Mask, L::Mask) {
+    let h = med.thickness;
+    let mu = d.z.abs();
+    let flat = active & mu.le(L::zero());
+    let dz = depth_to_boundary(*st.z, h, d.z.gt(L::zero()));
+    let ff = medium::sample_free_flight(
+        med.sigma_t,
+        med.albedo,
+        med.grey,
+        flight_limit(dz, mu),
+        hero,
+        u,
+        *st.ratios,
+    );
+    *st.beta = Rgb::select(active, *st.beta * ff.weight, *st.beta);
+    *st.ratios = Rgb::select(active, ff.ratios, *st.ratios);
+    let pass = active & !ff.collide & !flat;
+    let mut col = active & ff.collide;
+    *st.order = L::select(col, *st.order + L::one(), *st.order);
+    if let Some(k) = max_order {
+        col = col & !st.order.gt(L::splat(k as f64));
+    }
+    *st.z = L::select(col, move_depth(*st.z, d.z, ff.distance, h), *st.z);
+    (col, pass)
+}
+
+/// Next-event estimation from a collision at depth `z` in layer `med`
+/// through one segment `c` of the adjoint chain (per unit throughput): the
+/// transmittance of the rest of the layer along `c.u`, and the phase
+/// function from `d`.
+#[inline(always)]
+pub fn collision_link<L: Lane>(
+    med: &MediumLanes<L>,
+    z: L,
+    d: V3<L>,
+    c: &Connection<L>,
+    mis: bool,
+) -> Rgb<L> {
+    let u = c.u;
+    let dz = depth_to_boundary(z, med.thickness, u.z.gt(L::zero()));
+    let t = med.transmittance(dz, u.z.abs());
+    connect_collision(med.g, d, c, t, mis)
+}
+
+/// The collision's new direction (phase sampling with the uniforms `u`);
+/// the lanes that collided (`col`) are no longer specular.
+#[inline(always)]
+pub fn phase_scatter<L: Lane>(
+    med: &MediumLanes<L>,
+    d: V3<L>,
+    u: (L, L),
+    col: L::Mask,
+    specular: &mut L::Mask,
+) -> V3<L> {
+    *specular = *specular & !col;
+    medium::hg_sample(med.g, d, u.0, u.1)
+}
+
+/// Depth left, from the collision at depth `z`, to the side of layer `med`
+/// that the new direction `dn` heads for: what the collision continuation
+/// needs of the walk's position (the wavefront stores it with a deferred row).
+#[inline(always)]
+pub fn depth_ahead<L: Lane>(med: &MediumLanes<L>, z: L, dn: V3<L>) -> L {
+    depth_to_boundary(z, med.thickness, dn.z.gt(L::zero()))
+}
+
+/// The collision continuation (contribution, with the throughput `beta`,
+/// MIS on): the walk scattered from `d` into `dn`, which heads straight for
+/// the rough exit across `dz` of layer `med`; evaluate the exit towards `wo`,
+/// weighted against the chain's density of `-dn`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn collision_continuation<L: Lane>(
+    exit: &InterfaceLanes<L>,
+    med: &MediumLanes<L>,
+    wo: V3<L>,
+    d: V3<L>,
+    dn: V3<L>,
+    dz: L,
+    beta: Rgb<L>,
+) -> Rgb<L> {
+    let t = med.transmittance(dz, dn.z.abs());
+    let pv = medium::hg_eval_dirs(med.g, d, dn);
+    let no = L::Mask::splat(false);
+    beta * continue_to_exit(exit, wo, dn, pv, no, t, true)
+}
+
+/// After a collision (lanes `col`): the walk travels along `dn` and counts
+/// one more event.
+#[inline(always)]
+pub fn after_collision<L: Lane>(d: &mut V3<L>, events: &mut L, dn: V3<L>, col: L::Mask) {
+    *d = V3::select(col, dn, *d);
+    *events = L::select(col, *events + L::one(), *events);
+}
+
+/// One roulette of a further segment of the adjoint chain (the chain's
+/// `events`-th, uniform `u`): the new connection's value and whether it
+/// survives. The chain is never capped (its own guard is its length).
+#[inline(always)]
+pub fn chain_roulette<L: Lane>(
+    c: Connection<L>,
+    events: L,
+    u: L,
+    s: &Settings,
+) -> (Connection<L>, L::Mask) {
+    let (v, alive) = roulette(c.v, events, u, s.rr_start, None);
+    (Connection { v, ..c }, alive)
+}
+
+/// The deterministic terms of an eval, in f64: the first-order term (the
+/// entrance alone, when it is also the exit: `same`), plus, with the control
+/// variate `cv`, its exact part at the walks' directions (taken from the
+/// engine's precision, so that both engines add the same number). A smooth
+/// coat's first-order term is a delta, 0 here, and not a path of `f₀` (which
+/// enters the coat), so nothing is counted twice.
+pub fn deterministic_terms<S: Lane>(
+    entrance: &InterfaceLanes<S>,
+    same: bool,
+    cv: Option<&SmoothCoatLambertian>,
+    wi: V3<S>,
+    wo: V3<S>,
+) -> [f64; 3] {
+    let lane0 = |c: Rgb<S>| [c.r.lane(0), c.g.lane(0), c.b.lane(0)];
+    let direct = if same {
+        lane0(entrance.eval(wi, wo))
+    } else {
+        [0.0; 3]
+    };
+    let Some(cv) = cv else {
+        return direct;
+    };
+    let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
+    let f0 = cv.eval(dir(wi), dir(wo));
+    std::array::from_fn(|c| direct[c] + f0[c])
 }

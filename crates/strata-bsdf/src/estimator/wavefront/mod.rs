@@ -807,12 +807,8 @@ impl<W: Wide> Wavefront<W> {
                 (queries.table.iface(s, e_in), queries.table.cv(s))
             }
         };
-        let direct = if e_in == queries.e_out[q] as usize {
-            super::scalar::rgb_f64(entrance.eval(wi, wo))
-        } else {
-            [0.0; 3]
-        };
-        sum.estimate_plus(super::scalar::add_unscattered(cv, direct, wi, wo))
+        let same = e_in == queries.e_out[q] as usize;
+        sum.estimate_plus(events::deterministic_terms(entrance, same, cv, wi, wo))
     }
 
     /// Each walk's value of the unidirectional estimator (without the

@@ -9,16 +9,14 @@ use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::density::DensityWalk;
+use crate::estimator::events::Flight;
 use crate::estimator::events::{self, Connection};
-use crate::estimator::layout::{
-    depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes, Next,
-};
+use crate::estimator::layout::{toward_exit, LayerKind, Layout, MediumLanes, Next};
 use crate::estimator::params::LaneSets;
 use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
 use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
-use crate::medium;
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use std::borrow::Cow;
 
@@ -379,25 +377,18 @@ impl<W: Wide> Wavefront<W> {
             };
             let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
             let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
+            // Light reached interface j travelling along u: it crossed the
+            // layer it enters leaving j the other way, from that layer's far side.
             let up = c2.u.z.lt(W::zero());
-            let out = W::select(up, j, W::splat(n as f64 - 1.0) - j).eq(W::zero());
+            let (layer, out) = self.layout.enter(j, up);
+            let start = self.layout.arrive(layer, up);
             let mut next_alive = cont & ok2 & !out;
             events_n += 1;
             let ur = rng.uniform(next_alive);
-            let (v, surv) = events::roulette(
-                c2.v,
-                W::splat(events_n as f64),
-                ur,
-                self.settings.rr_start,
-                None,
-            );
+            let (conn, surv) =
+                events::chain_roulette(c2, W::splat(events_n as f64), ur, &self.settings);
             next_alive = next_alive & surv;
-            // Light reached interface j travelling along u: it crossed layer
-            // j-1 from interface j-1 (going down) or layer j from j+1 (going up).
-            let layer = W::select(up, j - W::one(), j);
-            let start = W::select(up, j - W::one(), j + W::one());
             let layer = W::select(next_alive, layer, W::zero());
-            let conn = Connection { v, ..c2 };
             last = LinkLanes {
                 conn,
                 t: full_crossing(media, n - 1, layer, conn.u.z.abs()),
@@ -607,7 +598,7 @@ impl<W: Wide> Wavefront<W> {
         // `Connect::collided_only`).
         let cv = self.cv_in(&sets);
         let scoring = if eval && cv.any() {
-            active & (c.order.gt(W::zero()) | !cv)
+            events::scoring(active, c.order, cv)
         } else {
             active
         };
@@ -625,17 +616,22 @@ impl<W: Wide> Wavefront<W> {
             );
         }
         // Scatter at the interface.
-        let (us, u1, u2) = (
+        let u = (
             c.rng.uniform(active),
             c.rng.uniform(active),
             c.rng.uniform(active),
         );
         let transmit_only = c.first & W::Mask::splat(eval);
-        let s = iface.sample(a, us, u1, u2, transmit_only);
-        let alive = active & s.valid;
-        c.beta = Rgb::select(alive, c.beta * s.weight, c.beta);
-        c.specular = c.specular & (s.delta | !alive);
-        c.events = W::select(alive, c.events + W::one(), c.events);
+        let (s, alive) = events::interface_scatter(
+            iface,
+            a,
+            u,
+            transmit_only,
+            active,
+            &mut c.beta,
+            &mut c.specular,
+            &mut c.events,
+        );
         let d = s.b;
         let up = d.z.gt(W::zero());
         // Path continuation towards a rough exit.
@@ -646,25 +642,20 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = alive & scoring & e_out.eq(W::splat(e as f64)) & toward(d, e);
                 if m.any() {
-                    let med = self.medium_in(&sets, l0);
-                    let t = med.transmittance(med.thickness, d.z.abs());
-                    let ex = self.iface_in(&sets, e);
-                    let add = c.beta * events::continue_to_exit(&ex, wo, d, s.pdf, s.delta, t, mis);
+                    let (ex, med) = (self.iface_in(&sets, e), self.medium_in(&sets, l0));
+                    let add = events::surface_continuation(&ex, &med, wo, d, &s, c.beta, mis);
                     c.acc = Rgb::select(m, c.acc + add, c.acc);
                 }
             }
         }
         c.first = W::Mask::splat(false);
         c.d = V3::select(alive, d, c.d);
-        let out_up = W::Mask::splat(i == 0);
-        let out_dn = W::Mask::splat(i + 1 == n);
-        let exited = alive & ((up & out_up) | (!up & out_dn));
-        let mut cont = alive & !exited;
+        let (_, out) = self.layout.enter(W::splat(i as f64), up);
+        let exited = alive & out;
         // Russian roulette.
+        let cont = alive & !exited;
         let u = c.rng.uniform(cont);
-        let (b2, surv) = events::walk_roulette(c.beta, c.events, u, &self.settings);
-        c.beta = Rgb::select(cont, b2, c.beta);
-        cont = cont & surv;
+        let cont = events::survive(&mut c.beta, c.events, u, cont, &self.settings);
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
         let mut keys = [FREE; 2]; // [up, down]
@@ -684,14 +675,7 @@ impl<W: Wide> Wavefront<W> {
             if !m.any() {
                 continue;
             }
-            let mu = d.z.abs();
-            let flat = m & mu.le(W::zero());
-            stuck = stuck | flat;
-            if med.kind == LayerKind::Absorbing {
-                let ok = m & !flat;
-                let dz = depth_to_boundary(entry, med.thickness, W::Mask::splat(going_up));
-                c.beta = Rgb::select(ok, c.beta * med.transmittance(dz, mu), c.beta);
-            }
+            stuck = stuck | events::cross_inert(&med, entry, d, m, &mut c.beta);
         }
         let up = W::bitmask(up);
         Outcome {
@@ -718,35 +702,17 @@ impl<W: Wide> Wavefront<W> {
         let active = c.active;
         let sets = Self::sets_of(q, ws, idx);
         let med = &*self.medium_in(&sets, l);
-        let h = med.thickness;
         let d = c.d;
-        let mu = d.z.abs();
-        // A flat direction collides (see `flight_limit`); if it does not, it
-        // never arrives and the walk ends.
-        let flat = active & mu.le(W::zero());
         let up = d.z.gt(W::zero());
-        let dz = depth_to_boundary(c.z, h, up);
         let ud = c.rng.uniform(active);
-        let ff = medium::sample_free_flight(
-            med.sigma_t,
-            med.albedo,
-            med.grey,
-            flight_limit(dz, mu),
-            c.hero,
-            ud,
-            c.ratios,
-        );
-        c.beta = Rgb::select(active, c.beta * ff.weight, c.beta);
-        c.ratios = Rgb::select(active, ff.ratios, c.ratios);
-        let pass = active & !ff.collide & !flat;
-        let mut col = active & ff.collide;
-        c.order = W::select(col, c.order + W::one(), c.order);
-        let over = match self.settings.max_scatter_order {
-            Some(k) => col & c.order.gt(W::splat(k as f64)),
-            None => W::Mask::splat(false),
+        let st = Flight {
+            z: &mut c.z,
+            beta: &mut c.beta,
+            ratios: &mut c.ratios,
+            order: &mut c.order,
         };
-        col = col & !over;
-        c.z = W::select(col, move_depth(c.z, d.z, ff.distance, h), c.z);
+        let max_order = self.settings.max_scatter_order;
+        let (col, pass) = events::free_flight(med, st, d, c.hero, ud, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
         if links {
@@ -758,18 +724,12 @@ impl<W: Wide> Wavefront<W> {
                 col,
                 c,
                 |k| k.layer.eq(at_l),
-                |k| {
-                    let u = k.conn.u;
-                    let dz_e = depth_to_boundary(z, h, u.z.gt(W::zero()));
-                    let t = med.transmittance(dz_e, u.z.abs());
-                    events::connect_collision(med.g, d, &k.conn, t, mis)
-                },
+                |k| events::collision_link(med, z, d, &k.conn, mis),
             );
         }
         let u1 = c.rng.uniform(col);
         let u2 = c.rng.uniform(col);
-        let dn = medium::hg_sample(med.g, d, u1, u2);
-        c.specular = c.specular & !col;
+        let dn = events::phase_scatter(med, d, (u1, u2), col, &mut c.specular);
         // Path continuation from the collision towards a rough exit: only
         // some lanes need it, so it waits for a full chunk (`deferred`).
         if links && mis {
@@ -779,7 +739,7 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = W::bitmask(col & e_out.eq(W::splat(e as f64)) & toward(dn, e));
                 if m != 0 {
-                    let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
+                    let dz_e = events::depth_ahead(med, c.z, dn);
                     let walk = W::gather_bits(&ws.walk, idx);
                     let query = W::gather_bits(&ws.query, idx);
                     deferred.push::<W>(x, m, (walk, query), (wo, d, dn, dz_e, c.beta));
@@ -789,12 +749,15 @@ impl<W: Wide> Wavefront<W> {
                 }
             }
         }
-        c.d = V3::select(col, dn, c.d);
-        c.events = W::select(col, c.events + W::one(), c.events);
+        events::after_collision(&mut c.d, &mut c.events, dn, col);
         let u = c.rng.uniform(col);
-        let (b2, surv) = events::walk_roulette(c.beta, c.events, u, &self.settings);
-        c.beta = Rgb::select(col, b2, c.beta);
-        let scattered = W::bitmask(col & surv);
+        let scattered = W::bitmask(events::survive(
+            &mut c.beta,
+            c.events,
+            u,
+            col,
+            &self.settings,
+        ));
         let n = self.layout.n;
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
@@ -928,12 +891,9 @@ fn lane_bits(n: usize) -> u32 {
 }
 
 /// Lanes whose direction `d` heads for exit interface `e` (0: the top).
+#[inline(always)]
 fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
-    if e == 0 {
-        d.z.gt(W::zero())
-    } else {
-        d.z.lt(W::zero())
-    }
+    toward_exit(d, W::Mask::splat(e == 0))
 }
 
 /// The first link of the adjoint chain from `wo` through `exit` (the top
@@ -950,9 +910,7 @@ pub(super) fn first_link<'a, W: Wide>(
     u: (W, W, W),
 ) -> (LinkLanes<W>, W::Mask) {
     let (conn, ok) = events::chain_start(exit, wo, u);
-    // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
-    let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
-    let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
+    let (layer, start) = Layout { n }.exit_region_lanes(top);
     let t = full_crossing(media, n.saturating_sub(1), layer, conn.u.z.abs());
     (
         LinkLanes {
