@@ -16,6 +16,7 @@ use super::Settings;
 use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
+use std::borrow::Cow;
 
 /// One segment of the adjoint chain, per lane.
 #[derive(Clone, Copy, Debug)]
@@ -30,6 +31,28 @@ pub struct Connection<L: Lane> {
     /// strategy produces this connection (smooth exit).
     pub mis_pdf: L,
 }
+
+/// A segment of the adjoint chain with where it connects from, per lane:
+/// vertices in `layer` (medium collisions) and on interface `start` (surface
+/// vertices), with the transmittance `t` of a full crossing of the layer
+/// along `conn.u` (what a surface vertex's connection crosses).
+#[derive(Clone, Copy, Debug)]
+pub struct ChainLink<L: Lane> {
+    /// The connection.
+    pub conn: Connection<L>,
+    /// Transmittance of the whole layer along `conn.u`.
+    pub t: Rgb<L>,
+    /// The layer the segment crosses.
+    pub layer: L,
+    /// The interface it starts from.
+    pub start: L,
+}
+
+/// The adjoint chain never exceeds this many segments. Each further segment
+/// needs one more delta bounce that the chain survives only with probability
+/// F·(Russian roulette), so this guards against a lossless loop of delta
+/// interfaces and is never reached by a physical stack in practice.
+pub const MAX_CHAIN: usize = 256;
 
 /// Power heuristic (exponent 2) for a strategy of density `a` against `b`,
 /// computed from the ratio so that huge densities cannot overflow. Zero when
@@ -165,6 +188,119 @@ pub fn continue_to_exit<L: Lane>(
         L::select(delta, L::one(), L::zero())
     };
     (t * fe).scale(w)
+}
+
+/// Transmittance of a full crossing of layer `layer` (per lane) of the
+/// `layers` layers `media(l)` along a direction with `|d.z| = mu`.
+#[cfg_attr(feature = "profiling", inline(never))]
+pub fn full_crossing<'a, L: Lane>(
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
+    layers: usize,
+    layer: L,
+    mu: L,
+) -> Rgb<L> {
+    let mut t = Rgb::one();
+    for l in 0..layers {
+        let here = layer.eq(L::splat(l as f64));
+        if here.any() {
+            let m = media(l);
+            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
+        }
+    }
+    t
+}
+
+/// The first link of the adjoint chain from `wo` through `exit` (the top
+/// interface where `top`, else the bottom one, of a stack of two interfaces
+/// or more; uniforms `u`), with the full-crossing transmittance of the exit's
+/// layer (`media`: the stack's layers), and the lanes where it exists.
+#[inline]
+pub fn first_link<'a, L: Lane>(
+    layout: &Layout,
+    exit: &InterfaceLanes<L>,
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
+    wo: V3<L>,
+    top: L::Mask,
+    u: (L, L, L),
+) -> (ChainLink<L>, L::Mask) {
+    let (conn, ok) = chain_start(exit, wo, u);
+    let (layer, start) = layout.exit_region_lanes(top);
+    let t = full_crossing(media, layout.n - 1, layer, conn.u.z.abs());
+    let link = ChainLink {
+        conn,
+        t,
+        layer,
+        start,
+    };
+    (link, ok)
+}
+
+/// What [`extend_chain`] reads of the stack, per lane.
+pub struct ChainStack<FS, FI, FM> {
+    /// The lanes whose interface `j` (per lane) is smooth: only delta
+    /// interfaces continue the chain.
+    pub smooth: FS,
+    /// Interface `j` (per lane), asked for once a lane continues there.
+    pub iface: FI,
+    /// The stack's layers ([`full_crossing`]).
+    pub media: FM,
+}
+
+/// The adjoint chain past its first link `first`, on the lanes `alive` (a
+/// smooth exit's, where the first link exists): on through delta interfaces,
+/// a segment per interface, each after a roulette, until a rough interface,
+/// the outside, an absorbed lane or [`MAX_CHAIN`] segments. `draw(m)` returns
+/// a uniform for the lanes of `m` (and draws for no other), `push(link, m)`
+/// takes each new segment of the lanes `m`. Both engines build their chains
+/// here: the scalar one a walk at a time, the wavefront a chunk of new walks.
+#[inline]
+pub fn extend_chain<'a, L: Lane, FS, FI, FM>(
+    layout: &Layout,
+    settings: &Settings,
+    first: ChainLink<L>,
+    alive: L::Mask,
+    stack: ChainStack<FS, FI, FM>,
+    mut draw: impl FnMut(L::Mask) -> L,
+    mut push: impl FnMut(&ChainLink<L>, L::Mask),
+) where
+    FS: Fn(L) -> L::Mask,
+    FI: Fn(L) -> InterfaceLanes<L>,
+    FM: Fn(usize) -> Cow<'a, MediumLanes<L>>,
+{
+    let mut last = first;
+    let mut alive = alive;
+    let mut events = 1u32;
+    let mut len = 1usize;
+    while alive.any() && len < MAX_CHAIN {
+        let j = L::select(alive, last.start, L::zero());
+        let cont = alive & (stack.smooth)(j);
+        if !cont.any() {
+            break;
+        }
+        let iface = (stack.iface)(j);
+        let u = (draw(cont), draw(cont), draw(cont));
+        let (c2, ok) = chain_step(&iface, &last.conn, last.t, u);
+        // Light reached interface j travelling along c2.u: it crossed the
+        // layer it enters leaving j the other way, from that layer's far side.
+        let up = c2.u.z.lt(L::zero());
+        let (layer, out) = layout.enter(j, up);
+        let start = layout.arrive(layer, up);
+        let mut next = cont & ok & !out;
+        events += 1;
+        let ur = draw(next);
+        let (conn, surv) = chain_roulette(c2, L::splat(events as f64), ur, settings);
+        next = next & surv;
+        let layer = L::select(next, layer, L::zero());
+        last = ChainLink {
+            conn,
+            t: full_crossing(&stack.media, layout.n - 1, layer, conn.u.z.abs()),
+            layer,
+            start,
+        };
+        push(&last, next);
+        alive = next;
+        len += 1;
+    }
 }
 
 /// Whether the adjoint chain from exit `e` (an outer interface: 0 or the

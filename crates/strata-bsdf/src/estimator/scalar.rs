@@ -25,13 +25,14 @@
 
 use super::accumulate::{BlockReducer, MeanVar};
 use super::closed_form::SmoothCoatLambertian;
-use super::events::{self, Connection, Flight};
+use super::events::{self, ChainLink, ChainStack, Flight};
 use super::layout::{toward_exit, LayerKind, Layout, MediumLanes};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::rng::{query_prefix, Stream, WalkRng};
 use crate::stack::LayerStack;
+use std::borrow::Cow;
 
 /// A one-lane number: `f32` or `f64`.
 pub trait Scalar: Lane<Mask = bool> + PartialOrd {
@@ -61,23 +62,11 @@ macro_rules! chain_buffer {
 chain_buffer!(f32);
 chain_buffer!(f64);
 
-/// The adjoint chain never exceeds this many segments. Each further segment
-/// needs one more delta bounce that the chain survives only with probability
-/// F·(Russian roulette), so this guards against a lossless loop of delta
-/// interfaces and is never reached by a physical stack in practice.
-pub const MAX_CHAIN: usize = 256;
+pub use super::events::MAX_CHAIN;
 
-/// A segment of the adjoint chain with where it connects from: vertices in
-/// `layer` (medium collisions) and on interface `start` (surface vertices).
-#[derive(Clone, Copy, Debug)]
-pub struct Link<S: Lane> {
-    /// The connection.
-    pub conn: Connection<S>,
-    /// The layer the segment crosses.
-    pub layer: usize,
-    /// The interface it starts from.
-    pub start: usize,
-}
+/// A segment of the adjoint chain with where it connects from (the
+/// wavefront's links, on one lane).
+pub type Link<S> = ChainLink<S>;
 
 /// How a walk left the stack.
 #[derive(Clone, Copy, Debug)]
@@ -224,9 +213,8 @@ impl<S: Scalar> ScalarEngine<S> {
             let scoring = events::scoring(true, order, cv);
             // Next-event estimation from this surface vertex.
             if let Some(c) = connect.as_deref_mut().filter(|_| scoring) {
-                for link in c.chain.iter().filter(|k| k.start == index(i)) {
-                    let m = &self.media[link.layer];
-                    let t = m.transmittance(m.thickness, link.conn.u.z.abs());
+                for link in c.chain.iter().filter(|k| k.start == i) {
+                    let t = link.t;
                     c.acc += beta * events::connect_surface(iface, a, first, &link.conn, t, mis);
                 }
             }
@@ -296,7 +284,7 @@ impl<S: Scalar> ScalarEngine<S> {
                     }
                     // Next-event estimation from this collision.
                     if let Some(c) = connect.as_deref_mut() {
-                        for link in c.chain.iter().filter(|k| k.layer == index(l)) {
+                        for link in c.chain.iter().filter(|k| k.layer == l) {
                             c.acc += beta * events::collision_link(m, z, d, &link.conn, mis);
                         }
                     }
@@ -396,47 +384,36 @@ impl<S: Scalar> ScalarEngine<S> {
     /// on through delta interfaces while the exit side is smooth.
     pub fn adjoint_chain(&self, wo: V3<S>, e: usize, rng: &mut WalkRng, out: &mut Vec<Link<S>>) {
         out.clear();
-        let Some((layer, start)) = self.layout.exit_region(e) else {
+        if self.layout.n < 2 {
             return;
-        };
-        let (conn, ok) = events::chain_start(&self.ifaces[e], wo, Self::u3(rng));
+        }
+        let media = |l: usize| Cow::Borrowed(&self.media[l]);
+        let exit = &self.ifaces[e];
+        let u = Self::u3(rng);
+        let (first, ok) = events::first_link(&self.layout, exit, media, wo, e == 0, u);
         if !ok {
             return;
         }
-        out.push(Link { conn, layer, start });
-        if !self.stack.interface(e).smooth {
-            return;
-        }
+        out.push(first);
         // Continue through delta interfaces: their vertices cannot connect.
-        let mut events = S::one();
-        while let Some(&last) = out.last() {
-            let j = last.start;
-            if !self.stack.interface(j).smooth || out.len() >= MAX_CHAIN {
-                return;
-            }
-            let m = &self.media[last.layer];
-            let t = m.transmittance(m.thickness, last.conn.u.z.abs());
-            let (conn, ok) = events::chain_step(&self.ifaces[j], &last.conn, t, Self::u3(rng));
-            if !ok {
-                return;
-            }
-            // Light reached interface j travelling along conn.u.
-            let up = conn.u.z < S::zero();
-            let (l, leaves) = self.layout.enter(S::splat(j as f64), up);
-            if leaves {
-                return;
-            }
-            events += S::one();
-            let (conn, alive) = events::chain_roulette(conn, events, Self::u(rng), &self.settings);
-            if !alive {
-                return;
-            }
-            out.push(Link {
-                conn,
-                layer: index(l),
-                start: index(self.layout.arrive(l, up)),
-            });
-        }
+        let stack = ChainStack {
+            smooth: |j: S| self.stack.interface(index(j)).smooth,
+            iface: |j: S| self.ifaces[index(j)],
+            media,
+        };
+        events::extend_chain(
+            &self.layout,
+            &self.settings,
+            first,
+            exit.smooth,
+            stack,
+            |m| if m { Self::u(rng) } else { S::zero() },
+            |link, m| {
+                if m {
+                    out.push(*link)
+                }
+            },
+        );
     }
 
     /// The unidirectional estimator (method.md §4): mean of `n` walks plus the

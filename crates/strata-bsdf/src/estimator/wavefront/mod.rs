@@ -1132,7 +1132,7 @@ fn link_row<'a, W: Wide>(
 ) -> [f32; 16] {
     let top = W::Mask::splat(e == 0);
     let u = (W::zero(), W::zero(), W::zero());
-    let (l, ok) = stages::first_link(exit, media, n, wo, top, u);
+    let (l, ok) = events::first_link(&Layout { n }, exit, media, wo, top, u);
     let f = l.fields();
     let mut row = [0.0f32; 16];
     for (r, x) in row.iter_mut().zip(f) {

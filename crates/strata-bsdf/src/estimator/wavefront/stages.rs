@@ -9,14 +9,13 @@ use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::density::DensityWalk;
-use crate::estimator::events::Flight;
 use crate::estimator::events::{self, Connection};
-use crate::estimator::layout::{toward_exit, LayerKind, Layout, MediumLanes, Next};
+use crate::estimator::events::{ChainStack, Flight};
+use crate::estimator::layout::{toward_exit, LayerKind, MediumLanes, Next};
 use crate::estimator::params::LaneSets;
 use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
-use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
+use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use std::borrow::Cow;
 
@@ -347,66 +346,51 @@ impl<W: Wide> Wavefront<W> {
             rng.uniform(active),
         );
         let media = |l: usize| self.medium_spec_in(&sets, l);
-        let (mut last, ok) = first_link(&exit, media, n, c.wo, top, u);
+        let (first, ok) = events::first_link(&self.layout, &exit, media, c.wo, top, u);
         let ok = ok & active;
-        c.link0 = last;
+        c.link0 = first;
         c.links = W::select(ok, W::one(), W::zero());
         // Continue through delta interfaces while the chain stays smooth.
-        let mut alive = ok & exit.smooth;
-        let mut events_n = 1u32;
-        let mut len = 1usize;
-        while alive.any() && len < MAX_CHAIN {
-            let j = W::select(alive, last.start, W::zero());
+        let stack = ChainStack {
             // Only delta interfaces continue the chain (checked before the
             // per-lane gather of the interfaces, which is costly).
-            let mut smooth = W::Mask::splat(false);
-            for (i, it) in self.stack.interfaces().iter().enumerate() {
-                if it.smooth {
-                    smooth = smooth | j.eq(W::splat(i as f64));
+            smooth: |j: W| {
+                let mut smooth = W::Mask::splat(false);
+                for (i, it) in self.stack.interfaces().iter().enumerate() {
+                    if it.smooth {
+                        smooth = smooth | j.eq(W::splat(i as f64));
+                    }
                 }
-            }
-            let cont = alive & smooth;
-            if !cont.any() {
-                break;
-            }
-            let iface = match &sets {
+                smooth
+            },
+            iface: |j: W| match &sets {
                 None => InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize),
                 Some(s) => InterfaceLanes::<W>::gather(s.table().ifaces(), |k| {
                     s.set(k) * n + j.lane(k) as usize
                 }),
-            };
-            let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
-            let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
-            // Light reached interface j travelling along u: it crossed the
-            // layer it enters leaving j the other way, from that layer's far side.
-            let up = c2.u.z.lt(W::zero());
-            let (layer, out) = self.layout.enter(j, up);
-            let start = self.layout.arrive(layer, up);
-            let mut next_alive = cont & ok2 & !out;
-            events_n += 1;
-            let ur = rng.uniform(next_alive);
-            let (conn, surv) =
-                events::chain_roulette(c2, W::splat(events_n as f64), ur, &self.settings);
-            next_alive = next_alive & surv;
-            let layer = W::select(next_alive, layer, W::zero());
-            last = LinkLanes {
-                conn,
-                t: full_crossing(media, n - 1, layer, conn.u.z.abs()),
-                layer,
-                start,
-            };
-            c.links = W::select(next_alive, c.links + W::one(), c.links);
-            for k in Chunk::<W>::lanes(next_alive) {
-                ws.chain[idx[k] as usize].push(Link {
-                    conn: conn_lane(&last.conn, k),
-                    t_full: rgb_lane(last.t, k),
-                    layer: last.layer.lane(k) as u16,
-                    start: last.start.lane(k) as u16,
-                });
-            }
-            alive = next_alive;
-            len += 1;
-        }
+            },
+            media,
+        };
+        let links = &mut c.links;
+        events::extend_chain(
+            &self.layout,
+            &self.settings,
+            first,
+            ok & exit.smooth,
+            stack,
+            |m| rng.uniform(m),
+            |last, m| {
+                *links = W::select(m, *links + W::one(), *links);
+                for k in Chunk::<W>::lanes(m) {
+                    ws.chain[idx[k] as usize].push(Link {
+                        conn: conn_lane(&last.conn, k),
+                        t_full: rgb_lane(last.t, k),
+                        layer: last.layer.lane(k) as u16,
+                        start: last.start.lane(k) as u16,
+                    });
+                }
+            },
+        );
     }
 
     /// Lanes of the chunk's walks' overflow links `k` (link `k + 1` of the
@@ -894,52 +878,4 @@ fn lane_bits(n: usize) -> u32 {
 #[inline(always)]
 fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
     toward_exit(d, W::Mask::splat(e == 0))
-}
-
-/// The first link of the adjoint chain from `wo` through `exit` (the top
-/// interface where `top`, else the bottom one), with the full-crossing
-/// transmittance of the exit's layer, and the lanes where it exists (scalar:
-/// the first step of `ScalarEngine::adjoint_chain`).
-#[inline]
-pub(super) fn first_link<'a, W: Wide>(
-    exit: &InterfaceLanes<W>,
-    media: impl Fn(usize) -> Cow<'a, MediumLanes<W>>,
-    n: usize,
-    wo: V3<W>,
-    top: W::Mask,
-    u: (W, W, W),
-) -> (LinkLanes<W>, W::Mask) {
-    let (conn, ok) = events::chain_start(exit, wo, u);
-    let (layer, start) = Layout { n }.exit_region_lanes(top);
-    let t = full_crossing(media, n.saturating_sub(1), layer, conn.u.z.abs());
-    (
-        LinkLanes {
-            conn,
-            t,
-            layer,
-            start,
-        },
-        ok,
-    )
-}
-
-/// Transmittance of a full crossing of layer `layer` (per lane) of the
-/// `layers` layers `media(l)` along a direction with `|d.z| = mu`, as the
-/// scalar engine computes it.
-#[cfg_attr(feature = "profiling", inline(never))]
-fn full_crossing<'a, L: Lane>(
-    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
-    layers: usize,
-    layer: L,
-    mu: L,
-) -> Rgb<L> {
-    let mut t = Rgb::one();
-    for l in 0..layers {
-        let here = layer.eq(L::splat(l as f64));
-        if here.any() {
-            let m = media(l);
-            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
-        }
-    }
-    t
 }
