@@ -1,8 +1,16 @@
-//! The event kernels of a walk, written once over [`Lane`]: the scalar
-//! reference calls them on one walk (`f32`, `f64`), the wavefront engine on
-//! eight or sixteen walks at once. The engines differ only in control flow
-//! (early returns there, masks and compaction here), so a lane of the
-//! wavefront replays a scalar walk operation for operation.
+//! The event sequence of a walk, written once over [`Lane`]: the scalar
+//! reference calls it on one walk (`f32`, `f64`), the wavefront engine on
+//! eight or sixteen walks at once, the density walk of `pdf` on either. The
+//! engines differ only in scheduling (loops and early returns there; masks,
+//! queues, compaction and record loads here), so a lane of the wavefront
+//! replays a scalar walk operation for operation by construction rather than
+//! by two copies kept in step.
+//!
+//! Two levels: the kernels (a connection, a continuation, a chain segment,
+//! roulette), and the steps of a walk built on them (the interface event, a
+//! free flight, a collision's parts, the adjoint chain, the deterministic
+//! terms), each taking the lanes it acts on as a mask and updating only
+//! those. Where a walk goes next is [`super::layout`]'s, also over lanes.
 //!
 //! Notation (method.md §4): a walk carries its throughput `beta`; an
 //! [`Connection`] is one segment of the adjoint chain sampled from `wo`: light

@@ -59,6 +59,13 @@ impl<L: Lane> MediumLanes<L> {
         }
     }
 
+    /// The depth at which a walk enters the layer: its bottom where
+    /// `from_below` (travelling up), its top elsewhere.
+    #[inline]
+    pub fn entry(&self, from_below: L::Mask) -> L {
+        L::select(from_below, self.thickness, L::zero())
+    }
+
     /// Transmittance over a depth `dz` along a direction with `|d.z| = mu`
     /// (1 in a clear layer).
     #[inline]

@@ -2,8 +2,9 @@
 //!
 //! Generic over a one-lane number `S`: `f32` (the reference the wavefront
 //! engine is held to) and `f64` (the accuracy oracle of the stability checks).
-//! Every physical quantity comes from the shared kernels (`interface`,
-//! `medium`, [`super::events`]); this file only decides what happens next.
+//! Every step of a walk is a shared one of [`super::events`], and where it
+//! goes next is [`super::layout`]'s, both called on one lane (masks are
+//! `true`); this file only loops over them and returns early.
 //!
 //! Directions inside a walk are *travel* directions `d`; an interface is
 //! sampled with `a = -d`, the direction the light arrives from. Random numbers
@@ -259,7 +260,7 @@ impl<S: Scalar> ScalarEngine<S> {
             }
             // Cross layer l until the walk reaches one of its interfaces.
             let m = &self.media[index(l)];
-            let mut z = if up { m.thickness } else { S::zero() };
+            let mut z = m.entry(up);
             let mut d = d;
             if m.kind != LayerKind::Scattering {
                 if events::cross_inert(m, z, d, true, &mut beta) {

@@ -1,9 +1,10 @@
 //! The stages of a wave: starting walks, interface events, layer events; and the
 //! round loop that passes walks between queues.
 //!
-//! Each stage mirrors one part of the scalar reference's walk
-//! (`estimator::scalar`) operation for operation, with masks where the scalar
-//! code returns early.
+//! Each stage runs the shared steps of `estimator::events` (and the layout's
+//! decisions) in the order of the scalar reference's walk, with masks where
+//! the scalar code returns early; what is here is scheduling: which lanes,
+//! which queue next, what is loaded, stored or deferred.
 
 use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
@@ -649,7 +650,7 @@ impl<W: Wide> Wavefront<W> {
             };
             let m = cont & if going_up { up } else { !up };
             let med = self.medium_in(&sets, l);
-            let entry = if going_up { med.thickness } else { W::zero() };
+            let entry = med.entry(W::Mask::splat(going_up));
             if med.kind == LayerKind::Scattering {
                 keys[dir] = (n + l) as u16;
                 c.z = W::select(m, entry, c.z);
@@ -746,7 +747,8 @@ impl<W: Wide> Wavefront<W> {
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
         let stay = (n + l) as u16;
-        let (top, bottom) = (l as u16, (l + 1) as u16);
+        let top = self.layout.boundary(l, true) as u16;
+        let bottom = self.layout.boundary(l, false) as u16;
         Outcome {
             going: scattered | W::bitmask(pass),
             exited: 0,
