@@ -56,6 +56,22 @@ pub struct ChainLink<L: Lane> {
     pub start: L,
 }
 
+impl<L: Lane> ChainLink<L> {
+    /// The lanes whose link starts at interface `i` (per lane): the surface
+    /// vertices there connect through it.
+    #[inline(always)]
+    pub fn starts_at(&self, i: L) -> L::Mask {
+        self.start.eq(i)
+    }
+
+    /// The lanes whose link crosses layer `l` (per lane): the collisions
+    /// there connect through it.
+    #[inline(always)]
+    pub fn crosses(&self, l: L) -> L::Mask {
+        self.layer.eq(l)
+    }
+}
+
 /// The adjoint chain never exceeds this many segments. Each further segment
 /// needs one more delta bounce that the chain survives only with probability
 /// F·(Russian roulette), so this guards against a lossless loop of delta
@@ -524,22 +540,37 @@ pub fn free_flight<L: Lane>(
     (col, pass)
 }
 
+/// Next-event estimation from the surface vertex on `iface` where light
+/// arrives from `a` (at the entrance where `first`), through one link `k` of
+/// the adjoint chain that starts there (per unit throughput): it crosses the
+/// whole layer.
+#[inline(always)]
+pub fn surface_link<L: Lane>(
+    iface: &InterfaceLanes<L>,
+    a: V3<L>,
+    first: L::Mask,
+    k: &ChainLink<L>,
+    mis: bool,
+) -> Rgb<L> {
+    connect_surface(iface, a, first, &k.conn, k.t, mis)
+}
+
 /// Next-event estimation from a collision at depth `z` in layer `med`
-/// through one segment `c` of the adjoint chain (per unit throughput): the
-/// transmittance of the rest of the layer along `c.u`, and the phase
-/// function from `d`.
+/// through one link `k` of the adjoint chain that crosses it (per unit
+/// throughput): the transmittance of the rest of the layer along `k.conn.u`,
+/// and the phase function from `d`.
 #[inline(always)]
 pub fn collision_link<L: Lane>(
     med: &MediumLanes<L>,
     z: L,
     d: V3<L>,
-    c: &Connection<L>,
+    k: &ChainLink<L>,
     mis: bool,
 ) -> Rgb<L> {
-    let u = c.u;
+    let u = k.conn.u;
     let dz = depth_to_boundary(z, med.thickness, u.z.gt(L::zero()));
     let t = med.transmittance(dz, u.z.abs());
-    connect_collision(med.g, d, c, t, mis)
+    connect_collision(med.g, d, &k.conn, t, mis)
 }
 
 /// The collision's new direction (phase sampling with the uniforms `u`);

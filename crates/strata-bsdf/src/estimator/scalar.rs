@@ -214,9 +214,8 @@ impl<S: Scalar> ScalarEngine<S> {
             let scoring = events::scoring(true, order, cv);
             // Next-event estimation from this surface vertex.
             if let Some(c) = connect.as_deref_mut().filter(|_| scoring) {
-                for link in c.chain.iter().filter(|k| k.start == i) {
-                    let t = link.t;
-                    c.acc += beta * events::connect_surface(iface, a, first, &link.conn, t, mis);
+                for link in c.chain.iter().filter(|k| k.starts_at(i)) {
+                    c.acc += beta * events::surface_link(iface, a, first, link, mis);
                 }
             }
             // Scatter at the interface.
@@ -285,8 +284,8 @@ impl<S: Scalar> ScalarEngine<S> {
                     }
                     // Next-event estimation from this collision.
                     if let Some(c) = connect.as_deref_mut() {
-                        for link in c.chain.iter().filter(|k| k.layer == l) {
-                            c.acc += beta * events::collision_link(m, z, d, &link.conn, mis);
+                        for link in c.chain.iter().filter(|k| k.crosses(l)) {
+                            c.acc += beta * events::collision_link(m, z, d, link, mis);
                         }
                     }
                     let u = (Self::u(rng), Self::u(rng));

@@ -596,8 +596,8 @@ impl<W: Wide> Wavefront<W> {
                 idx,
                 scoring,
                 c,
-                |k| k.start.eq(at_i),
-                |k| events::connect_surface(iface, a, first, &k.conn, k.t, mis),
+                |k| k.starts_at(at_i),
+                |k| events::surface_link(iface, a, first, k, mis),
             );
         }
         // Scatter at the interface.
@@ -708,8 +708,8 @@ impl<W: Wide> Wavefront<W> {
                 idx,
                 col,
                 c,
-                |k| k.layer.eq(at_l),
-                |k| events::collision_link(med, z, d, &k.conn, mis),
+                |k| k.crosses(at_l),
+                |k| events::collision_link(med, z, d, k, mis),
             );
         }
         let u1 = c.rng.uniform(col);
