@@ -272,13 +272,14 @@ impl<L: Lane> DensityWalk<'_, L> {
 
         let mut p = zero;
         let mut alive = L::Mask::splat(true);
+        let s0 = events::WalkStart::<L>::new(draw(alive));
         let mut st = State {
-            beta: Rgb::one(),
-            ratios: Rgb::one(),
-            hero: events::hero_channel(draw(alive)),
-            events: zero,
+            beta: s0.beta,
+            ratios: s0.ratios,
+            hero: s0.hero,
+            events: s0.events,
         };
-        let mut order = zero;
+        let mut order = s0.order;
         // The walk's density of its current direction since its last
         // non-delta vertex, carried through delta events in their solid
         // angle (0 before the first one): the weight of its own arrival at a

@@ -404,6 +404,38 @@ pub fn chain_step<L: Lane>(
 // a lane joins next). What each step draws, and in which order, is fixed
 // here, so a lane of the wavefront replays a scalar walk by construction.
 
+/// A walk's state before its first event, per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct WalkStart<L: Lane> {
+    /// The hero channel of spectral MIS.
+    pub hero: L,
+    /// Throughput (1).
+    pub beta: Rgb<L>,
+    /// Spectral MIS channel ratios (1).
+    pub ratios: Rgb<L>,
+    /// Events so far (0).
+    pub events: L,
+    /// Collisions so far (0).
+    pub order: L,
+    /// Every event so far was a delta (true).
+    pub specular: L::Mask,
+}
+
+impl<L: Lane> WalkStart<L> {
+    /// The start of a walk whose first uniform is `u` (the hero channel's).
+    #[inline(always)]
+    pub fn new(u: L) -> Self {
+        WalkStart {
+            hero: hero_channel(u),
+            beta: Rgb::one(),
+            ratios: Rgb::one(),
+            events: L::zero(),
+            order: L::zero(),
+            specular: L::Mask::splat(true),
+        }
+    }
+}
+
 /// The lanes of `active` whose contributions to `eval` count: with the
 /// control variate (`cv`), a walk scores nothing before its first collision
 /// (`order` 0), whose paths the exact part holds (their segment to the exit

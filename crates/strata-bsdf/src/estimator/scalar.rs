@@ -199,16 +199,15 @@ impl<S: Scalar> ScalarEngine<S> {
         length: &mut Counter,
     ) -> Option<Exit<S>> {
         let mis = self.settings.mis;
-        let hero = events::hero_channel(Self::u(rng));
+        let start = events::WalkStart::<S>::new(Self::u(rng));
         let cv = connect.as_ref().is_some_and(|c| c.collided_only);
-        let mut ratios = Rgb::<S>::one();
-        let mut beta = Rgb::<S>::one();
+        let hero = start.hero;
+        let (mut beta, mut ratios) = (start.beta, start.ratios);
+        let (mut events, mut order) = (start.events, start.order);
+        let mut specular = start.specular;
         let mut i = self.layout.outer_lanes::<S>(wi.z > S::zero());
         let mut a = wi;
         let mut first = true;
-        let mut specular = true;
-        let mut events = S::zero();
-        let mut order = S::zero();
         loop {
             let iface = &self.ifaces[index(i)];
             let scoring = events::scoring(true, order, cv);
