@@ -277,7 +277,10 @@ pub struct ChainStack<FS, FI, FM> {
 /// a uniform for the lanes of `m` (and draws for no other), `push(link, m)`
 /// takes each new segment of the lanes `m`. Both engines build their chains
 /// here: the scalar one a walk at a time, the wavefront a chunk of new walks.
-#[inline]
+/// Not inlined: only smooth exits' chains go past their first link, and
+/// inlined into the start of walks the loop changed how LLVM inlined that
+/// stage into the task loop (docs/performance.md).
+#[inline(never)]
 pub fn extend_chain<'a, L: Lane, FS, FI, FM>(
     layout: &Layout,
     settings: &Settings,
