@@ -57,8 +57,8 @@
 //! where they are active (`draw(mask)`), so lane `j` replays the one-lane walk
 //! of its pair exactly.
 
-use super::events;
-use super::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes};
+use super::events::{self, Flight};
+use super::layout::{depth_to_boundary, flight_limit, LayerKind, Layout, MediumLanes};
 use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
@@ -276,16 +276,20 @@ impl<L: Lane> DensityWalk<'_, L> {
         let zero = L::zero();
         let last = L::splat(n as f64 - 1.0);
         let goal = self.goal(wo);
+        let layout = Layout { n };
+        // sample()'s specular flag: the density walk has no use for it.
+        let mut specular = L::Mask::splat(false);
 
         let mut p = zero;
         let mut alive = L::Mask::splat(true);
+        let s0 = events::WalkStart::<L>::new(draw(alive));
         let mut st = State {
-            beta: Rgb::one(),
-            ratios: Rgb::one(),
-            hero: events::hero_channel(draw(alive)),
-            events: zero,
+            beta: s0.beta,
+            ratios: s0.ratios,
+            hero: s0.hero,
+            events: s0.events,
         };
-        let mut order = zero;
+        let mut order = s0.order;
         // The walk's density of its current direction since its last
         // non-delta vertex, carried through delta events in their solid
         // angle (0 before the first one): the weight of its own arrival at a
@@ -309,23 +313,31 @@ impl<L: Lane> DensityWalk<'_, L> {
                 let v = Vertex::Surface { it: &it, a, i };
                 p += self.connect(&goal, &v, st, rho, rough, &mut draw);
             }
-            // The interface event of sample()'s walk.
-            let (us, u1, u2) = (draw(alive), draw(alive), draw(alive));
-            let s = it.sample(a, us, u1, u2, L::Mask::splat(false));
-            alive = alive & s.valid;
-            st.beta = Rgb::select(alive, st.beta * s.weight, st.beta);
-            st.events = L::select(alive, st.events + L::one(), st.events);
+            // The interface event of sample()'s walk (the same steps as the
+            // engines' walks, in `events`).
+            let u = (draw(alive), draw(alive), draw(alive));
+            let no = L::Mask::splat(false);
+            let (s, ok) = events::interface_scatter(
+                &it,
+                a,
+                u,
+                no,
+                alive,
+                &mut st.beta,
+                &mut specular,
+                &mut st.events,
+            );
+            alive = ok;
             let d = s.b;
             rho = L::select(s.delta, rho * refraction_jacobian(&it, a, d), s.pdf);
             let up = d.z.gt(zero);
-            let out = (up & i.eq(zero)) | (!up & i.eq(last));
+            let (l, out) = layout.enter(i, up);
             alive = alive & !out;
             alive = alive & self.survive(&mut st, alive, draw(alive));
             if !alive.any() {
                 break;
             }
             // Cross the layer until the walk reaches one of its interfaces.
-            let l = L::select(up, i - L::one(), i);
             let mut z = L::select(up, self.thickness(l), zero);
             let mut d = V3::select(alive, d, V3::z_axis());
             let mut flying = alive;
@@ -335,63 +347,40 @@ impl<L: Lane> DensityWalk<'_, L> {
                     if !here.any() {
                         continue;
                     }
-                    let mu = d.z.abs();
-                    let flat = mu.le(zero);
-                    let dz = depth_to_boundary(z, med.thickness, d.z.gt(zero));
-                    match med.kind {
-                        LayerKind::Clear => {
-                            alive = alive & !(here & flat);
-                            flying = flying & !here;
+                    if med.kind != LayerKind::Scattering {
+                        alive = alive & !events::cross_inert(med, z, d, here, &mut st.beta);
+                        flying = flying & !here;
+                    } else {
+                        let fl = Flight {
+                            z: &mut z,
+                            beta: &mut st.beta,
+                            ratios: &mut st.ratios,
+                            order: &mut order,
+                        };
+                        let max_order = self.settings.max_scatter_order;
+                        let u = draw(here);
+                        let (hit, pass) =
+                            events::free_flight(med, fl, d, st.hero, u, here, max_order);
+                        // Flat lanes that pass, and lanes past the cap, end.
+                        alive = alive & !(here & !hit & !pass);
+                        flying = flying & !(here & !hit);
+                        if !hit.any() {
+                            continue;
                         }
-                        LayerKind::Absorbing => {
-                            alive = alive & !(here & flat);
-                            let t = med.transmittance(dz, mu);
-                            st.beta = Rgb::select(here, st.beta * t, st.beta);
-                            flying = flying & !here;
-                        }
-                        LayerKind::Scattering => {
-                            let ff = medium::sample_free_flight(
-                                med.sigma_t,
-                                med.albedo,
-                                med.grey,
-                                flight_limit(dz, mu),
-                                st.hero,
-                                draw(here),
-                                st.ratios,
-                            );
-                            st.beta = Rgb::select(here, st.beta * ff.weight, st.beta);
-                            st.ratios = Rgb::select(here, ff.ratios, st.ratios);
-                            let passed = here & !ff.collide;
-                            alive = alive & !(passed & flat);
-                            flying = flying & !passed;
-                            let hit = here & ff.collide;
-                            if !hit.any() {
-                                continue;
-                            }
-                            order = L::select(hit, order + L::one(), order);
-                            let over = match self.settings.max_scatter_order {
-                                Some(k) => hit & order.gt(L::splat(k as f64)),
-                                None => L::Mask::splat(false),
-                            };
-                            alive = alive & !over;
-                            flying = flying & !over;
-                            let hit = hit & !over;
-                            z = L::select(hit, move_depth(z, d.z, ff.distance, med.thickness), z);
-                            let v = Vertex::Collision { g: med.g, d, l, z };
-                            p += self.connect(&goal, &v, st, rho, hit, &mut draw);
-                            let dn = medium::hg_sample(med.g, d, draw(hit), draw(hit));
-                            rho = L::select(hit, medium::hg_eval_dirs(med.g, d, dn), rho);
-                            d = V3::select(hit, dn, d);
-                            st.events = L::select(hit, st.events + L::one(), st.events);
-                            let keep = self.survive(&mut st, hit, draw(hit));
-                            alive = alive & !(hit & !keep);
-                            flying = flying & !(hit & !keep);
-                        }
+                        let v = Vertex::Collision { g: med.g, d, l, z };
+                        p += self.connect(&goal, &v, st, rho, hit, &mut draw);
+                        let u = (draw(hit), draw(hit));
+                        let dn = events::phase_scatter(med, d, u, hit, &mut specular);
+                        rho = L::select(hit, medium::hg_eval_dirs(med.g, d, dn), rho);
+                        events::after_collision(&mut d, &mut st.events, dn, hit);
+                        let keep = self.survive(&mut st, hit, draw(hit));
+                        alive = alive & !(hit & !keep);
+                        flying = flying & !(hit & !keep);
                     }
                 }
                 flying = flying & alive;
             }
-            i = L::select(alive, L::select(d.z.gt(zero), l, l + L::one()), zero);
+            i = L::select(alive, layout.arrive(l, d.z.gt(zero)), zero);
             a = -d;
         }
         p
@@ -505,13 +494,12 @@ impl<L: Lane> DensityWalk<'_, L> {
     /// Russian roulette of `sample()`'s walk (and the approximate pdf's
     /// bound) on lanes `m`: updates their throughput, returns the survivors.
     fn survive(&self, st: &mut State<L>, m: L::Mask, u: L) -> L::Mask {
-        let (b, ok) = events::walk_roulette(st.beta, st.events, u, self.settings);
-        st.beta = Rgb::select(m, b, st.beta);
+        let alive = events::survive(&mut st.beta, st.events, u, m, self.settings);
         let bounded = match self.max_events {
             Some(k) => st.events.lt(L::splat(k as f64)),
             None => L::Mask::splat(true),
         };
-        m & ok & bounded
+        alive & bounded
     }
 
     /// Some smooth interface is tilted: delta paths through it do not

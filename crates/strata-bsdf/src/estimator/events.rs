@@ -1,8 +1,16 @@
-//! The event kernels of a walk, written once over [`Lane`]: the scalar
-//! reference calls them on one walk (`f32`, `f64`), the wavefront engine on
-//! eight or sixteen walks at once. The engines differ only in control flow
-//! (early returns there, masks and compaction here), so a lane of the
-//! wavefront replays a scalar walk operation for operation.
+//! The event sequence of a walk, written once over [`Lane`]: the scalar
+//! reference calls it on one walk (`f32`, `f64`), the wavefront engine on
+//! eight or sixteen walks at once, the density walk of `pdf` on either. The
+//! engines differ only in scheduling (loops and early returns there; masks,
+//! queues, compaction and record loads here), so a lane of the wavefront
+//! replays a scalar walk operation for operation by construction rather than
+//! by two copies kept in step.
+//!
+//! Two levels: the kernels (a connection, a continuation, a chain segment,
+//! roulette), and the steps of a walk built on them (the interface event, a
+//! free flight, a collision's parts, the adjoint chain, the deterministic
+//! terms), each taking the lanes it acts on as a mask and updating only
+//! those. Where a walk goes next is [`super::layout`]'s, also over lanes.
 //!
 //! Notation (method.md §4): a walk carries its throughput `beta`; an
 //! [`Connection`] is one segment of the adjoint chain sampled from `wo`: light
@@ -10,11 +18,13 @@
 //! already holds the exit interface's value, the cosine of `u` and the
 //! inverse density of `u` (next-event estimation "from the other side").
 
-use super::layout::Layout;
+use super::closed_form::SmoothCoatLambertian;
+use super::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes};
 use super::Settings;
-use crate::interface::InterfaceLanes;
+use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
+use std::borrow::Cow;
 
 /// One segment of the adjoint chain, per lane.
 #[derive(Clone, Copy, Debug)]
@@ -29,6 +39,44 @@ pub struct Connection<L: Lane> {
     /// strategy produces this connection (smooth exit).
     pub mis_pdf: L,
 }
+
+/// A segment of the adjoint chain with where it connects from, per lane:
+/// vertices in `layer` (medium collisions) and on interface `start` (surface
+/// vertices), with the transmittance `t` of a full crossing of the layer
+/// along `conn.u` (what a surface vertex's connection crosses).
+#[derive(Clone, Copy, Debug)]
+pub struct ChainLink<L: Lane> {
+    /// The connection.
+    pub conn: Connection<L>,
+    /// Transmittance of the whole layer along `conn.u`.
+    pub t: Rgb<L>,
+    /// The layer the segment crosses.
+    pub layer: L,
+    /// The interface it starts from.
+    pub start: L,
+}
+
+impl<L: Lane> ChainLink<L> {
+    /// The lanes whose link starts at interface `i` (per lane): the surface
+    /// vertices there connect through it.
+    #[inline(always)]
+    pub fn starts_at(&self, i: L) -> L::Mask {
+        self.start.eq(i)
+    }
+
+    /// The lanes whose link crosses layer `l` (per lane): the collisions
+    /// there connect through it.
+    #[inline(always)]
+    pub fn crosses(&self, l: L) -> L::Mask {
+        self.layer.eq(l)
+    }
+}
+
+/// The adjoint chain never exceeds this many segments. Each further segment
+/// needs one more delta bounce that the chain survives only with probability
+/// F·(Russian roulette), so this guards against a lossless loop of delta
+/// interfaces and is never reached by a physical stack in practice.
+pub const MAX_CHAIN: usize = 256;
 
 /// Power heuristic (exponent 2) for a strategy of density `a` against `b`,
 /// computed from the ratio so that huge densities cannot overflow. Zero when
@@ -166,6 +214,122 @@ pub fn continue_to_exit<L: Lane>(
     (t * fe).scale(w)
 }
 
+/// Transmittance of a full crossing of layer `layer` (per lane) of the
+/// `layers` layers `media(l)` along a direction with `|d.z| = mu`.
+#[cfg_attr(feature = "profiling", inline(never))]
+pub fn full_crossing<'a, L: Lane>(
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
+    layers: usize,
+    layer: L,
+    mu: L,
+) -> Rgb<L> {
+    let mut t = Rgb::one();
+    for l in 0..layers {
+        let here = layer.eq(L::splat(l as f64));
+        if here.any() {
+            let m = media(l);
+            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
+        }
+    }
+    t
+}
+
+/// The first link of the adjoint chain from `wo` through `exit` (the top
+/// interface where `top`, else the bottom one, of a stack of two interfaces
+/// or more; uniforms `u`), with the full-crossing transmittance of the exit's
+/// layer (`media`: the stack's layers), and the lanes where it exists.
+#[inline]
+pub fn first_link<'a, L: Lane>(
+    layout: &Layout,
+    exit: &InterfaceLanes<L>,
+    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
+    wo: V3<L>,
+    top: L::Mask,
+    u: (L, L, L),
+) -> (ChainLink<L>, L::Mask) {
+    let (conn, ok) = chain_start(exit, wo, u);
+    let (layer, start) = layout.exit_region_lanes(top);
+    let t = full_crossing(media, layout.n - 1, layer, conn.u.z.abs());
+    let link = ChainLink {
+        conn,
+        t,
+        layer,
+        start,
+    };
+    (link, ok)
+}
+
+/// What [`extend_chain`] reads of the stack, per lane.
+pub struct ChainStack<FS, FI, FM> {
+    /// The lanes whose interface `j` (per lane) is smooth: only delta
+    /// interfaces continue the chain.
+    pub smooth: FS,
+    /// Interface `j` (per lane), asked for once a lane continues there.
+    pub iface: FI,
+    /// The stack's layers ([`full_crossing`]).
+    pub media: FM,
+}
+
+/// The adjoint chain past its first link `first`, on the lanes `alive` (a
+/// smooth exit's, where the first link exists): on through delta interfaces,
+/// a segment per interface, each after a roulette, until a rough interface,
+/// the outside, an absorbed lane or [`MAX_CHAIN`] segments. `draw(m)` returns
+/// a uniform for the lanes of `m` (and draws for no other), `push(link, m)`
+/// takes each new segment of the lanes `m`. Both engines build their chains
+/// here: the scalar one a walk at a time, the wavefront a chunk of new walks.
+/// Not inlined: only smooth exits' chains go past their first link, and
+/// inlined into the start of walks the loop changed how LLVM inlined that
+/// stage into the task loop (docs/performance.md).
+#[inline(never)]
+pub fn extend_chain<'a, L: Lane, FS, FI, FM>(
+    layout: &Layout,
+    settings: &Settings,
+    first: ChainLink<L>,
+    alive: L::Mask,
+    stack: ChainStack<FS, FI, FM>,
+    mut draw: impl FnMut(L::Mask) -> L,
+    mut push: impl FnMut(&ChainLink<L>, L::Mask),
+) where
+    FS: Fn(L) -> L::Mask,
+    FI: Fn(L) -> InterfaceLanes<L>,
+    FM: Fn(usize) -> Cow<'a, MediumLanes<L>>,
+{
+    let mut last = first;
+    let mut alive = alive;
+    let mut events = 1u32;
+    let mut len = 1usize;
+    while alive.any() && len < MAX_CHAIN {
+        let j = L::select(alive, last.start, L::zero());
+        let cont = alive & (stack.smooth)(j);
+        if !cont.any() {
+            break;
+        }
+        let iface = (stack.iface)(j);
+        let u = (draw(cont), draw(cont), draw(cont));
+        let (c2, ok) = chain_step(&iface, &last.conn, last.t, u);
+        // Light reached interface j travelling along c2.u: it crossed the
+        // layer it enters leaving j the other way, from that layer's far side.
+        let up = c2.u.z.lt(L::zero());
+        let (layer, out) = layout.enter(j, up);
+        let start = layout.arrive(layer, up);
+        let mut next = cont & ok & !out;
+        events += 1;
+        let ur = draw(next);
+        let (conn, surv) = chain_roulette(c2, L::splat(events as f64), ur, settings);
+        next = next & surv;
+        let layer = L::select(next, layer, L::zero());
+        last = ChainLink {
+            conn,
+            t: full_crossing(&stack.media, layout.n - 1, layer, conn.u.z.abs()),
+            layer,
+            start,
+        };
+        push(&last, next);
+        alive = next;
+        len += 1;
+    }
+}
+
 /// Whether the adjoint chain from exit `e` (an outer interface: 0 or the
 /// last) is the same for every walk: a smooth exit's refraction is
 /// deterministic ([`chain_start`] draws its uniforms but no lane uses them),
@@ -232,4 +396,306 @@ pub fn chain_step<L: Lane>(
         mis_pdf: L::zero(),
     };
     (conn, s.valid)
+}
+
+// ---------------------------------------------------------------- the steps
+//
+// The event sequence of a walk, step by step, over lanes: both engines call
+// these in the same order, the scalar reference on one lane (`active` is then
+// `true`, and it returns early where a lane would be masked off), the
+// wavefront on a chunk of walks (it keeps the masks, and decides which queue
+// a lane joins next). What each step draws, and in which order, is fixed
+// here, so a lane of the wavefront replays a scalar walk by construction.
+
+/// A walk's state before its first event, per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct WalkStart<L: Lane> {
+    /// The hero channel of spectral MIS.
+    pub hero: L,
+    /// Throughput (1).
+    pub beta: Rgb<L>,
+    /// Spectral MIS channel ratios (1).
+    pub ratios: Rgb<L>,
+    /// Events so far (0).
+    pub events: L,
+    /// Collisions so far (0).
+    pub order: L,
+    /// Every event so far was a delta (true).
+    pub specular: L::Mask,
+}
+
+impl<L: Lane> WalkStart<L> {
+    /// The start of a walk whose first uniform is `u` (the hero channel's).
+    #[inline(always)]
+    pub fn new(u: L) -> Self {
+        WalkStart {
+            hero: hero_channel(u),
+            beta: Rgb::one(),
+            ratios: Rgb::one(),
+            events: L::zero(),
+            order: L::zero(),
+            specular: L::Mask::splat(true),
+        }
+    }
+}
+
+/// The lanes of `active` whose contributions to `eval` count: with the
+/// control variate (`cv`), a walk scores nothing before its first collision
+/// (`order` 0), whose paths the exact part holds (their segment to the exit
+/// crosses the layer by a transmittance).
+#[inline(always)]
+pub fn scoring<L: Lane>(active: L::Mask, order: L, cv: L::Mask) -> L::Mask {
+    active & (order.gt(L::zero()) | !cv)
+}
+
+/// The interface event: scatter the light arriving from `a` at `iface` with
+/// the uniforms `u` (transmission only where `transmit_only`: the entrance of
+/// an eval walk, whose reflection is the exact first-order term). Updates the
+/// throughput, the specular flag and the event count of the lanes where a
+/// direction was produced, and returns the sample and those lanes.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn interface_scatter<L: Lane>(
+    iface: &InterfaceLanes<L>,
+    a: V3<L>,
+    u: (L, L, L),
+    transmit_only: L::Mask,
+    active: L::Mask,
+    beta: &mut Rgb<L>,
+    specular: &mut L::Mask,
+    events: &mut L,
+) -> (BsdfSample<L>, L::Mask) {
+    let s = iface.sample(a, u.0, u.1, u.2, transmit_only);
+    let alive = active & s.valid;
+    *beta = Rgb::select(alive, *beta * s.weight, *beta);
+    *specular = *specular & (s.delta | !alive);
+    *events = L::select(alive, *events + L::one(), *events);
+    (s, alive)
+}
+
+/// Russian roulette of the lanes `m` after an event that keeps them in the
+/// stack ([`walk_roulette`] with the uniform `u`): updates their throughput
+/// and returns those that survive.
+#[inline(always)]
+pub fn survive<L: Lane>(beta: &mut Rgb<L>, events: L, u: L, m: L::Mask, s: &Settings) -> L::Mask {
+    let (b, alive) = walk_roulette(*beta, events, u, s);
+    *beta = Rgb::select(m, b, *beta);
+    m & alive
+}
+
+/// The path continuation of an interface event (contribution, with the
+/// throughput `beta`): the walk left interface `k0`, across the rough exit's
+/// layer `med`, along `d` (its sample `s`), straight towards the exit.
+#[inline(always)]
+pub fn surface_continuation<L: Lane>(
+    exit: &InterfaceLanes<L>,
+    med: &MediumLanes<L>,
+    wo: V3<L>,
+    d: V3<L>,
+    s: &BsdfSample<L>,
+    beta: Rgb<L>,
+    mis: bool,
+) -> Rgb<L> {
+    let t = med.transmittance(med.thickness, d.z.abs());
+    beta * continue_to_exit(exit, wo, d, s.pdf, s.delta, t, mis)
+}
+
+/// Entering a layer that does not scatter (`med`: clear or absorbing) at
+/// depth `z` along `d`: it is crossed at once, the throughput of the lanes
+/// `m` taking its transmittance. Returns the lanes of `m` that travel exactly
+/// sideways, which never arrive (their walks end).
+#[inline(always)]
+pub fn cross_inert<L: Lane>(
+    med: &MediumLanes<L>,
+    z: L,
+    d: V3<L>,
+    m: L::Mask,
+    beta: &mut Rgb<L>,
+) -> L::Mask {
+    let mu = d.z.abs();
+    let flat = m & mu.le(L::zero());
+    if med.kind == LayerKind::Absorbing {
+        let ok = m & !flat;
+        let dz = depth_to_boundary(z, med.thickness, d.z.gt(L::zero()));
+        *beta = Rgb::select(ok, *beta * med.transmittance(dz, mu), *beta);
+    }
+    flat
+}
+
+/// The walk state a free flight updates.
+pub struct Flight<'a, L: Lane> {
+    /// Depth.
+    pub z: &'a mut L,
+    /// Throughput.
+    pub beta: &'a mut Rgb<L>,
+    /// Spectral MIS channel ratios.
+    pub ratios: &'a mut Rgb<L>,
+    /// Collisions so far.
+    pub order: &'a mut L,
+}
+
+/// A free flight in scattering layer `med` from the walk's depth along `d`
+/// (hero channel `hero`, uniform `u`), for the lanes `active`. Returns the
+/// lanes that collide (moved to the collision's depth; a lane past the
+/// optional scatter-order cap ends instead) and those that pass to the
+/// layer's boundary. A direction exactly parallel to the layer collides (see
+/// [`flight_limit`]); if it does not, it is in neither: its walk ends.
+#[inline(always)]
+pub fn free_flight<L: Lane>(
+    med: &MediumLanes<L>,
+    st: Flight<'_, L>,
+    d: V3<L>,
+    hero: L,
+    u: L,
+    active: L::Mask,
+    max_order: Option<u32>,
+) -> (L::Mask, L::Mask) {
+    let h = med.thickness;
+    let mu = d.z.abs();
+    let flat = active & mu.le(L::zero());
+    let dz = depth_to_boundary(*st.z, h, d.z.gt(L::zero()));
+    let ff = medium::sample_free_flight(
+        med.sigma_t,
+        med.albedo,
+        med.grey,
+        flight_limit(dz, mu),
+        hero,
+        u,
+        *st.ratios,
+    );
+    *st.beta = Rgb::select(active, *st.beta * ff.weight, *st.beta);
+    *st.ratios = Rgb::select(active, ff.ratios, *st.ratios);
+    let pass = active & !ff.collide & !flat;
+    let mut col = active & ff.collide;
+    *st.order = L::select(col, *st.order + L::one(), *st.order);
+    if let Some(k) = max_order {
+        col = col & !st.order.gt(L::splat(k as f64));
+    }
+    *st.z = L::select(col, move_depth(*st.z, d.z, ff.distance, h), *st.z);
+    (col, pass)
+}
+
+/// Next-event estimation from the surface vertex on `iface` where light
+/// arrives from `a` (at the entrance where `first`), through one link `k` of
+/// the adjoint chain that starts there (per unit throughput): it crosses the
+/// whole layer.
+#[inline(always)]
+pub fn surface_link<L: Lane>(
+    iface: &InterfaceLanes<L>,
+    a: V3<L>,
+    first: L::Mask,
+    k: &ChainLink<L>,
+    mis: bool,
+) -> Rgb<L> {
+    connect_surface(iface, a, first, &k.conn, k.t, mis)
+}
+
+/// Next-event estimation from a collision at depth `z` in layer `med`
+/// through one link `k` of the adjoint chain that crosses it (per unit
+/// throughput): the transmittance of the rest of the layer along `k.conn.u`,
+/// and the phase function from `d`.
+#[inline(always)]
+pub fn collision_link<L: Lane>(
+    med: &MediumLanes<L>,
+    z: L,
+    d: V3<L>,
+    k: &ChainLink<L>,
+    mis: bool,
+) -> Rgb<L> {
+    let u = k.conn.u;
+    let dz = depth_to_boundary(z, med.thickness, u.z.gt(L::zero()));
+    let t = med.transmittance(dz, u.z.abs());
+    connect_collision(med.g, d, &k.conn, t, mis)
+}
+
+/// The collision's new direction (phase sampling with the uniforms `u`);
+/// the lanes that collided (`col`) are no longer specular.
+#[inline(always)]
+pub fn phase_scatter<L: Lane>(
+    med: &MediumLanes<L>,
+    d: V3<L>,
+    u: (L, L),
+    col: L::Mask,
+    specular: &mut L::Mask,
+) -> V3<L> {
+    *specular = *specular & !col;
+    medium::hg_sample(med.g, d, u.0, u.1)
+}
+
+/// Depth left, from the collision at depth `z`, to the side of layer `med`
+/// that the new direction `dn` heads for: what the collision continuation
+/// needs of the walk's position (the wavefront stores it with a deferred row).
+#[inline(always)]
+pub fn depth_ahead<L: Lane>(med: &MediumLanes<L>, z: L, dn: V3<L>) -> L {
+    depth_to_boundary(z, med.thickness, dn.z.gt(L::zero()))
+}
+
+/// The collision continuation (contribution, with the throughput `beta`,
+/// MIS on): the walk scattered from `d` into `dn`, which heads straight for
+/// the rough exit across `dz` of layer `med`; evaluate the exit towards `wo`,
+/// weighted against the chain's density of `-dn`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn collision_continuation<L: Lane>(
+    exit: &InterfaceLanes<L>,
+    med: &MediumLanes<L>,
+    wo: V3<L>,
+    d: V3<L>,
+    dn: V3<L>,
+    dz: L,
+    beta: Rgb<L>,
+) -> Rgb<L> {
+    let t = med.transmittance(dz, dn.z.abs());
+    let pv = medium::hg_eval_dirs(med.g, d, dn);
+    let no = L::Mask::splat(false);
+    beta * continue_to_exit(exit, wo, dn, pv, no, t, true)
+}
+
+/// After a collision (lanes `col`): the walk travels along `dn` and counts
+/// one more event.
+#[inline(always)]
+pub fn after_collision<L: Lane>(d: &mut V3<L>, events: &mut L, dn: V3<L>, col: L::Mask) {
+    *d = V3::select(col, dn, *d);
+    *events = L::select(col, *events + L::one(), *events);
+}
+
+/// One roulette of a further segment of the adjoint chain (the chain's
+/// `events`-th, uniform `u`): the new connection's value and whether it
+/// survives. The chain is never capped (its own guard is its length).
+#[inline(always)]
+pub fn chain_roulette<L: Lane>(
+    c: Connection<L>,
+    events: L,
+    u: L,
+    s: &Settings,
+) -> (Connection<L>, L::Mask) {
+    let (v, alive) = roulette(c.v, events, u, s.rr_start, None);
+    (Connection { v, ..c }, alive)
+}
+
+/// The deterministic terms of an eval, in f64: the first-order term (the
+/// entrance alone, when it is also the exit: `same`), plus, with the control
+/// variate `cv`, its exact part at the walks' directions (taken from the
+/// engine's precision, so that both engines add the same number). A smooth
+/// coat's first-order term is a delta, 0 here, and not a path of `f₀` (which
+/// enters the coat), so nothing is counted twice.
+pub fn deterministic_terms<S: Lane>(
+    entrance: &InterfaceLanes<S>,
+    same: bool,
+    cv: Option<&SmoothCoatLambertian>,
+    wi: V3<S>,
+    wo: V3<S>,
+) -> [f64; 3] {
+    let lane0 = |c: Rgb<S>| [c.r.lane(0), c.g.lane(0), c.b.lane(0)];
+    let direct = if same {
+        lane0(entrance.eval(wi, wo))
+    } else {
+        [0.0; 3]
+    };
+    let Some(cv) = cv else {
+        return direct;
+    };
+    let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
+    let f0 = cv.eval(dir(wi), dir(wo));
+    std::array::from_fn(|c| direct[c] + f0[c])
 }

@@ -5,7 +5,7 @@
 //! A walk's position is `(layer, z)`: layer `l` lies between interfaces `l` and
 //! `l + 1`, and `z` is the depth below interface `l` (so `0 <= z <= thickness`).
 
-use crate::lane::{Lane, Rgb};
+use crate::lane::{Lane, Rgb, V3};
 pub use crate::stack::LayerKind;
 use crate::stack::{LayerStack, Medium};
 
@@ -59,6 +59,13 @@ impl<L: Lane> MediumLanes<L> {
         }
     }
 
+    /// The depth at which a walk enters the layer: its bottom where
+    /// `from_below` (travelling up), its top elsewhere.
+    #[inline]
+    pub fn entry(&self, from_below: L::Mask) -> L {
+        L::select(from_below, self.thickness, L::zero())
+    }
+
     /// Transmittance over a depth `dz` along a direction with `|d.z| = mu`
     /// (1 in a clear layer).
     #[inline]
@@ -105,55 +112,93 @@ impl Layout {
         Layout { n: stack.len() }
     }
 
-    /// Where a direction leaving interface `i` upwards (`up`) or downwards goes.
+    /// Where a direction leaving interface `i` upwards (`up`) or downwards
+    /// goes ([`Layout::enter`] on one lane).
     #[inline]
     pub fn next(&self, i: usize, up: bool) -> Next {
-        match (up, i) {
-            (true, 0) => Next::OutTop,
-            (true, _) => Next::Layer {
-                l: i - 1,
-                from_below: true,
-            },
-            (false, _) if i + 1 == self.n => Next::OutBottom,
-            (false, _) => Next::Layer {
-                l: i,
-                from_below: false,
+        match self.enter(i as f64, up) {
+            (_, true) if up => Next::OutTop,
+            (_, true) => Next::OutBottom,
+            (l, false) => Next::Layer {
+                l: l as usize,
+                from_below: up,
             },
         }
     }
 
-    /// The interface a walk in layer `l` travelling up (`up`) or down reaches.
+    /// The interface a walk in layer `l` travelling up (`up`) or down reaches
+    /// ([`Layout::arrive`] on one lane).
     #[inline]
     pub fn boundary(&self, l: usize, up: bool) -> usize {
-        if up {
-            l
-        } else {
-            l + 1
-        }
+        self.arrive(l as f64, up) as usize
     }
 
     /// The interface light from direction `w` (pointing away from the stack)
-    /// enters or leaves through: the top for `w.z > 0`, the bottom otherwise.
+    /// enters or leaves through: the top for `w.z > 0`, the bottom otherwise
+    /// ([`Layout::outer_lanes`] on one lane).
     #[inline]
     pub fn outer(&self, above: bool) -> usize {
-        if above {
-            0
-        } else {
-            self.n - 1
-        }
+        self.outer_lanes::<f64>(above) as usize
+    }
+
+    /// [`Layout::next`] over lanes, for directions leaving interface `i` (an
+    /// index per lane) upwards where `up`: the layer each enters (entered
+    /// through its bottom where `up`, at its top elsewhere) and the lanes that
+    /// leave the stack instead (their layer is meaningless). Both engines take
+    /// this decision here, the scalar one on a single lane, so that a walk
+    /// goes where its lane of the wavefront goes.
+    #[inline]
+    pub fn enter<L: Lane>(&self, i: L, up: L::Mask) -> (L, L::Mask) {
+        let layer = L::select(up, i - L::one(), i);
+        let last = L::splat(self.n as f64 - 1.0);
+        let out = (up & i.eq(L::zero())) | (!up & i.eq(last));
+        (layer, out)
+    }
+
+    /// [`Layout::boundary`] over lanes: the interface a walk in layer `l`
+    /// (per lane) reaches travelling up where `up`, down elsewhere.
+    #[inline]
+    pub fn arrive<L: Lane>(&self, l: L, up: L::Mask) -> L {
+        L::select(up, l, l + L::one())
+    }
+
+    /// [`Layout::outer`] over lanes: the interface light from a direction
+    /// with `w.z > 0` where `above` enters or leaves through.
+    #[inline]
+    pub fn outer_lanes<L: Lane>(&self, above: L::Mask) -> L {
+        L::select(above, L::zero(), L::splat(self.n as f64 - 1.0))
+    }
+
+    /// [`Layout::exit_region`] over lanes, for a stack of two interfaces or
+    /// more: the layer next to the exit (the top where `top`, else the
+    /// bottom) and the interface across it.
+    #[inline]
+    pub fn exit_region_lanes<L: Lane>(&self, top: L::Mask) -> (L, L) {
+        let inner = L::splat(self.n as f64 - 2.0);
+        (
+            L::select(top, L::zero(), inner),
+            L::select(top, L::one(), inner),
+        )
     }
 
     /// For exit interface `e`: the layer next to it and the interface across
     /// that layer (`None` for a one-interface stack, which has no interior).
-    /// Continuations from there reach the exit directly.
+    /// Continuations from there reach the exit directly
+    /// ([`Layout::exit_region_lanes`] on one lane).
     #[inline]
     pub fn exit_region(&self, e: usize) -> Option<(usize, usize)> {
-        match (e, self.n) {
-            (_, 1) => None,
-            (0, _) => Some((0, 1)),
-            _ => Some((self.n - 2, self.n - 2)),
-        }
+        (self.n >= 2).then(|| {
+            let (l, k) = self.exit_region_lanes::<f64>(e == 0);
+            (l as usize, k as usize)
+        })
     }
+}
+
+/// Lanes whose travel direction `d` heads for the exit interface: the top
+/// where `top`, the bottom elsewhere.
+#[inline]
+pub fn toward_exit<L: Lane>(d: V3<L>, top: L::Mask) -> L::Mask {
+    (top & d.z.gt(L::zero())) | (!top & d.z.lt(L::zero()))
 }
 
 /// Depth left to the boundary a direction heads for, from depth `z` in a layer

@@ -2,8 +2,9 @@
 //!
 //! Generic over a one-lane number `S`: `f32` (the reference the wavefront
 //! engine is held to) and `f64` (the accuracy oracle of the stability checks).
-//! Every physical quantity comes from the shared kernels (`interface`,
-//! `medium`, [`super::events`]); this file only decides what happens next.
+//! Every step of a walk is a shared one of [`super::events`], and where it
+//! goes next is [`super::layout`]'s, both called on one lane (masks are
+//! `true`); this file only loops over them and returns early.
 //!
 //! Directions inside a walk are *travel* directions `d`; an interface is
 //! sampled with `a = -d`, the direction the light arrives from. Random numbers
@@ -25,16 +26,14 @@
 
 use super::accumulate::{BlockReducer, MeanVar};
 use super::closed_form::SmoothCoatLambertian;
-use super::events::{self, Connection};
-use super::layout::{
-    depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes, Next,
-};
+use super::events::{self, ChainLink, ChainStack, Flight};
+use super::layout::{toward_exit, LayerKind, Layout, MediumLanes};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
-use crate::medium;
 use crate::rng::{query_prefix, Stream, WalkRng};
 use crate::stack::LayerStack;
+use std::borrow::Cow;
 
 /// A one-lane number: `f32` or `f64`.
 pub trait Scalar: Lane<Mask = bool> + PartialOrd {
@@ -64,23 +63,11 @@ macro_rules! chain_buffer {
 chain_buffer!(f32);
 chain_buffer!(f64);
 
-/// The adjoint chain never exceeds this many segments. Each further segment
-/// needs one more delta bounce that the chain survives only with probability
-/// F·(Russian roulette), so this guards against a lossless loop of delta
-/// interfaces and is never reached by a physical stack in practice.
-pub const MAX_CHAIN: usize = 256;
+pub use super::events::MAX_CHAIN;
 
-/// A segment of the adjoint chain with where it connects from: vertices in
-/// `layer` (medium collisions) and on interface `start` (surface vertices).
-#[derive(Clone, Copy, Debug)]
-pub struct Link<S: Lane> {
-    /// The connection.
-    pub conn: Connection<S>,
-    /// The layer the segment crosses.
-    pub layer: usize,
-    /// The interface it starts from.
-    pub start: usize,
-}
+/// A segment of the adjoint chain with where it connects from (the
+/// wavefront's links, on one lane).
+pub type Link<S> = ChainLink<S>;
 
 /// How a walk left the stack.
 #[derive(Clone, Copy, Debug)]
@@ -126,16 +113,6 @@ struct Connect<'a, S: Scalar> {
     /// them until it has a chunk's worth, and this keeps the two engines'
     /// sums in the same order.
     from_collisions: Rgb<S>,
-}
-
-impl<S: Scalar> Connect<'_, S> {
-    fn toward_exit(&self, d: V3<S>) -> bool {
-        if self.exit == 0 {
-            d.z > S::zero()
-        } else {
-            d.z < S::zero()
-        }
-    }
 }
 
 impl<S: Scalar> ScalarEngine<S> {
@@ -213,16 +190,15 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// Russian roulette; always draws one uniform. False if the walk ends.
-    fn survive(&self, beta: &mut Rgb<S>, events: u32, rng: &mut WalkRng) -> bool {
-        let u = Self::u(rng);
-        let (b, alive) = events::walk_roulette(*beta, S::splat(events as f64), u, &self.settings);
-        *beta = b;
-        alive
+    fn survive(&self, beta: &mut Rgb<S>, events: S, rng: &mut WalkRng) -> bool {
+        events::survive(beta, events, Self::u(rng), true, &self.settings)
     }
 
     /// One walk from `wi`. With `connect` it is a walk of the unidirectional
     /// estimator (the entrance transmits only, and every vertex connects to
-    /// the viewer); without, it is the analog walk of `sample`.
+    /// the viewer); without, it is the analog walk of `sample`. The steps are
+    /// the shared ones of [`events`] on one lane: this function only orders
+    /// them and returns where a wavefront lane would be masked off.
     fn walk(
         &self,
         wi: V3<S>,
@@ -231,145 +207,117 @@ impl<S: Scalar> ScalarEngine<S> {
         length: &mut Counter,
     ) -> Option<Exit<S>> {
         let mis = self.settings.mis;
-        let hero = events::hero_channel(Self::u(rng));
-        let mut ratios = Rgb::<S>::one();
-        let mut beta = Rgb::<S>::one();
-        let mut i = self.layout.outer(wi.z > S::zero());
+        let start = events::WalkStart::<S>::new(Self::u(rng));
+        let cv = connect.as_ref().is_some_and(|c| c.collided_only);
+        let hero = start.hero;
+        let (mut beta, mut ratios) = (start.beta, start.ratios);
+        let (mut events, mut order) = (start.events, start.order);
+        let mut specular = start.specular;
+        let mut i = self.layout.outer_lanes::<S>(wi.z > S::zero());
         let mut a = wi;
         let mut first = true;
-        let mut specular = true;
-        let mut events = 0u32;
-        let mut order = 0u32;
         loop {
-            let iface = &self.ifaces[i];
-            // Next-event estimation from this surface vertex. Before the first
-            // collision, the link crosses the layer by a transmittance: the
-            // path has no collision, and a control variate holds it exactly.
-            if let Some(c) = connect
-                .as_deref_mut()
-                .filter(|c| !(c.collided_only && order == 0))
-            {
-                for link in c.chain.iter().filter(|k| k.start == i) {
-                    let m = &self.media[link.layer];
-                    let t = m.transmittance(m.thickness, link.conn.u.z.abs());
-                    c.acc += beta * events::connect_surface(iface, a, first, &link.conn, t, mis);
+            let iface = &self.ifaces[index(i)];
+            let scoring = events::scoring(true, order, cv);
+            // Next-event estimation from this surface vertex.
+            if let Some(c) = connect.as_deref_mut().filter(|_| scoring) {
+                for link in c.chain.iter().filter(|k| k.starts_at(i)) {
+                    c.acc += beta * events::surface_link(iface, a, first, link, mis);
                 }
             }
-            // Scatter at the interface. `eval` transmits only at the entrance:
-            // reflection there is its exact first-order term.
-            let (us, u1, u2) = Self::u3(rng);
-            let s = iface.sample(a, us, u1, u2, first && connect.is_some());
-            if !s.valid {
+            // Scatter at the interface.
+            let u = Self::u3(rng);
+            let transmit_only = first && connect.is_some();
+            let (s, alive) = events::interface_scatter(
+                iface,
+                a,
+                u,
+                transmit_only,
+                true,
+                &mut beta,
+                &mut specular,
+                &mut events,
+            );
+            if !alive {
                 return None;
             }
-            beta *= s.weight;
-            specular &= s.delta;
-            events += 1;
-            length.0 = events;
+            length.0 = events.lane(0) as u32;
             let d = s.b;
-            let next = self.layout.next(i, d.z > S::zero());
+            let up = d.z > S::zero();
+            let (l, out) = self.layout.enter(i, up);
             // Path continuation: the new direction reaches a rough exit.
-            if let (Some(c), Next::Layer { l, .. }) = (connect.as_deref_mut(), next) {
-                // (Before the first collision, a path without one, as above.)
-                if !(c.collided_only && order == 0)
+            if let Some(c) = connect.as_deref_mut() {
+                if scoring
+                    && !out
                     && c.exit_rough
-                    && c.region.map(|r| r.1) == Some(i)
-                    && c.toward_exit(d)
+                    && c.region.map(|r| r.1) == Some(index(i))
+                    && toward_exit(d, c.exit == 0)
                 {
-                    let m = &self.media[l];
-                    let t = m.transmittance(m.thickness, d.z.abs());
-                    let ex = &self.ifaces[c.exit];
-                    c.acc += beta * events::continue_to_exit(ex, c.wo, d, s.pdf, s.delta, t, mis);
+                    let (ex, m) = (&self.ifaces[c.exit], &self.media[index(l)]);
+                    c.acc += events::surface_continuation(ex, m, c.wo, d, &s, beta, mis);
                 }
             }
             first = false;
-            let (l, from_below) = match next {
-                Next::Layer { l, from_below } => (l, from_below),
-                Next::OutTop | Next::OutBottom => {
-                    return Some(Exit { d, beta, specular });
-                }
-            };
+            if out {
+                return Some(Exit { d, beta, specular });
+            }
             if !self.survive(&mut beta, events, rng) {
                 return None;
             }
             // Cross layer l until the walk reaches one of its interfaces.
-            let m = &self.media[l];
-            let mut z = if from_below { m.thickness } else { S::zero() };
+            let m = &self.media[index(l)];
+            let mut z = m.entry(up);
             let mut d = d;
-            loop {
-                let mu = d.z.abs();
-                // Travelling exactly sideways: never arrives at a boundary.
-                let flat = mu <= S::zero();
-                let dz = depth_to_boundary(z, m.thickness, d.z > S::zero());
-                match m.kind {
-                    LayerKind::Clear if flat => return None,
-                    LayerKind::Clear => break,
-                    LayerKind::Absorbing if flat => return None,
-                    LayerKind::Absorbing => {
-                        beta *= m.transmittance(dz, mu);
-                        break;
-                    }
-                    LayerKind::Scattering => {
-                        // A flat direction collides (see `flight_limit`).
-                        let ff = medium::sample_free_flight(
-                            m.sigma_t,
-                            m.albedo,
-                            m.grey,
-                            flight_limit(dz, mu),
-                            hero,
-                            Self::u(rng),
-                            ratios,
-                        );
-                        beta *= ff.weight;
-                        ratios = ff.ratios;
-                        if !ff.collide {
-                            if flat {
-                                return None;
-                            }
+            if m.kind != LayerKind::Scattering {
+                if events::cross_inert(m, z, d, true, &mut beta) {
+                    return None;
+                }
+            } else {
+                loop {
+                    let st = Flight {
+                        z: &mut z,
+                        beta: &mut beta,
+                        ratios: &mut ratios,
+                        order: &mut order,
+                    };
+                    let max_order = self.settings.max_scatter_order;
+                    let (col, pass) =
+                        events::free_flight(m, st, d, hero, Self::u(rng), true, max_order);
+                    if !col {
+                        if pass {
                             break;
                         }
-                        order += 1;
-                        if self.settings.max_scatter_order.is_some_and(|k| order > k) {
-                            return None;
+                        return None;
+                    }
+                    // Next-event estimation from this collision.
+                    if let Some(c) = connect.as_deref_mut() {
+                        for link in c.chain.iter().filter(|k| k.crosses(l)) {
+                            c.acc += beta * events::collision_link(m, z, d, link, mis);
                         }
-                        z = move_depth(z, d.z, ff.distance, m.thickness);
-                        // Next-event estimation from this collision.
-                        if let Some(c) = connect.as_deref_mut() {
-                            for link in c.chain.iter().filter(|k| k.layer == l) {
-                                let u = link.conn.u;
-                                let dz_e = depth_to_boundary(z, m.thickness, u.z > S::zero());
-                                let t = m.transmittance(dz_e, u.z.abs());
-                                c.acc +=
-                                    beta * events::connect_collision(m.g, d, &link.conn, t, mis);
-                            }
+                    }
+                    let u = (Self::u(rng), Self::u(rng));
+                    let dn = events::phase_scatter(m, d, u, true, &mut specular);
+                    // Path continuation from the collision towards a rough exit.
+                    if let Some(c) = connect.as_deref_mut() {
+                        if c.exit_rough
+                            && mis
+                            && c.region.map(|r| r.0) == Some(index(l))
+                            && toward_exit(dn, c.exit == 0)
+                        {
+                            let dz = events::depth_ahead(m, z, dn);
+                            let ex = &self.ifaces[c.exit];
+                            c.from_collisions +=
+                                events::collision_continuation(ex, m, c.wo, d, dn, dz, beta);
                         }
-                        let dn = medium::hg_sample(m.g, d, Self::u(rng), Self::u(rng));
-                        specular = false;
-                        // Path continuation from the collision towards a rough exit.
-                        if let Some(c) = connect.as_deref_mut() {
-                            if c.exit_rough
-                                && mis
-                                && c.region.map(|r| r.0) == Some(l)
-                                && c.toward_exit(dn)
-                            {
-                                let dz_e = depth_to_boundary(z, m.thickness, dn.z > S::zero());
-                                let t = m.transmittance(dz_e, dn.z.abs());
-                                let pv = medium::hg_eval_dirs(m.g, d, dn);
-                                let ex = &self.ifaces[c.exit];
-                                c.from_collisions += beta
-                                    * events::continue_to_exit(ex, c.wo, dn, pv, false, t, mis);
-                            }
-                        }
-                        d = dn;
-                        events += 1;
-                        length.0 = events;
-                        if !self.survive(&mut beta, events, rng) {
-                            return None;
-                        }
+                    }
+                    events::after_collision(&mut d, &mut events, dn, true);
+                    length.0 = events.lane(0) as u32;
+                    if !self.survive(&mut beta, events, rng) {
+                        return None;
                     }
                 }
             }
-            i = self.layout.boundary(l, d.z > S::zero());
+            i = self.layout.arrive(l, d.z > S::zero());
             a = -d;
         }
     }
@@ -443,51 +391,36 @@ impl<S: Scalar> ScalarEngine<S> {
     /// on through delta interfaces while the exit side is smooth.
     pub fn adjoint_chain(&self, wo: V3<S>, e: usize, rng: &mut WalkRng, out: &mut Vec<Link<S>>) {
         out.clear();
-        let Some((layer, start)) = self.layout.exit_region(e) else {
+        if self.layout.n < 2 {
             return;
-        };
-        let (conn, ok) = events::chain_start(&self.ifaces[e], wo, Self::u3(rng));
+        }
+        let media = |l: usize| Cow::Borrowed(&self.media[l]);
+        let exit = &self.ifaces[e];
+        let u = Self::u3(rng);
+        let (first, ok) = events::first_link(&self.layout, exit, media, wo, e == 0, u);
         if !ok {
             return;
         }
-        out.push(Link { conn, layer, start });
-        if !self.stack.interface(e).smooth {
-            return;
-        }
+        out.push(first);
         // Continue through delta interfaces: their vertices cannot connect.
-        let mut events = 1u32;
-        while let Some(&last) = out.last() {
-            let j = last.start;
-            if !self.stack.interface(j).smooth || out.len() >= MAX_CHAIN {
-                return;
-            }
-            let m = &self.media[last.layer];
-            let t = m.transmittance(m.thickness, last.conn.u.z.abs());
-            let (conn, ok) = events::chain_step(&self.ifaces[j], &last.conn, t, Self::u3(rng));
-            if !ok {
-                return;
-            }
-            // Light reached interface j travelling along conn.u.
-            let Next::Layer { l, .. } = self.layout.next(j, conn.u.z < S::zero()) else {
-                return;
-            };
-            events += 1;
-            let (v, alive) = events::roulette(
-                conn.v,
-                S::splat(events as f64),
-                Self::u(rng),
-                self.settings.rr_start,
-                None,
-            );
-            if !alive {
-                return;
-            }
-            out.push(Link {
-                conn: Connection { v, ..conn },
-                layer: l,
-                start: self.layout.boundary(l, conn.u.z < S::zero()),
-            });
-        }
+        let stack = ChainStack {
+            smooth: |j: S| self.stack.interface(index(j)).smooth,
+            iface: |j: S| self.ifaces[index(j)],
+            media,
+        };
+        events::extend_chain(
+            &self.layout,
+            &self.settings,
+            first,
+            exit.smooth,
+            stack,
+            |m| if m { Self::u(rng) } else { S::zero() },
+            |link, m| {
+                if m {
+                    out.push(*link)
+                }
+            },
+        );
     }
 
     /// The unidirectional estimator (method.md §4): mean of `n` walks plus the
@@ -562,32 +495,15 @@ impl<S: Scalar> ScalarEngine<S> {
             }
         });
         // First-order term: the entrance alone, when it is also the exit.
-        let direct = if e_in == e_out {
-            rgb_f64(self.ifaces[e_in].eval(wi, wo))
-        } else {
-            [0.0; 3]
-        };
-        add_unscattered(self.cv.as_ref(), direct, wi, wo)
+        let entrance = &self.ifaces[e_in];
+        events::deterministic_terms(entrance, e_in == e_out, self.cv.as_ref(), wi, wo)
     }
 }
 
-/// The deterministic terms of an eval: `direct` (the first-order term) plus,
-/// with the control variate `cv`, its exact part at the walks' directions
-/// (taken from the engine's precision, so that both engines add the same
-/// number). A smooth coat's first-order term is a delta, 0 here, and not a
-/// path of `f₀` (which enters the coat), so nothing is counted twice.
-pub(super) fn add_unscattered<S: Lane>(
-    cv: Option<&SmoothCoatLambertian>,
-    direct: [f64; 3],
-    wi: V3<S>,
-    wo: V3<S>,
-) -> [f64; 3] {
-    let Some(cv) = cv else {
-        return direct;
-    };
-    let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
-    let f0 = cv.eval(dir(wi), dir(wo));
-    std::array::from_fn(|c| direct[c] + f0[c])
+/// A layer or interface index carried as a lane value, as a `usize`.
+#[inline(always)]
+fn index<S: Lane>(i: S) -> usize {
+    i.lane(0) as usize
 }
 
 /// A unit direction in the engine's precision (normalized in f64 first).

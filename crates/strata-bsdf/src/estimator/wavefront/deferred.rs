@@ -18,8 +18,7 @@
 use super::walks::{lane_ids, lane_rows, load16, Chunk};
 use super::{Queries, Wavefront};
 use crate::estimator::events;
-use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
-use crate::medium;
+use crate::lane::{Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 
 /// One pending continuation: the viewer direction `wo` (3), the direction
 /// before the collision (3) and after it (3), the depth to the exit's side
@@ -130,10 +129,7 @@ impl<W: Wide> Wavefront<W> {
             let sets = q.lane_sets(W::LANES, |j| rows[idx[j] as usize][QUERY].to_bits());
             let (exit, med) = (self.iface_in(&sets, e), self.medium_in(&sets, l));
             // As in the scalar engine's collision, in the same order.
-            let t = med.transmittance(dz, dn.z.abs());
-            let pv = medium::hg_eval_dirs(med.g, d, dn);
-            let no = W::Mask::splat(false);
-            let add = beta * events::continue_to_exit(&exit, wo, dn, pv, no, t, true);
+            let add = events::collision_continuation(&exit, &med, wo, d, dn, dz, beta);
             let z = W::zero();
             let out = lane_rows([add.r, add.g, add.b, z, z, z, z, z]);
             for (j, r) in rows[first..first + n].iter().enumerate() {

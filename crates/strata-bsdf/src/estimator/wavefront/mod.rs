@@ -821,12 +821,8 @@ impl<W: Wide> Wavefront<W> {
                 (queries.table.iface(s, e_in), queries.table.cv(s))
             }
         };
-        let direct = if e_in == queries.e_out[q] as usize {
-            super::scalar::rgb_f64(entrance.eval(wi, wo))
-        } else {
-            [0.0; 3]
-        };
-        sum.estimate_plus(super::scalar::add_unscattered(cv, direct, wi, wo))
+        let same = e_in == queries.e_out[q] as usize;
+        sum.estimate_plus(events::deterministic_terms(entrance, same, cv, wi, wo))
     }
 
     /// Each walk's value of the unidirectional estimator (without the
@@ -1151,7 +1147,7 @@ fn link_row<'a, W: Wide>(
 ) -> [f32; 16] {
     let top = W::Mask::splat(e == 0);
     let u = (W::zero(), W::zero(), W::zero());
-    let (l, ok) = stages::first_link(exit, media, n, wo, top, u);
+    let (l, ok) = events::first_link(&Layout { n }, exit, media, wo, top, u);
     let f = l.fields();
     let mut row = [0.0f32; 16];
     for (r, x) in row.iter_mut().zip(f) {

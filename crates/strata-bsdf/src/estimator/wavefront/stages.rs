@@ -1,24 +1,22 @@
 //! The stages of a wave: starting walks, interface events, layer events; and the
 //! round loop that passes walks between queues.
 //!
-//! Each stage mirrors one part of the scalar reference's walk
-//! (`estimator::scalar`) operation for operation, with masks where the scalar
-//! code returns early.
+//! Each stage runs the shared steps of `estimator::events` (and the layout's
+//! decisions) in the order of the scalar reference's walk, with masks where
+//! the scalar code returns early; what is here is scheduling: which lanes,
+//! which queue next, what is loaded, stored or deferred.
 
 use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::density::DensityWalk;
 use crate::estimator::events::{self, Connection};
-use crate::estimator::layout::{
-    depth_to_boundary, flight_limit, move_depth, LayerKind, MediumLanes, Next,
-};
+use crate::estimator::events::{ChainStack, Flight};
+use crate::estimator::layout::{toward_exit, LayerKind, MediumLanes, Next};
 use crate::estimator::params::LaneSets;
 use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
-use crate::estimator::scalar::MAX_CHAIN;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
-use crate::medium;
+use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use std::borrow::Cow;
 
@@ -349,73 +347,51 @@ impl<W: Wide> Wavefront<W> {
             rng.uniform(active),
         );
         let media = |l: usize| self.medium_spec_in(&sets, l);
-        let (mut last, ok) = first_link(&exit, media, n, c.wo, top, u);
+        let (first, ok) = events::first_link(&self.layout, &exit, media, c.wo, top, u);
         let ok = ok & active;
-        c.link0 = last;
+        c.link0 = first;
         c.links = W::select(ok, W::one(), W::zero());
         // Continue through delta interfaces while the chain stays smooth.
-        let mut alive = ok & exit.smooth;
-        let mut events_n = 1u32;
-        let mut len = 1usize;
-        while alive.any() && len < MAX_CHAIN {
-            let j = W::select(alive, last.start, W::zero());
+        let stack = ChainStack {
             // Only delta interfaces continue the chain (checked before the
             // per-lane gather of the interfaces, which is costly).
-            let mut smooth = W::Mask::splat(false);
-            for (i, it) in self.stack.interfaces().iter().enumerate() {
-                if it.smooth {
-                    smooth = smooth | j.eq(W::splat(i as f64));
+            smooth: |j: W| {
+                let mut smooth = W::Mask::splat(false);
+                for (i, it) in self.stack.interfaces().iter().enumerate() {
+                    if it.smooth {
+                        smooth = smooth | j.eq(W::splat(i as f64));
+                    }
                 }
-            }
-            let cont = alive & smooth;
-            if !cont.any() {
-                break;
-            }
-            let iface = match &sets {
+                smooth
+            },
+            iface: |j: W| match &sets {
                 None => InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize),
                 Some(s) => InterfaceLanes::<W>::gather(s.table().ifaces(), |k| {
                     s.set(k) * n + j.lane(k) as usize
                 }),
-            };
-            let u = (rng.uniform(cont), rng.uniform(cont), rng.uniform(cont));
-            let (c2, ok2) = events::chain_step(&iface, &last.conn, last.t, u);
-            let up = c2.u.z.lt(W::zero());
-            let out = W::select(up, j, W::splat(n as f64 - 1.0) - j).eq(W::zero());
-            let mut next_alive = cont & ok2 & !out;
-            events_n += 1;
-            let ur = rng.uniform(next_alive);
-            let (v, surv) = events::roulette(
-                c2.v,
-                W::splat(events_n as f64),
-                ur,
-                self.settings.rr_start,
-                None,
-            );
-            next_alive = next_alive & surv;
-            // Light reached interface j travelling along u: it crossed layer
-            // j-1 from interface j-1 (going down) or layer j from j+1 (going up).
-            let layer = W::select(up, j - W::one(), j);
-            let start = W::select(up, j - W::one(), j + W::one());
-            let layer = W::select(next_alive, layer, W::zero());
-            let conn = Connection { v, ..c2 };
-            last = LinkLanes {
-                conn,
-                t: full_crossing(media, n - 1, layer, conn.u.z.abs()),
-                layer,
-                start,
-            };
-            c.links = W::select(next_alive, c.links + W::one(), c.links);
-            for k in Chunk::<W>::lanes(next_alive) {
-                ws.chain[idx[k] as usize].push(Link {
-                    conn: conn_lane(&last.conn, k),
-                    t_full: rgb_lane(last.t, k),
-                    layer: last.layer.lane(k) as u16,
-                    start: last.start.lane(k) as u16,
-                });
-            }
-            alive = next_alive;
-            len += 1;
-        }
+            },
+            media,
+        };
+        let links = &mut c.links;
+        events::extend_chain(
+            &self.layout,
+            &self.settings,
+            first,
+            ok & exit.smooth,
+            stack,
+            |m| rng.uniform(m),
+            |last, m| {
+                *links = W::select(m, *links + W::one(), *links);
+                for k in Chunk::<W>::lanes(m) {
+                    ws.chain[idx[k] as usize].push(Link {
+                        conn: conn_lane(&last.conn, k),
+                        t_full: rgb_lane(last.t, k),
+                        layer: last.layer.lane(k) as u16,
+                        start: last.start.lane(k) as u16,
+                    });
+                }
+            },
+        );
     }
 
     /// Lanes of the chunk's walks' overflow links `k` (link `k + 1` of the
@@ -607,7 +583,7 @@ impl<W: Wide> Wavefront<W> {
         // `Connect::collided_only`).
         let cv = self.cv_in(&sets);
         let scoring = if eval && cv.any() {
-            active & (c.order.gt(W::zero()) | !cv)
+            events::scoring(active, c.order, cv)
         } else {
             active
         };
@@ -620,22 +596,27 @@ impl<W: Wide> Wavefront<W> {
                 idx,
                 scoring,
                 c,
-                |k| k.start.eq(at_i),
-                |k| events::connect_surface(iface, a, first, &k.conn, k.t, mis),
+                |k| k.starts_at(at_i),
+                |k| events::surface_link(iface, a, first, k, mis),
             );
         }
         // Scatter at the interface.
-        let (us, u1, u2) = (
+        let u = (
             c.rng.uniform(active),
             c.rng.uniform(active),
             c.rng.uniform(active),
         );
         let transmit_only = c.first & W::Mask::splat(eval);
-        let s = iface.sample(a, us, u1, u2, transmit_only);
-        let alive = active & s.valid;
-        c.beta = Rgb::select(alive, c.beta * s.weight, c.beta);
-        c.specular = c.specular & (s.delta | !alive);
-        c.events = W::select(alive, c.events + W::one(), c.events);
+        let (s, alive) = events::interface_scatter(
+            iface,
+            a,
+            u,
+            transmit_only,
+            active,
+            &mut c.beta,
+            &mut c.specular,
+            &mut c.events,
+        );
         let d = s.b;
         let up = d.z.gt(W::zero());
         // Path continuation towards a rough exit.
@@ -646,25 +627,20 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = alive & scoring & e_out.eq(W::splat(e as f64)) & toward(d, e);
                 if m.any() {
-                    let med = self.medium_in(&sets, l0);
-                    let t = med.transmittance(med.thickness, d.z.abs());
-                    let ex = self.iface_in(&sets, e);
-                    let add = c.beta * events::continue_to_exit(&ex, wo, d, s.pdf, s.delta, t, mis);
+                    let (ex, med) = (self.iface_in(&sets, e), self.medium_in(&sets, l0));
+                    let add = events::surface_continuation(&ex, &med, wo, d, &s, c.beta, mis);
                     c.acc = Rgb::select(m, c.acc + add, c.acc);
                 }
             }
         }
         c.first = W::Mask::splat(false);
         c.d = V3::select(alive, d, c.d);
-        let out_up = W::Mask::splat(i == 0);
-        let out_dn = W::Mask::splat(i + 1 == n);
-        let exited = alive & ((up & out_up) | (!up & out_dn));
-        let mut cont = alive & !exited;
+        let (_, out) = self.layout.enter(W::splat(i as f64), up);
+        let exited = alive & out;
         // Russian roulette.
+        let cont = alive & !exited;
         let u = c.rng.uniform(cont);
-        let (b2, surv) = events::walk_roulette(c.beta, c.events, u, &self.settings);
-        c.beta = Rgb::select(cont, b2, c.beta);
-        cont = cont & surv;
+        let cont = events::survive(&mut c.beta, c.events, u, cont, &self.settings);
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
         let mut keys = [FREE; 2]; // [up, down]
@@ -674,7 +650,7 @@ impl<W: Wide> Wavefront<W> {
             };
             let m = cont & if going_up { up } else { !up };
             let med = self.medium_in(&sets, l);
-            let entry = if going_up { med.thickness } else { W::zero() };
+            let entry = med.entry(W::Mask::splat(going_up));
             if med.kind == LayerKind::Scattering {
                 keys[dir] = (n + l) as u16;
                 c.z = W::select(m, entry, c.z);
@@ -684,14 +660,7 @@ impl<W: Wide> Wavefront<W> {
             if !m.any() {
                 continue;
             }
-            let mu = d.z.abs();
-            let flat = m & mu.le(W::zero());
-            stuck = stuck | flat;
-            if med.kind == LayerKind::Absorbing {
-                let ok = m & !flat;
-                let dz = depth_to_boundary(entry, med.thickness, W::Mask::splat(going_up));
-                c.beta = Rgb::select(ok, c.beta * med.transmittance(dz, mu), c.beta);
-            }
+            stuck = stuck | events::cross_inert(&med, entry, d, m, &mut c.beta);
         }
         let up = W::bitmask(up);
         Outcome {
@@ -718,35 +687,17 @@ impl<W: Wide> Wavefront<W> {
         let active = c.active;
         let sets = Self::sets_of(q, ws, idx);
         let med = &*self.medium_in(&sets, l);
-        let h = med.thickness;
         let d = c.d;
-        let mu = d.z.abs();
-        // A flat direction collides (see `flight_limit`); if it does not, it
-        // never arrives and the walk ends.
-        let flat = active & mu.le(W::zero());
         let up = d.z.gt(W::zero());
-        let dz = depth_to_boundary(c.z, h, up);
         let ud = c.rng.uniform(active);
-        let ff = medium::sample_free_flight(
-            med.sigma_t,
-            med.albedo,
-            med.grey,
-            flight_limit(dz, mu),
-            c.hero,
-            ud,
-            c.ratios,
-        );
-        c.beta = Rgb::select(active, c.beta * ff.weight, c.beta);
-        c.ratios = Rgb::select(active, ff.ratios, c.ratios);
-        let pass = active & !ff.collide & !flat;
-        let mut col = active & ff.collide;
-        c.order = W::select(col, c.order + W::one(), c.order);
-        let over = match self.settings.max_scatter_order {
-            Some(k) => col & c.order.gt(W::splat(k as f64)),
-            None => W::Mask::splat(false),
+        let st = Flight {
+            z: &mut c.z,
+            beta: &mut c.beta,
+            ratios: &mut c.ratios,
+            order: &mut c.order,
         };
-        col = col & !over;
-        c.z = W::select(col, move_depth(c.z, d.z, ff.distance, h), c.z);
+        let max_order = self.settings.max_scatter_order;
+        let (col, pass) = events::free_flight(med, st, d, c.hero, ud, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
         if links {
@@ -757,19 +708,13 @@ impl<W: Wide> Wavefront<W> {
                 idx,
                 col,
                 c,
-                |k| k.layer.eq(at_l),
-                |k| {
-                    let u = k.conn.u;
-                    let dz_e = depth_to_boundary(z, h, u.z.gt(W::zero()));
-                    let t = med.transmittance(dz_e, u.z.abs());
-                    events::connect_collision(med.g, d, &k.conn, t, mis)
-                },
+                |k| k.crosses(at_l),
+                |k| events::collision_link(med, z, d, k, mis),
             );
         }
         let u1 = c.rng.uniform(col);
         let u2 = c.rng.uniform(col);
-        let dn = medium::hg_sample(med.g, d, u1, u2);
-        c.specular = c.specular & !col;
+        let dn = events::phase_scatter(med, d, (u1, u2), col, &mut c.specular);
         // Path continuation from the collision towards a rough exit: only
         // some lanes need it, so it waits for a full chunk (`deferred`).
         if links && mis {
@@ -779,7 +724,7 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = W::bitmask(col & e_out.eq(W::splat(e as f64)) & toward(dn, e));
                 if m != 0 {
-                    let dz_e = depth_to_boundary(c.z, h, dn.z.gt(W::zero()));
+                    let dz_e = events::depth_ahead(med, c.z, dn);
                     let walk = W::gather_bits(&ws.walk, idx);
                     let query = W::gather_bits(&ws.query, idx);
                     deferred.push::<W>(x, m, (walk, query), (wo, d, dn, dz_e, c.beta));
@@ -789,17 +734,21 @@ impl<W: Wide> Wavefront<W> {
                 }
             }
         }
-        c.d = V3::select(col, dn, c.d);
-        c.events = W::select(col, c.events + W::one(), c.events);
+        events::after_collision(&mut c.d, &mut c.events, dn, col);
         let u = c.rng.uniform(col);
-        let (b2, surv) = events::walk_roulette(c.beta, c.events, u, &self.settings);
-        c.beta = Rgb::select(col, b2, c.beta);
-        let scattered = W::bitmask(col & surv);
+        let scattered = W::bitmask(events::survive(
+            &mut c.beta,
+            c.events,
+            u,
+            col,
+            &self.settings,
+        ));
         let n = self.layout.n;
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
         let stay = (n + l) as u16;
-        let (top, bottom) = (l as u16, (l + 1) as u16);
+        let top = self.layout.boundary(l, true) as u16;
+        let bottom = self.layout.boundary(l, false) as u16;
         Outcome {
             going: scattered | W::bitmask(pass),
             exited: 0,
@@ -928,60 +877,7 @@ fn lane_bits(n: usize) -> u32 {
 }
 
 /// Lanes whose direction `d` heads for exit interface `e` (0: the top).
+#[inline(always)]
 fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
-    if e == 0 {
-        d.z.gt(W::zero())
-    } else {
-        d.z.lt(W::zero())
-    }
-}
-
-/// The first link of the adjoint chain from `wo` through `exit` (the top
-/// interface where `top`, else the bottom one), with the full-crossing
-/// transmittance of the exit's layer, and the lanes where it exists (scalar:
-/// the first step of `ScalarEngine::adjoint_chain`).
-#[inline]
-pub(super) fn first_link<'a, W: Wide>(
-    exit: &InterfaceLanes<W>,
-    media: impl Fn(usize) -> Cow<'a, MediumLanes<W>>,
-    n: usize,
-    wo: V3<W>,
-    top: W::Mask,
-    u: (W, W, W),
-) -> (LinkLanes<W>, W::Mask) {
-    let (conn, ok) = events::chain_start(exit, wo, u);
-    // The exit region: (layer 0, interface 1) below the top, (n-2, n-2) above the bottom.
-    let layer = W::select(top, W::zero(), W::splat(n as f64 - 2.0));
-    let start = W::select(top, W::one(), W::splat(n as f64 - 2.0));
-    let t = full_crossing(media, n.saturating_sub(1), layer, conn.u.z.abs());
-    (
-        LinkLanes {
-            conn,
-            t,
-            layer,
-            start,
-        },
-        ok,
-    )
-}
-
-/// Transmittance of a full crossing of layer `layer` (per lane) of the
-/// `layers` layers `media(l)` along a direction with `|d.z| = mu`, as the
-/// scalar engine computes it.
-#[cfg_attr(feature = "profiling", inline(never))]
-fn full_crossing<'a, L: Lane>(
-    media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
-    layers: usize,
-    layer: L,
-    mu: L,
-) -> Rgb<L> {
-    let mut t = Rgb::one();
-    for l in 0..layers {
-        let here = layer.eq(L::splat(l as f64));
-        if here.any() {
-            let m = media(l);
-            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
-        }
-    }
-    t
+    toward_exit(d, W::Mask::splat(e == 0))
 }

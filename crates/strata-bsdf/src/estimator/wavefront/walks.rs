@@ -12,7 +12,7 @@
 //! A slot's `key` says which queue it is in: interface `i` (`key = i`),
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
-use crate::estimator::events::Connection;
+use crate::estimator::events::{ChainLink, Connection, WalkStart};
 use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::rng::LaneRng;
 
@@ -50,18 +50,8 @@ pub struct Link {
     pub start: u16,
 }
 
-/// A link in lanes.
-#[derive(Clone, Copy)]
-pub struct LinkLanes<W: Wide> {
-    /// The connection.
-    pub conn: Connection<W>,
-    /// Full-crossing transmittance.
-    pub t: Rgb<W>,
-    /// Layer.
-    pub layer: W,
-    /// Start interface.
-    pub start: W,
-}
+/// A link in lanes (the engines' shared [`ChainLink`]).
+pub type LinkLanes<W> = ChainLink<W>;
 
 /// One walk's record, aligned to a cache line: its [`REC`] floats span whole
 /// lines, so none of the eight-float rows a chunk loads straddles two. (With
@@ -365,18 +355,18 @@ impl<W: Wide> Chunk<W> {
         eval: bool,
         mut rng: LaneRng<W>,
     ) -> Self {
-        let hero = crate::estimator::events::hero_channel(rng.uniform(active));
+        let s = WalkStart::<W>::new(rng.uniform(active));
         Chunk {
             active,
             z: W::zero(),
             d,
-            beta: Rgb::one(),
-            ratios: Rgb::one(),
-            hero,
-            events: W::zero(),
-            order: W::zero(),
+            beta: s.beta,
+            ratios: s.ratios,
+            hero: s.hero,
+            events: s.events,
+            order: s.order,
             first: W::Mask::splat(true),
-            specular: W::Mask::splat(true),
+            specular: s.specular,
             acc: Rgb::zero(),
             rng,
             links: W::zero(),
