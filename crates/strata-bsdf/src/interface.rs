@@ -183,7 +183,7 @@ impl<L: Lane> InterfaceLanes<L> {
     /// `b` lies on the other side of the shading normal than of the slab's
     /// normal produces nothing (method.md §9). The weight is the shading
     /// frame's `f |b'.z| / pdf`.
-    #[inline]
+    #[inline(always)]
     pub fn sample(
         &self,
         a: V3<L>,
@@ -195,6 +195,20 @@ impl<L: Lane> InterfaceLanes<L> {
         if !self.tilted {
             return self.sample_local(a, u_select, u1, u2, transmit_only);
         }
+        self.sample_tilted(a, u_select, u1, u2, transmit_only)
+    }
+
+    /// [`InterfaceLanes::sample`] of a tilted interface, out of line (the
+    /// untilted walks then inline one copy of the kernel, not two).
+    #[inline(never)]
+    fn sample_tilted(
+        &self,
+        a: V3<L>,
+        u_select: L,
+        u1: L,
+        u2: L,
+        transmit_only: L::Mask,
+    ) -> BsdfSample<L> {
         let (f, flat) = self.shading();
         let (al, front) = Self::to_shading(&f, flat, a);
         let s = self.sample_local(al, u_select, u1, u2, transmit_only);
@@ -219,11 +233,17 @@ impl<L: Lane> InterfaceLanes<L> {
     /// A tilted interface's is its shading frame's `f(a' → b') |b'.z| /
     /// |b.z|` (so that `f |b.z|` is the shading frame's `f |b'.z|`), 0 where
     /// `a` or `b` lies on the other side of the shading normal.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
         if !self.tilted {
             return self.eval_local(a, b);
         }
+        self.eval_tilted(a, b)
+    }
+
+    /// [`InterfaceLanes::eval`] of a tilted interface, out of line.
+    #[inline(never)]
+    fn eval_tilted(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
         let (f, flat) = self.shading();
         let (al, front) = Self::to_shading(&f, flat, a);
         let (bl, agree) = Self::to_shading(&f, flat, b);
@@ -240,11 +260,17 @@ impl<L: Lane> InterfaceLanes<L> {
 
     /// The density with which [`InterfaceLanes::sample`] (from `a`, with the
     /// same `transmit_only` mask) produces `b`; 0 for delta lobes.
-    #[inline]
+    #[inline(always)]
     pub fn pdf(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
         if !self.tilted {
             return self.pdf_local(a, b, transmit_only);
         }
+        self.pdf_tilted(a, b, transmit_only)
+    }
+
+    /// [`InterfaceLanes::pdf`] of a tilted interface, out of line.
+    #[inline(never)]
+    fn pdf_tilted(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
         let (f, flat) = self.shading();
         let (al, front) = Self::to_shading(&f, flat, a);
         let (bl, agree) = Self::to_shading(&f, flat, b);
