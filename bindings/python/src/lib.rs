@@ -13,7 +13,6 @@
 //! `k` on the material with row `k`'s values (one helper, `Bsdf::run`, for
 //! every method).
 
-use glam::Vec3;
 use numpy::prelude::*;
 use numpy::{
     dtype, PyArray1, PyArrayDyn, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArrayDyn,
@@ -23,13 +22,11 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
-use std::collections::HashMap;
-use strata_bsdf::api::direction_key;
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
-    MaterialError as StackMaterialError, Materials, QueryError as StrataQueryError, SampleFlags,
-    SetError, SetPath, Transport, Vectors, VectorsMut, MAX_WALKS,
+    MaterialError as StackMaterialError, Materials, SetError, SetPath, Transport, Vectors,
+    VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -326,11 +323,8 @@ fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Par
 /// query (its own with query `k`'s `params` row, [`Materials::per_query`]).
 enum Answerer<'a> {
     Own(&'a LayeredBsdf),
-    PerQuery {
-        template: &'a LayeredBsdf,
-        materials: Materials,
-        ids: Vec<u32>,
-    },
+    /// Query `k` on material `ids[k]`.
+    PerQuery(Materials, Vec<u32>),
 }
 
 /// Why a call with `params` did not run.
@@ -406,101 +400,43 @@ fn shape_fault<'a, 'py>(
     row.iter().all(|x| x.is_finite()).then_some(p)
 }
 
-fn f32x3(v: [f64; 3]) -> [f32; 3] {
-    v.map(|x| x as f32)
-}
-
-/// The pairs of a per-query batch (one `wo` per `wi`).
-fn pairs_of(wi: &Vectors, wo: &Vectors) -> Result<Vec<(Vec3, Vec3)>, BatchError> {
-    if wo.len() != wi.len() {
-        return Err(BatchError {
-            index: None,
-            error: StrataQueryError::LengthMismatch {
-                argument: "wo",
-                len: wo.len(),
-                queries: wi.len(),
-            },
-        });
-    }
-    Ok((0..wi.len()).map(|k| (wi.get(k), wo.get(k))).collect())
-}
-
-fn dirs_of(wi: &Vectors) -> Vec<Vec3> {
-    (0..wi.len()).map(|k| wi.get(k)).collect()
-}
-
-/// The batch calls, on either kind of answerer, with the same outputs: the
-/// per-query ones through [`Materials`], keyed as the own ones are (by the
-/// directions without `keys`; sample index `k` for query `k` of an unkeyed
-/// `sample`), so that query `k` answers what a BSDF of its material does.
+/// The batch calls, on either kind of answerer: the library's slice calls
+/// of the BSDF, or of its per-query materials (keyed as the BSDF's own, so
+/// that query `k` answers what a BSDF of its material does).
 impl Answerer<'_> {
     fn eval(
         &self,
         wi: Vectors,
         wo: Vectors,
         keys: Option<&[u64]>,
-        mut f: VectorsMut,
-        mut se: VectorsMut,
+        f: VectorsMut,
+        se: VectorsMut,
     ) -> Result<(), BatchError> {
-        let (template, materials, ids) = match self {
-            Answerer::Own(b) => return b.eval_into(wi, wo, keys, f, Some(se)),
-            Answerer::PerQuery {
-                template,
-                materials,
-                ids,
-            } => (template, materials, ids),
-        };
-        let pairs = pairs_of(&wi, &wo)?;
-        let est = match keys {
-            None => materials.eval_batch(ids, &pairs)?,
-            Some(k) => materials.eval_batch_keyed(ids, &pairs, template.samples_per_eval(), k)?,
-        };
-        for (i, e) in est.iter().enumerate() {
-            f.set(i, f32x3(e.value));
-            se.set(i, f32x3(e.stderr));
+        match self {
+            Answerer::Own(b) => b.eval_into(wi, wo, keys, f, Some(se)),
+            Answerer::PerQuery(m, ids) => m.eval_into(ids, wi, wo, keys, f, Some(se)),
         }
-        Ok(())
     }
 
     fn sample(
         &self,
         wi: Vectors,
         keys: Option<&[u64]>,
-        mut wo: VectorsMut,
-        mut weight: VectorsMut,
+        wo: VectorsMut,
+        weight: VectorsMut,
         pdf: &mut [f32],
         flags: &mut [u32],
     ) -> Result<(), BatchError> {
-        let (materials, ids) = match self {
-            Answerer::Own(b) => return b.sample_into(wi, keys, wo, weight, pdf, flags),
-            Answerer::PerQuery { materials, ids, .. } => (materials, ids),
-        };
-        let wis = dirs_of(&wi);
-        let n = wis.len();
-        let samples = match keys {
-            None => materials.sample_batch(ids, &wis, &(0..n as u64).collect::<Vec<_>>())?,
-            Some(k) => materials.sample_batch_keyed(ids, &wis, k, &vec![0; n])?,
-        };
-        for (i, s) in samples.iter().enumerate() {
-            let (w, wt, p) = s.map_or(([0.0; 3], [0.0; 3], 0.0), |s| {
-                (s.wo.to_array(), s.weight, s.pdf)
-            });
-            wo.set(i, w);
-            weight.set(i, wt);
-            pdf[i] = p;
-            flags[i] = SampleFlags::of(s.as_ref()).0;
+        match self {
+            Answerer::Own(b) => b.sample_into(wi, keys, wo, weight, pdf, flags),
+            Answerer::PerQuery(m, ids) => m.sample_into(ids, wi, keys, wo, weight, pdf, flags),
         }
-        Ok(())
     }
 
     fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.pdf_into(wi, wo, pdf),
-            Answerer::PerQuery { materials, ids, .. } => {
-                let p = materials.pdf_batch(ids, &pairs_of(&wi, &wo)?)?;
-                pdf.copy_from_slice(&p);
-                Ok(())
-            }
+            Answerer::PerQuery(m, ids) => m.pdf_into(ids, wi, wo, pdf),
         }
     }
 
@@ -514,14 +450,7 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
-            Answerer::PerQuery { materials, ids, .. } => {
-                let est = materials.pdf_unbiased_batch(ids, &pairs_of(&wi, &wo)?, samples)?;
-                for (i, e) in est.iter().enumerate() {
-                    pdf[i] = e.value as f32;
-                    stderr[i] = e.stderr as f32;
-                }
-                Ok(())
-            }
+            Answerer::PerQuery(m, ids) => m.pdf_unbiased_into(ids, wi, wo, samples, pdf, stderr),
         }
     }
 
@@ -534,27 +463,7 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.albedo_records(wi, n, keys, out),
-            Answerer::PerQuery { materials, ids, .. } => {
-                let wis = dirs_of(&wi);
-                let own_keys;
-                let keys = match keys {
-                    Some(k) => k,
-                    None => {
-                        own_keys = wis.iter().map(|&w| direction_key(w, w)).collect::<Vec<_>>();
-                        &own_keys
-                    }
-                };
-                let albedo = materials.albedo_batch_keyed(ids, &wis, n, keys)?;
-                for (r, a) in out.iter_mut().zip(&albedo) {
-                    *r = AlbedoRecord {
-                        reflected: f32x3(a.reflected.value),
-                        transmitted: f32x3(a.transmitted.value),
-                        reflected_stderr: f32x3(a.reflected.stderr),
-                        transmitted_stderr: f32x3(a.transmitted.stderr),
-                    };
-                }
-                Ok(())
-            }
+            Answerer::PerQuery(m, ids) => m.albedo_records(ids, wi, n, keys, out),
         }
     }
 }
@@ -584,79 +493,16 @@ impl Bsdf {
             let answerer = if columns.is_empty() {
                 Answerer::Own(bsdf)
             } else {
-                let (materials, ids) = per_query_distinct(bsdf, n, &columns)?;
-                Answerer::PerQuery {
-                    template: bsdf,
-                    materials,
-                    ids,
-                }
+                // Equal rows (a texture's repeated texels) share one
+                // material: `per_query` builds each distinct row once.
+                let materials =
+                    Materials::per_query(bsdf, n, &columns).map_err(CallError::Columns)?;
+                Answerer::PerQuery(materials, Materials::identity(n))
             };
             Ok(call(&answerer)?)
         })
         .map_err(|e: CallError| e.into_py(py, params))
     }
-}
-
-/// [`Materials::per_query`] on the distinct rows of `columns` (a texture
-/// gives many queries the same values: one material each, not one per
-/// query), with each query's material. Equal rows (bit for bit) make equal
-/// materials, so every query answers as with one material per query; an
-/// invalid row is reported at the first query that has it.
-fn per_query_distinct(
-    bsdf: &LayeredBsdf,
-    n: usize,
-    columns: &[Column<'_>],
-) -> Result<(Materials, Vec<u32>), CallError> {
-    let mut index: HashMap<Vec<u32>, u32> = HashMap::new();
-    let mut first: Vec<usize> = Vec::new();
-    let mut ids = Vec::with_capacity(n);
-    let mut row = Vec::new();
-    for k in 0..n {
-        row.clear();
-        for c in columns {
-            row.extend(
-                c.values[k * c.width..(k + 1) * c.width]
-                    .iter()
-                    .map(|x| x.to_bits()),
-            );
-        }
-        let id = match index.get(&row) {
-            Some(&id) => id,
-            None => {
-                let id = first.len() as u32;
-                index.insert(row.clone(), id);
-                first.push(k);
-                id
-            }
-        };
-        ids.push(id);
-    }
-    let distinct: Vec<Vec<f32>> = columns
-        .iter()
-        .map(|c| {
-            (first.iter())
-                .flat_map(|&k| &c.values[k * c.width..(k + 1) * c.width])
-                .copied()
-                .collect()
-        })
-        .collect();
-    let cols: Vec<Column<'_>> = (columns.iter().zip(&distinct))
-        .map(|(c, values)| Column {
-            path: c.path,
-            width: c.width,
-            values,
-        })
-        .collect();
-    let materials = Materials::per_query(bsdf, first.len(), &cols).map_err(|e| {
-        CallError::Columns(match e {
-            ColumnsError::Query { query, error } => ColumnsError::Query {
-                query: first[query],
-                error,
-            },
-            e => e,
-        })
-    })?;
-    Ok((materials, ids))
 }
 
 /// How results are laid out: as the `wi` argument was.

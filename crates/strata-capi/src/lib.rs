@@ -25,18 +25,15 @@
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
-use glam::Vec3;
 use std::borrow::Cow;
 use std::cell::RefCell;
 use std::ffi::{c_char, CStr, CString};
 use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use strata_bsdf::api::direction_key;
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
-    Materials, Sample, SampleFlags, SampleRecord, SetError, SetPath, Transport, Vectors,
-    VectorsMut,
+    Materials, SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -794,7 +791,7 @@ impl Columns<'_> {
             })
             .collect();
         match Materials::per_query(bsdf, n, &columns) {
-            Ok(m) => Ok(Target::PerQuery(bsdf, m)),
+            Ok(m) => Ok(Target::PerQuery(m)),
             Err(e) => {
                 let code = match &e {
                     ColumnsError::Query {
@@ -815,7 +812,7 @@ enum Target<'a> {
     Own(&'a LayeredBsdf),
     /// One material per query (query `k` on material `k`), with the BSDF's
     /// configuration.
-    PerQuery(&'a LayeredBsdf, Materials),
+    PerQuery(Materials),
 }
 
 /// Where samples go.
@@ -831,85 +828,29 @@ enum SampleOut<'a> {
     },
 }
 
-impl SampleOut<'_> {
-    fn put(&mut self, k: usize, s: Option<&Sample>) {
-        let r = match s {
-            Some(s) => SampleRecord {
-                wo: s.wo.to_array(),
-                weight: s.weight,
-                pdf: s.pdf,
-                flags: SampleFlags::of(Some(s)).0,
-            },
-            None => SampleRecord::default(),
-        };
-        match self {
-            SampleOut::Records(out) => out[k] = r,
-            SampleOut::Soa {
-                wo,
-                weight,
-                pdf,
-                flags,
-            } => {
-                wo.set(k, r.wo);
-                weight.set(k, r.weight);
-                pdf[k] = r.pdf;
-                flags[k] = r.flags;
-            }
-        }
-    }
-}
-
-fn f32x3(v: [f64; 3]) -> [f32; 3] {
-    v.map(|x| x as f32)
-}
-
-/// The `n` pairs of a batch.
-fn pairs(wi: &Vectors, wo: &Vectors) -> Vec<(Vec3, Vec3)> {
-    (0..wi.len()).map(|k| (wi.get(k), wo.get(k))).collect()
-}
-
-/// The `n` directions of a batch.
-fn dirs(wi: &Vectors) -> Vec<Vec3> {
-    (0..wi.len()).map(|k| wi.get(k)).collect()
-}
-
-// The per-query forms key and index their queries as the slice calls do
-// (`strata_bsdf::slices`): unkeyed queries by their directions' bits (and an
-// unkeyed sample `k` draws sample index `k`), keyed ones from `keys[k]` (and
-// a keyed sample draws sample index 0). Nothing is written before every
-// query is known valid: the `Materials` calls check them all first.
+// Both kinds of target run the library's slice calls: the BSDF's own, or
+// `Materials`' with query `k` on material `k` (keyed and indexed as the own
+// ones are, so that query `k` answers what a BSDF of its material does).
 impl Target<'_> {
     fn eval(
         &self,
         wi: Vectors,
         wo: Vectors,
         keys: Option<&[u64]>,
-        mut f: VectorsMut,
-        mut se: Option<VectorsMut>,
+        f: VectorsMut,
+        se: Option<VectorsMut>,
     ) -> Result<(), Failure> {
-        let (b, m) = match self {
-            Target::Own(b) => return Ok(b.eval_into(wi, wo, keys, f, se)?),
-            Target::PerQuery(b, m) => (b, m),
-        };
-        let (pairs, ids) = (pairs(&wi, &wo), Materials::identity(wi.len()));
-        let e = match keys {
-            None => m.eval_batch(&ids, &pairs)?,
-            Some(k) => m.eval_batch_keyed(&ids, &pairs, b.samples_per_eval(), k)?,
-        };
-        for (k, e) in e.iter().enumerate() {
-            f.set(k, f32x3(e.value));
-            if let Some(s) = &mut se {
-                s.set(k, f32x3(e.stderr));
-            }
-        }
-        Ok(())
+        Ok((match self {
+            Target::Own(b) => b.eval_into(wi, wo, keys, f, se),
+            Target::PerQuery(m) => m.eval_into(&ids(&wi), wi, wo, keys, f, se),
+        })?)
     }
 
     fn sample(&self, wi: Vectors, keys: Option<&[u64]>, out: SampleOut) -> Result<(), Failure> {
-        let (m, mut out) = match (self, out) {
-            (Target::Own(b), SampleOut::Records(out)) => {
-                return Ok(b.sample_records(wi, keys, out)?)
-            }
+        let ids = ids(&wi);
+        Ok((match (self, out) {
+            (Target::Own(b), SampleOut::Records(out)) => b.sample_records(wi, keys, out),
+            (Target::PerQuery(m), SampleOut::Records(out)) => m.sample_records(&ids, wi, keys, out),
             (
                 Target::Own(b),
                 SampleOut::Soa {
@@ -918,28 +859,24 @@ impl Target<'_> {
                     pdf,
                     flags,
                 },
-            ) => return Ok(b.sample_into(wi, keys, wo, weight, pdf, flags)?),
-            (Target::PerQuery(_, m), out) => (m, out),
-        };
-        let (wis, ids) = (dirs(&wi), Materials::identity(wi.len()));
-        let s = match keys {
-            None => m.sample_batch(&ids, &wis, &(0..wis.len() as u64).collect::<Vec<_>>())?,
-            Some(k) => m.sample_batch_keyed(&ids, &wis, k, &vec![0; wis.len()])?,
-        };
-        for (k, s) in s.iter().enumerate() {
-            out.put(k, s.as_ref());
-        }
-        Ok(())
+            ) => b.sample_into(wi, keys, wo, weight, pdf, flags),
+            (
+                Target::PerQuery(m),
+                SampleOut::Soa {
+                    wo,
+                    weight,
+                    pdf,
+                    flags,
+                },
+            ) => m.sample_into(&ids, wi, keys, wo, weight, pdf, flags),
+        })?)
     }
 
     fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), Failure> {
-        let m = match self {
-            Target::Own(b) => return Ok(b.pdf_into(wi, wo, pdf)?),
-            Target::PerQuery(_, m) => m,
-        };
-        let p = m.pdf_batch(&Materials::identity(wi.len()), &pairs(&wi, &wo))?;
-        pdf.copy_from_slice(&p);
-        Ok(())
+        Ok((match self {
+            Target::Own(b) => b.pdf_into(wi, wo, pdf),
+            Target::PerQuery(m) => m.pdf_into(&ids(&wi), wi, wo, pdf),
+        })?)
     }
 
     fn pdf_unbiased(
@@ -950,17 +887,10 @@ impl Target<'_> {
         pdf: &mut [f32],
         stderr: &mut [f32],
     ) -> Result<(), Failure> {
-        let m = match self {
-            Target::Own(b) => return Ok(b.pdf_unbiased_into(wi, wo, walks, pdf, stderr)?),
-            Target::PerQuery(_, m) => m,
-        };
-        let ids = Materials::identity(wi.len());
-        let e = m.pdf_unbiased_batch(&ids, &pairs(&wi, &wo), walks)?;
-        for ((e, p), s) in e.iter().zip(pdf).zip(stderr) {
-            *p = e.value as f32;
-            *s = e.stderr as f32;
-        }
-        Ok(())
+        Ok((match self {
+            Target::Own(b) => b.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
+            Target::PerQuery(m) => m.pdf_unbiased_into(&ids(&wi), wi, wo, walks, pdf, stderr),
+        })?)
     }
 
     fn albedo(
@@ -970,26 +900,16 @@ impl Target<'_> {
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
     ) -> Result<(), Failure> {
-        let m = match self {
-            Target::Own(b) => return Ok(b.albedo_records(wi, walks, keys, out)?),
-            Target::PerQuery(_, m) => m,
-        };
-        let wis = dirs(&wi);
-        let keys = match keys {
-            Some(k) => k.to_vec(),
-            None => wis.iter().map(|&w| direction_key(w, w)).collect(),
-        };
-        let a = m.albedo_batch_keyed(&Materials::identity(wis.len()), &wis, walks, &keys)?;
-        for (o, a) in out.iter_mut().zip(&a) {
-            *o = AlbedoRecord {
-                reflected: f32x3(a.reflected.value),
-                transmitted: f32x3(a.transmitted.value),
-                reflected_stderr: f32x3(a.reflected.stderr),
-                transmitted_stderr: f32x3(a.transmitted.stderr),
-            };
-        }
-        Ok(())
+        Ok((match self {
+            Target::Own(b) => b.albedo_records(wi, walks, keys, out),
+            Target::PerQuery(m) => m.albedo_records(&ids(&wi), wi, walks, keys, out),
+        })?)
     }
+}
+
+/// Query `k` on material `k`.
+fn ids(wi: &Vectors) -> Vec<u32> {
+    Materials::identity(wi.len())
 }
 
 // ------------------------------------------------------------------- batches

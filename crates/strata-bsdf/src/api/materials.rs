@@ -22,6 +22,8 @@ pub struct Materials {
     groups: Vec<(LayeredBsdf, ParamSets)>,
     /// Per material: its group and its set there.
     of: Vec<(u32, u32)>,
+    /// The template's walks per eval (keyed slice calls take them).
+    samples: u64,
 }
 
 impl Materials {
@@ -51,7 +53,11 @@ impl Materials {
                 (b, sets)
             })
             .collect();
-        Materials { groups, of }
+        Materials {
+            groups,
+            of,
+            samples: template.samples,
+        }
     }
 
     /// Materials `unique[of[m]]` for `m` in `0..of.len()`: repeated ones
@@ -59,6 +65,11 @@ impl Materials {
     pub(super) fn repeated(mut self, of: &[u32]) -> Self {
         self.of = of.iter().map(|&u| self.of[u as usize]).collect();
         self
+    }
+
+    /// The template's walks per eval.
+    pub(super) fn samples(&self) -> u64 {
+        self.samples
     }
 
     /// Number of materials.

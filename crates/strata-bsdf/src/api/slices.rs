@@ -17,7 +17,7 @@
 use super::sets::Per;
 use super::{
     check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Engine,
-    Estimate, LayeredBsdf, Pair,
+    Estimate, LayeredBsdf, Materials, Pair, Sample,
 };
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::wavefront::{Sets, PDF_CHUNK};
@@ -254,6 +254,18 @@ pub struct AlbedoRecord {
     pub transmitted_stderr: [f32; 3],
 }
 
+impl AlbedoRecord {
+    /// The record of an estimate.
+    fn of(a: &crate::estimator::Albedo) -> Self {
+        AlbedoRecord {
+            reflected: f32x3(a.reflected.value),
+            transmitted: f32x3(a.transmitted.value),
+            reflected_stderr: f32x3(a.reflected.stderr),
+            transmitted_stderr: f32x3(a.transmitted.stderr),
+        }
+    }
+}
+
 fn f32x3(v: [f64; 3]) -> [f32; 3] {
     v.map(|x| x as f32)
 }
@@ -420,14 +432,7 @@ impl LayeredBsdf {
             let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
             (dir_at(&wi, k), key)
         };
-        self.albedo_each(Per::OWN, m, n, query, |k, a| {
-            out[k] = AlbedoRecord {
-                reflected: f32x3(a.reflected.value),
-                transmitted: f32x3(a.transmitted.value),
-                reflected_stderr: f32x3(a.reflected.stderr),
-                transmitted_stderr: f32x3(a.transmitted.stderr),
-            };
-        });
+        self.albedo_each(Per::OWN, m, n, query, |k, a| out[k] = AlbedoRecord::of(&a));
         Ok(())
     }
 
@@ -489,6 +494,176 @@ impl LayeredBsdf {
         self.sample_each(Per::OWN, n, query, |k, s| out(k, s.as_ref()));
         Ok(())
     }
+}
+
+/// The slice calls of [`Materials`]: query `k` on material `material[k]`,
+/// keyed and indexed as [`LayeredBsdf`]'s slice calls key theirs (unkeyed
+/// queries by their directions' bits, an unkeyed sample `k` with sample
+/// index `k`, a keyed one with index 0), so that a query answers what the
+/// BSDF of its material alone answers. Nothing is written before every
+/// query is known to be valid. What the C ABI's and the Python module's
+/// per-query forms run.
+impl Materials {
+    /// [`LayeredBsdf::eval_into`] of every pair on its material.
+    pub fn eval_into(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut stderr: Option<VectorsMut>,
+    ) -> Result<(), BatchError> {
+        let pairs = pairs_of(&wi, &wo)?;
+        f.check("f", pairs.len())?;
+        if let Some(s) = &stderr {
+            s.check("stderr", pairs.len())?;
+        }
+        let est = match keys {
+            None => self.eval_batch(material, &pairs)?,
+            Some(k) => self.eval_batch_keyed(material, &pairs, self.samples(), k)?,
+        };
+        for (k, e) in est.iter().enumerate() {
+            f.set(k, f32x3(e.value));
+            if let Some(s) = &mut stderr {
+                s.set(k, f32x3(e.stderr));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::sample_into`] of every query on its material (its
+    /// arguments and the materials).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample_into(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        mut wo: VectorsMut,
+        mut weight: VectorsMut,
+        pdf: &mut [f32],
+        flags: &mut [u32],
+    ) -> Result<(), BatchError> {
+        let n = wi.count("wi")?;
+        wo.check("wo", n)?;
+        weight.check("weight", n)?;
+        one_each("pdf", pdf.len(), n)?;
+        one_each("flags", flags.len(), n)?;
+        for (k, s) in self.samples_of(material, &wi, keys)?.iter().enumerate() {
+            let r = SampleRecord::of(s.as_ref());
+            wo.set(k, r.wo);
+            weight.set(k, r.weight);
+            pdf[k] = r.pdf;
+            flags[k] = r.flags;
+        }
+        Ok(())
+    }
+
+    /// [`Materials::sample_into`] into `#[repr(C)]` records.
+    pub fn sample_records(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        out: &mut [SampleRecord],
+    ) -> Result<(), BatchError> {
+        one_each("out", out.len(), wi.count("wi")?)?;
+        for (o, s) in out.iter_mut().zip(self.samples_of(material, &wi, keys)?) {
+            *o = SampleRecord::of(s.as_ref());
+        }
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::pdf_into`] of every pair on its material.
+    pub fn pdf_into(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        wo: Vectors,
+        pdf: &mut [f32],
+    ) -> Result<(), BatchError> {
+        let pairs = pairs_of(&wi, &wo)?;
+        one_each("pdf", pdf.len(), pairs.len())?;
+        pdf.copy_from_slice(&self.pdf_batch(material, &pairs)?);
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::pdf_unbiased_into`] of every pair on its material.
+    pub fn pdf_unbiased_into(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        wo: Vectors,
+        samples: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> Result<(), BatchError> {
+        let pairs = pairs_of(&wi, &wo)?;
+        one_each("pdf", pdf.len(), pairs.len())?;
+        one_each("stderr", stderr.len(), pairs.len())?;
+        let est = self.pdf_unbiased_batch(material, &pairs, samples)?;
+        for ((e, p), s) in est.iter().zip(pdf).zip(stderr) {
+            *p = e.value as f32;
+            *s = e.stderr as f32;
+        }
+        Ok(())
+    }
+
+    /// [`LayeredBsdf::albedo_records`] of every query on its material.
+    pub fn albedo_records(
+        &self,
+        material: &[u32],
+        wi: Vectors,
+        n: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> Result<(), BatchError> {
+        let wis = dirs_of(&wi)?;
+        one_each("out", out.len(), wis.len())?;
+        let own: Vec<u64>;
+        let keys = match keys {
+            Some(k) => k,
+            None => {
+                own = wis.iter().map(|&w| direction_key(w, w)).collect();
+                &own
+            }
+        };
+        for (o, a) in out
+            .iter_mut()
+            .zip(&self.albedo_batch_keyed(material, &wis, n, keys)?)
+        {
+            *o = AlbedoRecord::of(a);
+        }
+        Ok(())
+    }
+
+    /// The samples of every query, keyed and indexed as the slice calls do.
+    fn samples_of(
+        &self,
+        material: &[u32],
+        wi: &Vectors,
+        keys: Option<&[u64]>,
+    ) -> Result<Vec<Option<Sample>>, BatchError> {
+        let wis = dirs_of(wi)?;
+        let n = wis.len();
+        match keys {
+            None => self.sample_batch(material, &wis, &(0..n as u64).collect::<Vec<_>>()),
+            Some(k) => self.sample_batch_keyed(material, &wis, k, &vec![0; n]),
+        }
+    }
+}
+
+/// The pairs of a batch, checking that `wi` and `wo` have one each.
+fn pairs_of(wi: &Vectors, wo: &Vectors) -> Result<Vec<(Vec3, Vec3)>, BatchError> {
+    let n = wi.count("wi")?;
+    one_each("wo", wo.count("wo")?, n)?;
+    Ok((0..n).map(|k| (wi.get(k), wo.get(k))).collect())
+}
+
+/// The directions of a batch.
+fn dirs_of(wi: &Vectors) -> Result<Vec<Vec3>, BatchError> {
+    Ok((0..wi.count("wi")?).map(|k| wi.get(k)).collect())
 }
 
 /// Checks that every pair holds two directions (the error names the first
