@@ -68,6 +68,8 @@ pub mod math;
 pub mod medium;
 #[doc(hidden)]
 pub mod microfacet;
+#[doc(hidden)]
+pub mod phase;
 pub mod query;
 #[doc(hidden)]
 pub mod rng;

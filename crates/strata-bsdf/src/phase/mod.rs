@@ -1,0 +1,3 @@
+//! Phase functions of the media, over lanes.
+
+pub mod sggx;

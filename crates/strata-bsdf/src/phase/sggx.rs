@@ -1,0 +1,1 @@
+//! SGGX microflake phase functions (Heitz et al. 2015).
