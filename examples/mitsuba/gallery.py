@@ -32,7 +32,8 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 
-MATERIALS = ["coated_copper", "clear_coat_lambertian", "varnished_wood", "scattering_slab", "validation1"]
+MATERIALS = ["coated_copper", "clear_coat_lambertian", "varnished_wood", "scattering_slab", "validation1",
+             "fibers_under_coat", "jade"]
 ETA, K = [0.2, 0.92, 1.1], [3.9, 2.45, 2.2]
 ONE_INTERFACE = (
     '[[layers]]\ninterface = { kind = "conductor", eta = [0.2, 0.92, 1.1], k = [3.9, 2.45, 2.2], '

@@ -85,7 +85,7 @@ fn bench_medium<L: Lane>(c: &mut Criterion, label: &str) {
                     r.x.abs(),
                     strata_bsdf::lane::Rgb::one(),
                 );
-                let dn = medium::hg_sample(L::splat(0.5), d, r.x.abs(), r.y.abs());
+                let dn = strata_bsdf::phase::hg::hg_sample(L::splat(0.5), d, r.x.abs(), r.y.abs());
                 acc += ff.weight.g + dn.z;
             }
             black_box(acc)

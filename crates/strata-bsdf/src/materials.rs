@@ -38,6 +38,11 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../materials/three_interfaces.toml"),
     ),
     ("validation1", include_str!("../materials/validation1.toml")),
+    (
+        "fibers_under_coat",
+        include_str!("../materials/fibers_under_coat.toml"),
+    ),
+    ("jade", include_str!("../materials/jade.toml")),
 ];
 
 /// The performance benchmarks' representative stacks: clear coat over

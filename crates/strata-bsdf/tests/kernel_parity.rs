@@ -747,8 +747,8 @@ impl Kernel<MedIn> for MediumAll {
             rgb(x, |t| t.ratios),
         );
         let mut o = Out::new();
-        o.val(medium::hg_eval(g, ln(x, |t| t.mu_cos)))
-            .v3(medium::hg_sample(
+        o.val(strata_bsdf::phase::hg::hg_eval(g, ln(x, |t| t.mu_cos)))
+            .v3(strata_bsdf::phase::hg::hg_sample(
                 g,
                 v3(x, |t| t.d),
                 ln(x, |t| t.u1),

@@ -15,8 +15,8 @@ use common::dir;
 use strata_bsdf::interface::InterfaceLanes;
 use strata_bsdf::lane::{Lane, LaneMask, Rgb, V3};
 use strata_bsdf::math::{sample_cosine_hemisphere, sample_uniform_sphere};
-use strata_bsdf::medium::{hg_eval, hg_sample};
 use strata_bsdf::microfacet::Microfacet;
+use strata_bsdf::phase::hg::{hg_eval, hg_sample};
 
 const GRID: SphereGrid = SphereGrid {
     n_cos: 40,

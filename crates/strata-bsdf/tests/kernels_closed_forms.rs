@@ -21,8 +21,8 @@ use strata_bsdf::fresnel;
 use strata_bsdf::interface::InterfaceLanes;
 use strata_bsdf::lane::{Lane, LaneMask, Rgb, V3};
 use strata_bsdf::math::fastmath;
-use strata_bsdf::medium::hg_eval;
 use strata_bsdf::microfacet::Microfacet;
+use strata_bsdf::phase::hg::hg_eval;
 use strata_bsdf::rng::{Stream, WalkRng};
 
 // ---------------------------------------------------------------------------

@@ -14,7 +14,7 @@ use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
 use strata_bsdf::{LayerStack, LayeredBsdf, Transport};
 
-const STACKS: [(&str, &str); 7] = [
+const STACKS: [(&str, &str); 9] = [
     (
         "smooth coat / white Lambertian",
         r#"
@@ -88,6 +88,26 @@ const STACKS: [(&str, &str); 7] = [
         interface = { kind = "dielectric", ior = 1.8, roughness = 0.15, normal = [-0.25, 0.0, 1] }
         [[layers]]
         interface = { kind = "conductor", preset = "Cu", roughness = 0.2, normal = [0.0, 0.3, 1] }
+        "#,
+    ),
+    (
+        "SGGX fibres (specular) under a smooth coat / Lambertian",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5 }
+        medium = { thickness = 1.0, sigma_t = 2.0, albedo = 0.9, phase = { kind = "sggx", flakes = "fiber", axis = [0.8, 0.0, 0.6], roughness = 0.3 } }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.5 }
+        "#,
+    ),
+    (
+        "SGGX diffuse flakes, rough transmissive slab",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.4, roughness = 0.3 }
+        medium = { thickness = 1.0, sigma_t = 1.0, albedo = 0.9, phase = { kind = "sggx", flakes = "surface", axis = [0.0, 0.6, 0.8], roughness = 0.2, scattering = "diffuse" } }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.0 }
         "#,
     ),
 ];

@@ -25,8 +25,8 @@ use strata_bsdf::{LayerStack, PdfKind, Settings};
 
 /// Every interface kind (smooth and rough, GGX and Beckmann, isotropic and
 /// anisotropic), every medium kind (clear, absorbing, scattering; grey and
-/// chromatic), reflection and transmission, a two-sided opaque stack, and
-/// tilted shading normals.
+/// chromatic), reflection and transmission, a two-sided opaque stack,
+/// tilted shading normals, and SGGX and mixture phase functions.
 const STACKS: &[(&str, &str)] = &[
     (
         "clear coat over Lambertian",
@@ -123,6 +123,39 @@ const STACKS: &[(&str, &str)] = &[
         medium = { thickness = 1.0, sigma_t = 1.0, albedo = 0.9 }
         [[layers]]
         interface = { kind = "dielectric", ior = 1.0, normal = [0.0, 0.3, 1] }
+        "#,
+    ),
+    (
+        "SGGX fibres (specular), chromatic, under a rough coat",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+        medium = { thickness = 1.0, sigma_t = [1.0, 2.0, 3.0], albedo = 0.9, phase = { kind = "sggx", flakes = "fiber", axis = [0.8, 0.0, 0.6], roughness = 0.3 } }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.5 }
+        "#,
+    ),
+    (
+        "SGGX diffuse surface flakes in a transmissive slab, a mixture below",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.3, roughness = 0.25 }
+        medium = { thickness = 1.0, sigma_t = 1.5, albedo = 0.95, phase = { kind = "sggx", flakes = "surface", axis = [0.0, 0.6, 0.8], roughness = 0.2, scattering = "diffuse" } }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
+        medium = { thickness = 1.0, sigma_t = 1.0, albedo = 0.8, phase = { kind = "mixture", components = [{ weight = 0.8, kind = "hg", g = 0.8 }, { weight = 0.2, kind = "hg", g = -0.8 }] } }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.0 }
+        "#,
+    ),
+    (
+        "absorbing SGGX layer under a smooth coat over copper",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5 }
+        medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0, phase = { kind = "sggx", flakes = "surface", axis = [0.6, 0.0, 0.8], roughness = 0.1 } }
+        [[layers]]
+        interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
         "#,
     ),
 ];

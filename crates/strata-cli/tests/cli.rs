@@ -117,8 +117,8 @@ fn every_example_material_builds_and_says_what_it_models() {
     }
     let m = v.medium(0).expect("Validation 1 has a medium");
     assert_eq!(
-        (m.thickness, m.sigma_t, m.albedo, m.g),
-        (1.0, [1.0; 3], [0.5, 0.7, 0.95], 0.5)
+        (m.thickness, m.sigma_t, m.albedo, m.phase.g()),
+        (1.0, [1.0; 3], [0.5, 0.7, 0.95], Some(0.5))
     );
     // The 3-interface stack has three interfaces, the slab transmits.
     let three = LayerStack::from_path(Path::new(EXAMPLES).join("three_interfaces.toml")).unwrap();

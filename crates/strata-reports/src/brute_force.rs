@@ -64,8 +64,9 @@ use std::f64::consts::PI;
 use strata_bsdf::estimator::{orient, Albedo, Estimate, MeanVar};
 use strata_bsdf::interface::InterfaceLanes;
 use strata_bsdf::lane::V3;
+use strata_bsdf::phase::{PhaseKind, PhaseLanes};
 use strata_bsdf::rng::{Stream, WalkRng};
-use strata_bsdf::stack::LayerStack;
+use strata_bsdf::stack::{LayerStack, Phase};
 
 /// Controls of the brute-force baseline.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,8 +98,27 @@ impl Default for BruteSettings {
 struct SlabMedium {
     sigma_t: [f64; 3],
     albedo: [f64; 3],
-    g: f64,
+    /// Its phase function. Henyey–Greenstein is sampled by this file's own
+    /// sampler; the other kinds by the library's kernels (each tested on its
+    /// own by chi-square), so that what this checks of them is the transport.
+    phase: PhaseLanes<f64>,
+    /// An SGGX medium's axis and eigenvalues along and across it: its
+    /// extinction along `d` is `sigma_t sqrt(dᵀSd)`, computed here apart
+    /// from the library's lanes.
+    sggx: Option<([f64; 3], f64, f64)>,
     scatters: bool,
+}
+
+impl SlabMedium {
+    /// The extinction along the unit direction `d`.
+    fn sigma(&self, d: V3<f64>) -> [f64; 3] {
+        let Some((a, along, across)) = self.sggx else {
+            return self.sigma_t;
+        };
+        let c = d.x * a[0] + d.y * a[1] + d.z * a[2];
+        let s = (along * c * c + across * (1.0 - c * c).max(0.0)).sqrt();
+        self.sigma_t.map(|x| x * s)
+    }
 }
 
 /// One layer of the slab: the region between two interface planes.
@@ -282,7 +302,16 @@ impl BruteForce {
                 medium: m.map(|m| SlabMedium {
                     sigma_t: m.sigma_t,
                     albedo: m.albedo,
-                    g: m.g,
+                    phase: PhaseLanes::new(&m.phase, m.phase_kind()),
+                    sggx: match m.phase {
+                        Phase::Sggx {
+                            axis,
+                            along,
+                            across,
+                            ..
+                        } => Some((axis, along, across)),
+                        _ => None,
+                    },
                     scatters: m.scatters(),
                 }),
             });
@@ -399,11 +428,19 @@ impl BruteForce {
                 match layer.medium {
                     Some(m) if m.scatters => {
                         let u = rng.uniform() as f64;
-                        match flight(&m, t_max, hero, u, &mut beta, &mut ratios) {
+                        let sigma = m.sigma(d);
+                        match flight(&m, sigma, t_max, hero, u, &mut beta, &mut ratios) {
                             Some(t) => {
                                 p = p + d * t;
-                                let (u1, u2) = (rng.uniform() as f64, rng.uniform() as f64);
-                                d = hg_sample(m.g, d, u1, u2);
+                                let mut u = [0.0; 4];
+                                for x in u.iter_mut().take(m.phase.sample_uniforms()) {
+                                    *x = rng.uniform() as f64;
+                                }
+                                d = if m.phase.kind == PhaseKind::Hg {
+                                    hg_sample(m.phase.g, d, u[0], u[1])
+                                } else {
+                                    m.phase.sample(d, u)
+                                };
                                 specular = false;
                                 events += 1;
                                 if !self.survive(&mut beta, events, rng) {
@@ -420,7 +457,7 @@ impl BruteForce {
                     }
                     // A pure absorber: its 3D transmittance.
                     Some(m) if t_max.is_finite() => {
-                        for (b, s) in beta.iter_mut().zip(m.sigma_t) {
+                        for (b, s) in beta.iter_mut().zip(m.sigma(d)) {
                             *b *= (-s * t_max).exp();
                         }
                     }
@@ -549,13 +586,14 @@ impl BruteForce {
 /// `e^{-σ t_max}`. Both are divided by the hero's density to stay finite.
 fn flight(
     m: &SlabMedium,
+    sigma_t: [f64; 3],
     t_max: f64,
     hero: usize,
     u: f64,
     beta: &mut [f64; 3],
     ratios: &mut [f64; 3],
 ) -> Option<f64> {
-    let sh = m.sigma_t[hero];
+    let sh = sigma_t[hero];
     let t = if sh > 0.0 {
         -(1.0 - u).ln() / sh
     } else {
@@ -566,7 +604,7 @@ fn flight(
     let mut y = [0.0; 3];
     let mut x = [0.0; 3];
     for c in 0..3 {
-        let s = m.sigma_t[c];
+        let s = sigma_t[c];
         let rel = if dist.is_finite() {
             (-(s - sh) * dist).clamp(-700.0, 700.0).exp()
         } else if s == sh {

@@ -626,6 +626,34 @@ pub fn cases() -> Vec<Case> {
             false,
             2.0,
         ),
+        // ---- anisotropic media
+        c(
+            "sggx-flat-flakes",
+            "very flat SGGX surface flakes (roughness 0.01, tilted axis) under a rough coat",
+            coat(
+                1.5,
+                0.2,
+                "thickness = 1.0, sigma_t = 2.0, albedo = 0.95, phase = { kind = \"sggx\", flakes = \"surface\", axis = [0.6, 0.0, 0.8], roughness = 0.01 }",
+                GREY,
+            ),
+            dir(30.0, 0.0),
+            dir(40.0, 180.0),
+            false,
+            2.0,
+        ),
+        c(
+            "sggx-fibres",
+            "fibre-like SGGX medium (roughness 0.01 along x), diffuse flakes, transmissive",
+            slab(
+                "kind = \"dielectric\", ior = 1.4, roughness = 0.2",
+                "thickness = 1.0, sigma_t = 2.0, albedo = 0.9, phase = { kind = \"sggx\", flakes = \"fiber\", axis = [1.0, 0.0, 0.0], roughness = 0.01, scattering = \"diffuse\" }",
+                "kind = \"dielectric\", ior = 1.0, roughness = 0.2",
+            ),
+            dir(50.0, 90.0),
+            dir(150.0, 0.0),
+            false,
+            2.0,
+        ),
         // ---- roughness
         c(
             "alpha-1e-3-coat",

@@ -180,7 +180,7 @@ fn hg_eval_keeps_precision_at_the_peak_of_g_0_999() {
             };
             let u64_ = frame.to_world(V3::new(th.sin(), 0.0, th.cos()));
             let u = V3::new(u64_.x as f32, u64_.y as f32, u64_.z as f32);
-            let got = strata_bsdf::medium::hg_eval_dirs(g, d, u) as f64;
+            let got = strata_bsdf::phase::hg::hg_eval_dirs(g, d, u) as f64;
             // Reference on the f32 inputs, in f64 (1 - μ from the exact vectors).
             let (dd, uu) = (
                 V3::new(d.x as f64, d.y as f64, d.z as f64),
@@ -211,7 +211,7 @@ fn hg_sampling_matches_the_exact_distribution_near_the_peak() {
         let edges = [1e-8f64, 1e-7, 1e-6, 1e-5, 1e-3, 1e-1];
         let mut count = [0u64; 6];
         for _ in 0..n {
-            let w = strata_bsdf::medium::hg_sample(g, d, rng.uniform(), rng.uniform());
+            let w = strata_bsdf::phase::hg::hg_sample(g, d, rng.uniform(), rng.uniform());
             // Angle to the lobe's axis (d for g > 0, -d for g < 0), in f64.
             let w = V3::new(w.x as f64, w.y as f64, w.z as f64);
             let axis = V3::new(d.x as f64, d.y as f64, d.z as f64) * (g.signum() as f64);
@@ -245,7 +245,7 @@ fn directions_stay_unit_over_a_million_scatterings() {
         let mut d = V3::new(0.0f32, 0.6, -0.8);
         let mut worst = 0.0f64;
         for _ in 0..1_000_000 {
-            d = strata_bsdf::medium::hg_sample(g, d, rng.uniform(), rng.uniform());
+            d = strata_bsdf::phase::hg::hg_sample(g, d, rng.uniform(), rng.uniform());
             worst = worst.max((d.length() as f64 - 1.0).abs());
         }
         assert!(worst < 1e-4, "g {g}: |‖d‖ - 1| reached {worst}");

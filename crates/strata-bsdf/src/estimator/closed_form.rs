@@ -66,9 +66,13 @@ impl SmoothCoatLambertian {
     /// does not scatter it is the whole BSDF. `None` for other stacks, and
     /// under a depth cap (which truncates these paths too).
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        // A tilted normal breaks the closed form's planar geometry.
+        // A tilted normal breaks the closed form's planar geometry; an
+        // extinction that depends on the azimuth (SGGX) its 1D integrals.
         let tilted = stack.interfaces().iter().any(|i| i.tilted());
-        if stack.len() != 2 || settings.max_depth.is_some() || tilted {
+        let directional = stack
+            .medium(0)
+            .is_some_and(|m| m.phase_kind().directional());
+        if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
             return None;
         }
         let (coat, base) = (stack.interface(0), stack.interface(1));

@@ -63,6 +63,7 @@ use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
+use crate::phase::PhaseLanes;
 
 /// The stack as the density walk reads it: per-interface and per-layer
 /// parameters splatted over the lanes.
@@ -117,21 +118,41 @@ enum Vertex<'a, L: Lane> {
         a: V3<L>,
         i: L,
     },
-    /// A collision at depth `z` of layer `l`, travelling along `d`.
-    Collision { g: L, d: V3<L>, l: L, z: L },
+    /// A collision at depth `z` of layer `l`, travelling along `d`, with
+    /// the uniforms of two independent estimates of its phase value (where
+    /// it has no closed form): one for the density, one for MIS weights.
+    Collision {
+        phase: &'a PhaseLanes<L>,
+        d: V3<L>,
+        l: L,
+        z: L,
+        e: [(L, L); 2],
+    },
 }
 
 impl<L: Lane> Vertex<'_, L> {
-    /// The vertex's sampling density of the travel direction `u`, and the
-    /// throughput factor `sample()` gives that direction.
-    fn density(&self, u: V3<L>) -> (L, Rgb<L>) {
+    /// The vertex's sampling density of the travel direction `u`, the
+    /// throughput factor `sample()` gives that direction, and the density
+    /// again, for MIS weights: an estimate independent of the first where
+    /// the density is estimated, so that the weight of a term does not
+    /// correlate with its value.
+    fn density(&self, u: V3<L>) -> (L, Rgb<L>, L) {
         match self {
             Vertex::Surface { it, a, .. } => {
                 let pv = it.pdf(*a, u, L::Mask::splat(false));
                 let ok = pv.gt(L::zero());
-                (pv, it.eval(*a, u).scale(L::div_or_zero(u.z.abs(), pv, ok)))
+                let w = it.eval(*a, u).scale(L::div_or_zero(u.z.abs(), pv, ok));
+                (pv, w, pv)
             }
-            Vertex::Collision { g, d, .. } => (medium::hg_eval_dirs(*g, *d, u), Rgb::one()),
+            Vertex::Collision { phase, d, e, .. } => {
+                let pv = phase.eval(*d, u, e[0]);
+                let pw = if phase.exact() {
+                    pv
+                } else {
+                    phase.eval(*d, u, e[1])
+                };
+                (pv, Rgb::one(), pw)
+            }
         }
     }
 }
@@ -179,10 +200,11 @@ impl<L: Lane> Target<L> {
 
     /// The share of a vertex that reaches `t` with density `pv` (in `t`'s
     /// solid angle): `pv · pe / q`, by the power heuristic against the
-    /// walk's own arrival.
-    fn value(&self, pv: L) -> L {
+    /// walk's own arrival, whose density the weight takes as `pw` (`pv`
+    /// itself, or an independent estimate of it).
+    fn value(&self, pv: L, pw: L) -> L {
         let ok = self.ok & self.q.gt(L::zero());
-        L::div_or_zero(pv * self.pe, self.q, ok) * events::power_heuristic(self.q, pv)
+        L::div_or_zero(pv * self.pe, self.q, ok) * events::power_heuristic(self.q, pw)
     }
 }
 
@@ -367,11 +389,15 @@ impl<L: Lane> DensityWalk<'_, L> {
                         if !hit.any() {
                             continue;
                         }
-                        let v = Vertex::Collision { g: med.g, d, l, z };
+                        let e = [(); 2].map(|_| events::estimate_uniforms(med, || draw(hit)));
+                        let phase = &med.phase;
+                        let v = Vertex::Collision { phase, d, l, z, e };
                         p += self.connect(&goal, &v, st, rho, hit, &mut draw);
-                        let u = (draw(hit), draw(hit));
+                        let u = events::phase_uniforms(med, || draw(hit));
                         let dn = events::phase_scatter(med, d, u, hit, &mut specular);
-                        rho = L::select(hit, medium::hg_eval_dirs(med.g, d, dn), rho);
+                        // The arrival density, for the next vertex's MIS weight.
+                        let er = events::estimate_uniforms(med, || draw(hit));
+                        rho = L::select(hit, med.phase.eval(d, dn, er), rho);
                         events::after_collision(&mut d, &mut st.events, dn, hit);
                         let keep = self.survive(&mut st, hit, draw(hit));
                         alive = alive & !(hit & !keep);
@@ -434,12 +460,12 @@ impl<L: Lane> DensityWalk<'_, L> {
             let first = if up { l } else { l + L::one() };
             let ok = ok & (self.at(first).smooth | first.eq(stop));
             let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, r_t, ok);
-            let (pv, w) = v.density(u);
+            let (pv, w, pw) = v.density(u);
             let s = State {
                 beta: st.beta * w,
                 ..st
             };
-            (u, pv * jac, s, ok & pv.gt(zero))
+            (u, pv * jac, pw * jac, s, ok & pv.gt(zero))
         };
         let mut p = zero;
         for (side, &(l, z, has)) in sides.iter().enumerate() {
@@ -449,10 +475,10 @@ impl<L: Lane> DensityWalk<'_, L> {
             let n_t = L::select(rough_exit, exit_target.n_t, g.n_out);
             let r_t = L::select(rough_exit, exit_target.region, g.outside);
             let ok = m & has & (exit_target.ok | g.exit.smooth);
-            let (u, pv, s, ok) = leave(l, up, t, n_t, r_t, ok, g.e_out);
+            let (u, pv, pw, s, ok) = leave(l, up, t, n_t, r_t, ok, g.e_out);
             if ok.any() {
                 let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
-                let share = L::select(rough_exit, exit_target.value(pv), pv);
+                let share = L::select(rough_exit, exit_target.value(pv, pw), pv);
                 // The walk's own arrival at k, towards u_w: against the inner connection.
                 let w_own = match v {
                     Vertex::Surface { i, a, .. } => {
@@ -472,7 +498,8 @@ impl<L: Lane> DensityWalk<'_, L> {
             // Through k to u_w: arrive at k along the sampled target.
             let t = inner_target.t;
             let ok = inner_on & has & inner_target.ok;
-            let (u, pv, s, ok) = leave(l, up, t, inner_target.n_t, inner_target.region, ok, g.k);
+            let (u, pv, pw, s, ok) =
+                leave(l, up, t, inner_target.n_t, inner_target.region, ok, g.k);
             if ok.any() {
                 let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
                 let ok = ok & p1.gt(zero);
@@ -483,7 +510,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                     s1.beta *= wk;
                     let (p2, _) =
                         self.delta_exit(g.layer, g.z_k, g.u_w, s1, g.e_out, g.wo.z, ok, draw);
-                    let share = inner_target.value(pv) * g.j_w;
+                    let share = inner_target.value(pv, pw) * g.j_w;
                     p += L::select(ok, share * p1 * p2, zero);
                 }
             }
@@ -631,12 +658,12 @@ impl<L: Lane> DensityWalk<'_, L> {
                 }
                 let dz = depth_to_boundary(z, med.thickness, up);
                 if med.kind == LayerKind::Absorbing {
-                    let t = med.transmittance(dz, mu);
+                    let t = med.transmittance(dz, u);
                     st.beta = Rgb::select(here, st.beta * t, st.beta);
                     continue;
                 }
                 let (q, w, r) = medium::no_collision(
-                    med.sigma_t,
+                    med.sigma_along(u),
                     med.grey,
                     flight_limit(dz, mu),
                     st.hero,

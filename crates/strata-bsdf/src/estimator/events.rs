@@ -24,6 +24,7 @@ use super::Settings;
 use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
+use crate::phase::PhaseLanes;
 use std::borrow::Cow;
 
 /// One segment of the adjoint chain, per lane.
@@ -163,19 +164,24 @@ pub fn connect_surface<L: Lane>(
 }
 
 /// Next-event estimation from a medium collision: the walk travelling along
-/// `d` scatters into the connection's `u` (phase function with asymmetry
-/// `g`), and crosses the rest of the layer with transmittance `t`. The
+/// `d` scatters into the connection's `u` (phase function `phase`, whose
+/// value is estimated from the uniforms `e` where it has no closed form),
+/// and crosses the rest of the layer with transmittance `t`. The
 /// `1 / |u.z|` is the position-free Jacobian (method.md §3).
 #[inline]
 pub fn connect_collision<L: Lane>(
-    g: L,
+    phase: &PhaseLanes<L>,
     d: V3<L>,
     c: &Connection<L>,
     t: Rgb<L>,
+    e: (L, L),
     mis: bool,
 ) -> Rgb<L> {
-    let ph = medium::hg_eval_dirs(g, d, c.u);
-    let w = if mis {
+    let ph = phase.eval(d, c.u, e);
+    // An estimated value is no density for the power heuristic: such a
+    // collision connects by next-event estimation alone (and has no
+    // continuation, `collision_continuation`).
+    let w = if mis && phase.exact() {
         L::select(
             c.mis_pdf.gt(L::zero()),
             power_heuristic(c.mis_pdf, ph),
@@ -215,20 +221,20 @@ pub fn continue_to_exit<L: Lane>(
 }
 
 /// Transmittance of a full crossing of layer `layer` (per lane) of the
-/// `layers` layers `media(l)` along a direction with `|d.z| = mu`.
+/// `layers` layers `media(l)` along the direction `u`.
 #[cfg_attr(feature = "profiling", inline(never))]
 pub fn full_crossing<'a, L: Lane>(
     media: impl Fn(usize) -> Cow<'a, MediumLanes<L>>,
     layers: usize,
     layer: L,
-    mu: L,
+    u: V3<L>,
 ) -> Rgb<L> {
     let mut t = Rgb::one();
     for l in 0..layers {
         let here = layer.eq(L::splat(l as f64));
         if here.any() {
             let m = media(l);
-            t = Rgb::select(here, m.transmittance(m.thickness, mu), t);
+            t = Rgb::select(here, m.transmittance(m.thickness, u), t);
         }
     }
     t
@@ -249,7 +255,7 @@ pub fn first_link<'a, L: Lane>(
 ) -> (ChainLink<L>, L::Mask) {
     let (conn, ok) = chain_start(exit, wo, u);
     let (layer, start) = layout.exit_region_lanes(top);
-    let t = full_crossing(media, layout.n - 1, layer, conn.u.z.abs());
+    let t = full_crossing(media, layout.n - 1, layer, conn.u);
     let link = ChainLink {
         conn,
         t,
@@ -320,7 +326,7 @@ pub fn extend_chain<'a, L: Lane, FS, FI, FM>(
         let layer = L::select(next, layer, L::zero());
         last = ChainLink {
             conn,
-            t: full_crossing(&stack.media, layout.n - 1, layer, conn.u.z.abs()),
+            t: full_crossing(&stack.media, layout.n - 1, layer, conn.u),
             layer,
             start,
         };
@@ -496,7 +502,7 @@ pub fn surface_continuation<L: Lane>(
     beta: Rgb<L>,
     mis: bool,
 ) -> Rgb<L> {
-    let t = med.transmittance(med.thickness, d.z.abs());
+    let t = med.transmittance(med.thickness, d);
     beta * continue_to_exit(exit, wo, d, s.pdf, s.delta, t, mis)
 }
 
@@ -517,7 +523,7 @@ pub fn cross_inert<L: Lane>(
     if med.kind == LayerKind::Absorbing {
         let ok = m & !flat;
         let dz = depth_to_boundary(z, med.thickness, d.z.gt(L::zero()));
-        *beta = Rgb::select(ok, *beta * med.transmittance(dz, mu), *beta);
+        *beta = Rgb::select(ok, *beta * med.transmittance(dz, d), *beta);
     }
     flat
 }
@@ -555,7 +561,7 @@ pub fn free_flight<L: Lane>(
     let flat = active & mu.le(L::zero());
     let dz = depth_to_boundary(*st.z, h, d.z.gt(L::zero()));
     let ff = medium::sample_free_flight(
-        med.sigma_t,
+        med.sigma_along(d),
         med.albedo,
         med.grey,
         flight_limit(dz, mu),
@@ -593,33 +599,60 @@ pub fn surface_link<L: Lane>(
 /// Next-event estimation from a collision at depth `z` in layer `med`
 /// through one link `k` of the adjoint chain that crosses it (per unit
 /// throughput): the transmittance of the rest of the layer along `k.conn.u`,
-/// and the phase function from `d`.
+/// and the phase function from `d` (estimated from the collision's uniforms
+/// `e` where it has no closed form: every link may share them, as each
+/// link's term is unbiased on its own).
 #[inline(always)]
 pub fn collision_link<L: Lane>(
     med: &MediumLanes<L>,
     z: L,
     d: V3<L>,
     k: &ChainLink<L>,
+    e: (L, L),
     mis: bool,
 ) -> Rgb<L> {
     let u = k.conn.u;
     let dz = depth_to_boundary(z, med.thickness, u.z.gt(L::zero()));
-    let t = med.transmittance(dz, u.z.abs());
-    connect_collision(med.g, d, &k.conn, t, mis)
+    let t = med.transmittance(dz, u);
+    connect_collision(&med.phase, d, &k.conn, t, e, mis)
 }
 
-/// The collision's new direction (phase sampling with the uniforms `u`);
-/// the lanes that collided (`col`) are no longer specular.
+/// The uniforms a collision in `med` estimates its phase value with, for
+/// its next-event estimations (none unless the phase needs them), drawn by
+/// `draw`.
+#[inline(always)]
+pub fn estimate_uniforms<L: Lane>(med: &MediumLanes<L>, mut draw: impl FnMut() -> L) -> (L, L) {
+    if med.phase.estimate_uniforms() > 0 {
+        (draw(), draw())
+    } else {
+        (L::zero(), L::zero())
+    }
+}
+
+/// The uniforms phase sampling in `med` takes (a fixed number per phase
+/// kind), drawn by `draw`.
+#[inline(always)]
+pub fn phase_uniforms<L: Lane>(med: &MediumLanes<L>, mut draw: impl FnMut() -> L) -> [L; 4] {
+    let n = med.phase.sample_uniforms();
+    let mut u = [L::zero(); 4];
+    for x in u.iter_mut().take(n) {
+        *x = draw();
+    }
+    u
+}
+
+/// The collision's new direction (phase sampling with the uniforms `u`,
+/// weight 1); the lanes that collided (`col`) are no longer specular.
 #[inline(always)]
 pub fn phase_scatter<L: Lane>(
     med: &MediumLanes<L>,
     d: V3<L>,
-    u: (L, L),
+    u: [L; 4],
     col: L::Mask,
     specular: &mut L::Mask,
 ) -> V3<L> {
     *specular = *specular & !col;
-    medium::hg_sample(med.g, d, u.0, u.1)
+    med.phase.sample(d, u)
 }
 
 /// Depth left, from the collision at depth `z`, to the side of layer `med`
@@ -631,9 +664,10 @@ pub fn depth_ahead<L: Lane>(med: &MediumLanes<L>, z: L, dn: V3<L>) -> L {
 }
 
 /// The collision continuation (contribution, with the throughput `beta`,
-/// MIS on): the walk scattered from `d` into `dn`, which heads straight for
-/// the rough exit across `dz` of layer `med`; evaluate the exit towards `wo`,
-/// weighted against the chain's density of `-dn`.
+/// MIS on; only for a phase with a closed form, [`PhaseLanes::exact`]): the
+/// walk scattered from `d` into `dn`, which heads straight for the rough
+/// exit across `dz` of layer `med`; evaluate the exit towards `wo`, weighted
+/// against the chain's density of `-dn`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn collision_continuation<L: Lane>(
@@ -645,8 +679,8 @@ pub fn collision_continuation<L: Lane>(
     dz: L,
     beta: Rgb<L>,
 ) -> Rgb<L> {
-    let t = med.transmittance(dz, dn.z.abs());
-    let pv = medium::hg_eval_dirs(med.g, d, dn);
+    let t = med.transmittance(dz, dn);
+    let pv = med.phase.eval(d, dn, (L::zero(), L::zero()));
     let no = L::Mask::splat(false);
     beta * continue_to_exit(exit, wo, dn, pv, no, t, true)
 }

@@ -6,6 +6,7 @@
 //! `l + 1`, and `z` is the depth below interface `l` (so `0 <= z <= thickness`).
 
 use crate::lane::{Lane, Rgb, V3};
+use crate::phase::PhaseLanes;
 pub use crate::stack::LayerKind;
 use crate::stack::{LayerStack, Medium};
 
@@ -21,8 +22,10 @@ pub struct MediumLanes<L: Lane> {
     pub sigma_t: Rgb<L>,
     /// Single-scattering albedo per channel.
     pub albedo: Rgb<L>,
-    /// Henyey–Greenstein asymmetry (0: isotropic).
-    pub g: L,
+    /// Its phase function (and the direction-dependent scale of `sigma_t`).
+    pub phase: PhaseLanes<L>,
+    /// The extinction depends on the direction (`phase.kind.directional()`).
+    pub directional: bool,
     /// The same `sigma_t` in every channel: free flights need no spectral MIS.
     pub grey: bool,
 }
@@ -37,7 +40,8 @@ impl<L: Lane> MediumLanes<L> {
                 thickness: L::zero(),
                 sigma_t: Rgb::zero(),
                 albedo: Rgb::zero(),
-                g: L::zero(),
+                phase: PhaseLanes::isotropic(),
+                directional: false,
                 grey: true,
             },
         }
@@ -54,7 +58,8 @@ impl<L: Lane> MediumLanes<L> {
             thickness: L::one(),
             sigma_t: Rgb::from_array(m.optical_depth()),
             albedo: Rgb::from_array(m.albedo),
-            g: L::splat(m.g),
+            phase: PhaseLanes::new(&m.phase, m.phase_kind()),
+            directional: m.phase_kind().directional(),
             grey: m.grey(),
         }
     }
@@ -66,18 +71,30 @@ impl<L: Lane> MediumLanes<L> {
         L::select(from_below, self.thickness, L::zero())
     }
 
-    /// Transmittance over a depth `dz` along a direction with `|d.z| = mu`
-    /// (1 in a clear layer).
+    /// The extinction per channel along the travel direction `d`: `sigma_t`,
+    /// scaled by the phase's `sqrt(dᵀSd)` where it is directional.
+    #[inline(always)]
+    pub fn sigma_along(&self, d: V3<L>) -> Rgb<L> {
+        if self.directional {
+            self.sigma_t.scale(self.phase.sigma_scale(d))
+        } else {
+            self.sigma_t
+        }
+    }
+
+    /// Transmittance over a depth `dz` along the direction `d` (1 in a
+    /// clear layer).
     #[inline]
-    pub fn transmittance(&self, dz: L, mu: L) -> Rgb<L> {
+    pub fn transmittance(&self, dz: L, d: V3<L>) -> Rgb<L> {
+        let mu = d.z.abs();
         match self.kind {
             LayerKind::Clear => Rgb::one(),
             // Grey: one exponential serves all three channels.
             _ if self.grey => {
-                let t = crate::medium::channel_transmittance(self.sigma_t.r, dz, mu);
+                let t = crate::medium::channel_transmittance(self.sigma_along(d).r, dz, mu);
                 Rgb::new(t, t, t)
             }
-            _ => crate::medium::transmittance(self.sigma_t, dz, mu),
+            _ => crate::medium::transmittance(self.sigma_along(d), dz, mu),
         }
     }
 }
@@ -249,7 +266,7 @@ mod tests {
             assert_eq!(m.grey, grey);
             let dz = F32x8::from_fn(|j| [0.0, 1e-7, 0.1, 0.5, 1.0, 0.3, 0.9, 0.7][j]);
             let mu = F32x8::from_fn(|j| [1.0, 0.5, 1e-7, 0.0, 0.25, 1.0, 0.01, 0.6][j]);
-            let got = m.transmittance(dz, mu);
+            let got = m.transmittance(dz, V3::new(F32x8::zero(), F32x8::zero(), mu));
             let want = crate::medium::transmittance(m.sigma_t, dz, mu);
             let st = [m.sigma_t.r, m.sigma_t.g, m.sigma_t.b];
             for (c, (g, w)) in [(got.r, want.r), (got.g, want.g), (got.b, want.b)]

@@ -9,9 +9,10 @@ pub struct Oriented {
     /// The incident direction, turned over if `flipped`.
     pub wi: [f64; 3],
     /// The query was turned over: mirrored in z, or (a stack with tilted
-    /// normals, whose mirror image would tilt them the other way) negated.
-    /// For an untilted stack the two are the same BSDF, which is symmetric
-    /// under the half turn about z that tells them apart.
+    /// normals or an SGGX medium, whose mirror image would tilt them or its
+    /// axis the other way) negated. For other stacks the two are the same
+    /// BSDF, which is symmetric under the half turn about z that tells them
+    /// apart.
     pub flipped: bool,
     /// Turning over negates every component.
     negates: bool,
@@ -37,13 +38,17 @@ pub fn turned_over(stack: &LayerStack, w: [f32; 3]) -> [f32; 3] {
     let o = Oriented {
         wi: [0.0; 3],
         flipped: true,
-        negates: tilted(stack),
+        negates: negates(stack),
     };
     o.apply(w.map(f64::from)).map(|x| x as f32)
 }
 
-fn tilted(stack: &LayerStack) -> bool {
+/// Turning `stack` over negates directions (see [`Oriented::flipped`]).
+fn negates(stack: &LayerStack) -> bool {
     stack.interfaces().iter().any(|i| i.tilted())
+        || (0..stack.len().saturating_sub(1))
+            .filter_map(|l| stack.medium(l))
+            .any(|m| m.phase_kind().directional())
 }
 
 /// Directions closer to the horizon than this (`|cos θ| < MIN_COS`) are
@@ -62,7 +67,7 @@ pub fn orient(stack: &LayerStack, wi: [f64; 3], wo: Option<[f64; 3]>) -> Option<
     if wi[2].is_nan() || wi[2].abs() < MIN_COS {
         return None;
     }
-    let negates = tilted(stack);
+    let negates = negates(stack);
     let mut o = Oriented {
         wi,
         flipped: false,

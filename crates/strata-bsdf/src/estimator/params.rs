@@ -17,6 +17,7 @@ use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::microfacet::Microfacet;
+use crate::phase::{PhaseKind, PHASE_ROW};
 use crate::stack::LayerStack;
 
 /// The numbers of several stacks of one shape, in one-lane form.
@@ -36,6 +37,9 @@ pub struct SetTable {
     iface_rows: Vec<[f32; 16]>,
     /// The numbers of `media` as rows ([`MEDIUM_ROW`]).
     medium_rows: Vec<[f32; 8]>,
+    /// The phase parameters beyond `g` of `media` as rows ([`PHASE_ROW`]),
+    /// read only for the layers whose phase has them.
+    phase_rows: Vec<[f32; PHASE_ROW]>,
 }
 
 /// An interface's row: `n_above`, `n_below`, `alpha_x`, `alpha_y`, `eta`
@@ -71,7 +75,7 @@ fn iface_row(t: &InterfaceLanes<f32>) -> [f32; 16] {
 
 fn medium_row(m: &MediumLanes<f32>) -> [f32; 8] {
     let (a, b) = (m.sigma_t, m.albedo);
-    [a.r, a.g, a.b, b.r, b.g, b.b, m.g, 0.0]
+    [a.r, a.g, a.b, b.r, b.g, b.b, m.phase.g, 0.0]
 }
 
 impl SetTable {
@@ -106,6 +110,8 @@ impl SetTable {
         self.iface_rows.extend(rows);
         let rows = self.media[first.1..].iter().map(medium_row);
         self.medium_rows.extend(rows);
+        let rows = self.media[first.1..].iter().map(|m| m.phase.p);
+        self.phase_rows.extend(rows);
         self.cv.push(
             control_variate
                 .then(|| SmoothCoatLambertian::unscattered(stack, settings))
@@ -121,6 +127,7 @@ impl SetTable {
         self.cv.clear();
         self.iface_rows.clear();
         self.medium_rows.clear();
+        self.phase_rows.clear();
     }
 
     /// Makes it a copy of `other`, reusing its memory.
@@ -131,6 +138,7 @@ impl SetTable {
         self.cv.clone_from(&other.cv);
         self.iface_rows.clone_from(&other.iface_rows);
         self.medium_rows.clone_from(&other.medium_rows);
+        self.phase_rows.clone_from(&other.phase_rows);
     }
 
     /// Interfaces per set.
@@ -240,10 +248,18 @@ impl<'a> LaneSets<'a> {
             Some(s) => t.medium_rows[s as usize * per + l].map(|x| W::splat(x as f64)),
             None => W::load8(&t.medium_rows, &self.rows(per, l)[..W::LANES], 0),
         };
+        let mut phase = own.phase;
+        phase.g = f[6];
+        if own.phase.kind != PhaseKind::Hg {
+            phase.p = match self.same {
+                Some(s) => t.phase_rows[s as usize * per + l].map(|x| W::splat(x as f64)),
+                None => W::load8(&t.phase_rows, &self.rows(per, l)[..W::LANES], 0),
+            };
+        }
         MediumLanes {
             sigma_t: Rgb::new(f[0], f[1], f[2]),
             albedo: Rgb::new(f[3], f[4], f[5]),
-            g: f[6],
+            phase,
             ..*own
         }
     }

@@ -17,7 +17,8 @@
 //! | interface | 3 (lobe choice, two for the direction) |
 //! | Russian roulette, after every event that does not leave the stack | 1 |
 //! | free flight in a scattering layer | 1 |
-//! | phase function at a collision | 2 |
+//! | phase function at a collision | 2 (4 for diffuse SGGX flakes) |
+//! | its value for next-event estimation, diffuse SGGX flakes only (before the phase sampling) | 2 |
 //!
 //! The adjoint chain of `eval` draws from its own stream: 3 per interface,
 //! then 1 for Russian roulette per further segment. A fixed chain
@@ -290,17 +291,19 @@ impl<S: Scalar> ScalarEngine<S> {
                         return None;
                     }
                     // Next-event estimation from this collision.
+                    let e = events::estimate_uniforms(m, || Self::u(rng));
                     if let Some(c) = connect.as_deref_mut() {
                         for link in c.chain.iter().filter(|k| k.crosses(l)) {
-                            c.acc += beta * events::collision_link(m, z, d, link, mis);
+                            c.acc += beta * events::collision_link(m, z, d, link, e, mis);
                         }
                     }
-                    let u = (Self::u(rng), Self::u(rng));
+                    let u = events::phase_uniforms(m, || Self::u(rng));
                     let dn = events::phase_scatter(m, d, u, true, &mut specular);
                     // Path continuation from the collision towards a rough exit.
                     if let Some(c) = connect.as_deref_mut() {
                         if c.exit_rough
                             && mis
+                            && m.phase.exact()
                             && c.region.map(|r| r.0) == Some(index(l))
                             && toward_exit(dn, c.exit == 0)
                         {

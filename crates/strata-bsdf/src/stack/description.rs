@@ -210,7 +210,7 @@ impl InterfaceDesc {
 }
 
 /// Phase function of a medium.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum PhaseDesc {
     /// Isotropic scattering. (A struct variant, so that a stray field such
@@ -221,6 +221,71 @@ pub enum PhaseDesc {
         /// Mean cosine of the scattering angle.
         g: f64,
     },
+    /// A weighted sum of Henyey–Greenstein (or isotropic) lobes: the phase
+    /// function of a mixture of particle kinds of the same extinction.
+    Mixture {
+        /// The lobes, 1 to 4 of them, with weights summing to 1.
+        components: Vec<ComponentDesc>,
+    },
+    /// SGGX microflakes (Heitz et al. 2015): the medium's extinction along
+    /// a direction ω is `sigma_t · sqrt(ωᵀ S ω)`.
+    Sggx {
+        /// The flakes' distribution about `axis`.
+        flakes: Flakes,
+        /// The distribution's axis (normalized when read).
+        axis: [f64; 3],
+        /// In (0, 1]: the spread of the flakes (1: spheres, S = I).
+        roughness: f64,
+        /// How a flake scatters (specular unless given).
+        #[serde(default)]
+        scattering: FlakeScattering,
+    },
+}
+
+/// The kinds of SGGX microflake distribution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Flakes {
+    /// Flakes whose normals cluster about the axis:
+    /// `S = r² I + (1 − r²) a aᵀ`.
+    Surface,
+    /// Fibres along the axis, normals across it: `S = I − (1 − r²) a aᵀ`.
+    Fiber,
+}
+
+/// How an SGGX microflake scatters light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FlakeScattering {
+    /// A mirror: the phase function has a closed form.
+    #[default]
+    Specular,
+    /// A Lambertian reflector: the phase function is estimated, one
+    /// visible normal per evaluation (it has no closed form).
+    Diffuse,
+}
+
+/// One lobe of a [`PhaseDesc::Mixture`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComponentDesc {
+    /// Its share, in (0, 1].
+    pub weight: f64,
+    /// `hg` or `isotropic`.
+    pub kind: ComponentKind,
+    /// Henyey–Greenstein asymmetry (only for `hg`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g: Option<f64>,
+}
+
+/// The kinds of lobe a mixture holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ComponentKind {
+    /// Henyey–Greenstein (needs `g`).
+    Hg,
+    /// Isotropic (takes no `g`).
+    Isotropic,
 }
 
 impl Default for PhaseDesc {

@@ -7,15 +7,17 @@
 
 mod description;
 mod error;
+mod phase;
 pub mod presets;
 mod set;
 mod shape;
 
 pub use description::{
-    Distribution, InterfaceDesc, LayerDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbParam,
-    Roughness, Shadowing,
+    ComponentDesc, ComponentKind, Distribution, FlakeScattering, Flakes, InterfaceDesc, LayerDesc,
+    MaterialDesc, MediumDesc, PhaseDesc, RgbParam, Roughness, Shadowing,
 };
 pub use error::{MaterialError, StackError};
+pub use phase::{Phase, PhaseKind, MAX_COMPONENTS, MIN_SGGX_ROUGHNESS};
 pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};
 
@@ -123,8 +125,8 @@ pub struct Medium {
     pub sigma_t: [f64; 3],
     /// Single-scattering albedo per channel.
     pub albedo: [f64; 3],
-    /// Henyey–Greenstein g (0 for isotropic).
-    pub g: f64,
+    /// Phase function.
+    pub phase: Phase,
 }
 
 impl Medium {
@@ -487,26 +489,12 @@ impl LayerStack {
                 "must be in [0, 1]",
             ));
         }
-        let g = match m.phase {
-            PhaseDesc::Isotropic {} => 0.0,
-            PhaseDesc::Hg { g } => {
-                let g = finite(li, "medium.phase.g", g)?;
-                if g.abs() >= 1.0 {
-                    return Err(StackError::new(
-                        li,
-                        "medium.phase.g",
-                        g,
-                        "must be in (-1, 1)",
-                    ));
-                }
-                g
-            }
-        };
+        let phase = Phase::new(i, &m.phase)?;
         Ok(Medium {
             thickness: h,
             sigma_t: st,
             albedo: al,
-            g,
+            phase,
         })
     }
 

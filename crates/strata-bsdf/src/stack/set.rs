@@ -71,6 +71,8 @@ enum MediumField {
     SigmaT,
     Albedo,
     PhaseG,
+    PhaseRoughness,
+    PhaseAxis,
 }
 
 impl MediumField {
@@ -80,16 +82,19 @@ impl MediumField {
             MediumField::SigmaT => "sigma_t",
             MediumField::Albedo => "albedo",
             MediumField::PhaseG => "phase.g",
+            MediumField::PhaseRoughness => "phase.roughness",
+            MediumField::PhaseAxis => "phase.axis",
         }
     }
 }
 
 const INTERFACE_FIELDS: &str = "ior, roughness, eta, k, albedo, normal";
-const MEDIUM_FIELDS: &str = "thickness, sigma_t, albedo, phase.g";
+const MEDIUM_FIELDS: &str = "thickness, sigma_t, albedo, phase.g, phase.roughness, phase.axis";
 
 /// A path to a numeric parameter of a material, parsed and checked once:
 /// `exterior_ior`, `layers[i].interface.<ior|roughness|eta|k|albedo|normal>` or
-/// `layers[i].medium.<thickness|sigma_t|albedo|phase.g>`.
+/// `layers[i].medium.<thickness|sigma_t|albedo|phase.g|phase.roughness|phase.axis>`
+/// (the last two of an SGGX phase).
 ///
 /// Whether the path exists in a given material (the layer, the interface's
 /// kind, the medium) is checked when it is applied.
@@ -170,7 +175,11 @@ impl SetPath {
                 "sigma_t" => MediumField::SigmaT,
                 "albedo" => MediumField::Albedo,
                 "phase.g" => MediumField::PhaseG,
-                "phase" | "phase.kind" => return Err(not_numeric(field)),
+                "phase.roughness" => MediumField::PhaseRoughness,
+                "phase.axis" => MediumField::PhaseAxis,
+                "phase" | "phase.kind" | "phase.flakes" | "phase.scattering" => {
+                    return Err(not_numeric(field))
+                }
                 _ => {
                     return Err(bad(format!(
                         "unknown medium field `{field}` (settable: {MEDIUM_FIELDS})"
@@ -426,13 +435,28 @@ impl MaterialDesc {
                 };
                 let m = &mut tree["medium"];
                 if f == MediumField::PhaseG {
-                    if !matches!(medium.phase, PhaseDesc::Hg { .. }) {
+                    let kind = match medium.phase {
+                        PhaseDesc::Hg { .. } => None,
+                        PhaseDesc::Isotropic {} => Some("an isotropic"),
+                        PhaseDesc::Mixture { .. } => Some("a mixture"),
+                        PhaseDesc::Sggx { .. } => Some("an SGGX"),
+                    };
+                    if let Some(kind) = kind {
                         return Err(missing(format!(
-                            "layer {layer}'s medium has an isotropic phase, which has no `g` \
-                             (give it phase = {{ kind = \"hg\", g = 0 }} in the material)"
+                            "layer {layer}'s medium has {kind} phase, which has no `g` \
+                             (an isotropic one can be given as phase = {{ kind = \"hg\", g = 0 }} \
+                             in the material)"
                         )));
                     }
                     m["phase"]["g"] = value.clone();
+                } else if matches!(f, MediumField::PhaseRoughness | MediumField::PhaseAxis) {
+                    if !matches!(medium.phase, PhaseDesc::Sggx { .. }) {
+                        return Err(missing(format!(
+                            "layer {layer}'s medium has no SGGX phase, so no `{}`",
+                            f.name()
+                        )));
+                    }
+                    m["phase"][f.name().trim_start_matches("phase.")] = value.clone();
                 } else {
                     m[f.name()] = value.clone();
                 }

@@ -13,7 +13,7 @@
 //! above, a tilted normal on an untilted interface or back, a single-scattering albedo of 0 in a scattering layer) gives a
 //! stack of another shape, which an engine of this one does not run.
 
-use super::{Distribution, InterfaceKind, LayerStack, Medium, Shadowing};
+use super::{Distribution, InterfaceKind, LayerStack, Medium, PhaseKind, Shadowing};
 
 /// What a layer asks of a walk crossing it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,6 +41,18 @@ impl Medium {
     /// The same extinction in every channel (free flights need no spectral MIS).
     pub fn grey(&self) -> bool {
         self.sigma_t[0] == self.sigma_t[1] && self.sigma_t[1] == self.sigma_t[2]
+    }
+
+    /// What its phase function asks of a walk crossing it: all of it in a
+    /// scattering layer; in an absorbing one only whether the extinction
+    /// depends on the direction; nothing in a clear one.
+    pub fn phase_kind(&self) -> PhaseKind {
+        let k = self.phase.kind();
+        match self.kind() {
+            LayerKind::Scattering => k,
+            LayerKind::Absorbing if k.directional() => PhaseKind::SggxSpecular,
+            _ => PhaseKind::Hg,
+        }
     }
 }
 
@@ -70,6 +82,8 @@ pub enum LayerShape {
         kind: LayerKind,
         /// One extinction for all channels.
         grey: bool,
+        /// What its phase function asks of a walk.
+        phase: PhaseKind,
     },
 }
 
@@ -140,6 +154,7 @@ impl LayerStack {
                     Some(m) => LayerShape::Medium {
                         kind: m.kind(),
                         grey: m.grey(),
+                        phase: m.phase_kind(),
                     },
                 })
                 .collect(),

@@ -700,6 +700,7 @@ impl<W: Wide> Wavefront<W> {
         let (col, pass) = events::free_flight(med, st, d, c.hero, ud, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
+        let e = events::estimate_uniforms(med, || c.rng.uniform(col));
         if links {
             let at_l = W::splat(l as f64);
             let z = c.z;
@@ -709,15 +710,14 @@ impl<W: Wide> Wavefront<W> {
                 col,
                 c,
                 |k| k.crosses(at_l),
-                |k| events::collision_link(med, z, d, k, mis),
+                |k| events::collision_link(med, z, d, k, e, mis),
             );
         }
-        let u1 = c.rng.uniform(col);
-        let u2 = c.rng.uniform(col);
-        let dn = events::phase_scatter(med, d, (u1, u2), col, &mut c.specular);
+        let u = events::phase_uniforms(med, || c.rng.uniform(col));
+        let dn = events::phase_scatter(med, d, u, col, &mut c.specular);
         // Path continuation from the collision towards a rough exit: only
         // some lanes need it, so it waits for a full chunk (`deferred`).
-        if links && mis {
+        if links && mis && med.phase.exact() {
             for (x, &(e, l0, _)) in self.exits.iter().enumerate() {
                 if l0 != l {
                     continue;
