@@ -73,10 +73,12 @@ impl<L: Lane> ChainLink<L> {
     }
 }
 
-/// The adjoint chain never exceeds this many segments. Each further segment
-/// needs one more delta bounce that the chain survives only with probability
-/// F·(Russian roulette), so this guards against a lossless loop of delta
-/// interfaces and is never reached by a physical stack in practice.
+/// The adjoint chain never exceeds this many segments: a guard against a
+/// lossless loop of delta interfaces. It is a depth cap, so it is biased:
+/// the light of chains longer than this is dropped. Each further segment
+/// needs one more delta bounce, which the chain survives only with
+/// probability F·(Russian roulette), so the dropped weight is at most the
+/// product of those probabilities over 256 bounces (method.md §4).
 pub const MAX_CHAIN: usize = 256;
 
 /// Power heuristic (exponent 2) for a strategy of density `a` against `b`,
