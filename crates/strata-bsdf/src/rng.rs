@@ -21,6 +21,9 @@ pub enum Stream {
     Pdf = 2,
     /// The brute-force position-based baseline (`estimator::brute_force`).
     BruteForce = 3,
+    /// The bidirectional estimator's walks (both subpaths and their
+    /// connections).
+    Bidir = 4,
 }
 
 /// SplitMix64's output function: a bijective 64-bit mixer.

@@ -226,37 +226,14 @@ impl<L: Lane> DensityWalk<'_, L> {
         self.ifaces.len()
     }
 
-    /// Lane `j` takes interface `i[j]` (one lookup when every lane's is the
-    /// same, as on the scalar engine).
+    /// Lane `j` takes interface `i[j]`.
     fn at(&self, i: L) -> InterfaceLanes<L> {
-        let i0 = i.lane(0);
-        if i.eq(L::splat(i0)).all() {
-            return self.ifaces[(i0.max(0.0) as usize).min(self.n() - 1)];
-        }
-        let mut it = self.ifaces[0];
-        for (k, t) in self.ifaces.iter().enumerate().skip(1) {
-            let here = i.eq(L::splat(k as f64));
-            if here.any() {
-                it = InterfaceLanes::select(here, t, &it);
-            }
-        }
-        it
+        super::layout::iface_at(self.ifaces, i)
     }
 
     /// The thickness of layer `l` (per lane) in depth units.
     fn thickness(&self, l: L) -> L {
-        let l0 = l.lane(0);
-        if self.media.is_empty() {
-            return L::zero();
-        }
-        if l.eq(L::splat(l0)).all() {
-            return self.media[(l0.max(0.0) as usize).min(self.media.len() - 1)].thickness;
-        }
-        let mut h = L::zero();
-        for (k, m) in self.media.iter().enumerate() {
-            h = L::select(l.eq(L::splat(k as f64)), m.thickness, h);
-        }
-        h
+        super::layout::thickness_at(self.media, l)
     }
 
     fn goal(&self, wo: V3<L>) -> Goal<L> {

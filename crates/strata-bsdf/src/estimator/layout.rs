@@ -5,7 +5,8 @@
 //! A walk's position is `(layer, z)`: layer `l` lies between interfaces `l` and
 //! `l + 1`, and `z` is the depth below interface `l` (so `0 <= z <= thickness`).
 
-use crate::lane::{Lane, Rgb, V3};
+use crate::interface::InterfaceLanes;
+use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::phase::PhaseLanes;
 pub use crate::stack::LayerKind;
 use crate::stack::{LayerStack, Medium};
@@ -209,6 +210,42 @@ impl Layout {
             (l as usize, k as usize)
         })
     }
+}
+
+/// Interface `i[j]` of `ifaces` on lane `j` (one lookup when every lane's is
+/// the same, as on the scalar engine).
+#[inline]
+pub fn iface_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> InterfaceLanes<L> {
+    let n = ifaces.len();
+    let i0 = i.lane(0);
+    if i.eq(L::splat(i0)).all() {
+        return ifaces[(i0.max(0.0) as usize).min(n - 1)];
+    }
+    let mut it = ifaces[0];
+    for (k, t) in ifaces.iter().enumerate().skip(1) {
+        let here = i.eq(L::splat(k as f64));
+        if here.any() {
+            it = InterfaceLanes::select(here, t, &it);
+        }
+    }
+    it
+}
+
+/// The thickness of layer `l[j]` of `media` on lane `j`, in depth units.
+#[inline]
+pub fn thickness_at<L: Lane>(media: &[MediumLanes<L>], l: L) -> L {
+    if media.is_empty() {
+        return L::zero();
+    }
+    let l0 = l.lane(0);
+    if l.eq(L::splat(l0)).all() {
+        return media[(l0.max(0.0) as usize).min(media.len() - 1)].thickness;
+    }
+    let mut h = L::zero();
+    for (k, m) in media.iter().enumerate() {
+        h = L::select(l.eq(L::splat(k as f64)), m.thickness, h);
+    }
+    h
 }
 
 /// Lanes whose travel direction `d` heads for the exit interface: the top

@@ -4,6 +4,7 @@
 //!   reference) and `f64` (the accuracy oracle).
 //! * [`events`]: the event kernels both engines call, written once over lanes.
 //! * [`layout`]: the stack's topology as the walks see it.
+//! * [`bidir`]: the bidirectional estimator of `eval`.
 //! * [`density`]: the density walk, the density of `sample` at a direction.
 //! * [`pdf`]: the approximate and unbiased pdfs of `sample` from it.
 //! * [`closed_form`]: the stacks whose BSDF has one.
@@ -12,6 +13,7 @@
 //! authors' code are listed in `docs/architecture.md`.
 
 mod accumulate;
+pub mod bidir;
 pub mod closed_form;
 pub mod density;
 pub mod events;

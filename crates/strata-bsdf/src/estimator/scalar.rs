@@ -503,6 +503,71 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 }
 
+impl<S: Scalar> ScalarEngine<S> {
+    /// The bidirectional estimator (method.md §4, [`super::bidir`]): mean
+    /// of `n` walks plus the exact first-order term, with its standard
+    /// error.
+    pub fn eval_bidir(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Estimate {
+        let mut red = BlockReducer::new();
+        let direct = self.eval_bidir_walks(wi, wo, n, seed, query, |x| red.push(x));
+        red.finish().estimate_plus(direct)
+    }
+
+    /// Each walk's value of the bidirectional estimator, in sample order
+    /// (without the first-order term): for parity tests.
+    pub fn eval_bidir_walk_values(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Vec<[f64; 3]> {
+        let mut v = Vec::with_capacity(n as usize);
+        self.eval_bidir_walks(wi, wo, n, seed, query, |x| v.push(x));
+        v
+    }
+
+    fn eval_bidir_walks(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+        mut f: impl FnMut([f64; 3]),
+    ) -> [f64; 3] {
+        let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
+            (0..n).for_each(|_| f([0.0; 3]));
+            return [0.0; 3];
+        };
+        let wi = v3::<S>(o.wi);
+        let wo = v3::<S>(o.apply(wo));
+        let walk = super::bidir::BidirWalk {
+            ifaces: &self.ifaces,
+            media: &self.media,
+            settings: &self.settings,
+        };
+        let prefix = query_prefix(seed, query);
+        let mut buf = super::bidir::Buffers::default();
+        for k in 0..n {
+            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Bidir);
+            let draw = |m: bool| if m { Self::u(&mut rng) } else { S::zero() };
+            f(rgb_f64(walk.run(wi, wo, &mut buf, draw)));
+        }
+        let e_in = self.layout.outer(wi.z > S::zero());
+        let e_out = self.layout.outer(wo.z > S::zero());
+        events::deterministic_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo)
+    }
+}
+
 /// A layer or interface index carried as a lane value, as a `usize`.
 #[inline(always)]
 fn index<S: Lane>(i: S) -> usize {

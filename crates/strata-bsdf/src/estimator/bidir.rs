@@ -1,0 +1,641 @@
+//! The bidirectional estimator of `eval` (method.md §4, the paper's second
+//! estimator), written once over lanes: the scalar engine runs it on one
+//! lane, the wavefront on one query-walk pair per lane.
+//!
+//! A walk traces a *light subpath* from `wi` (entering through the entrance
+//! interface) and an *eye subpath* from `wo` (entering through the exit
+//! interface, carrying light-sense values), then connects every light vertex
+//! to every eye vertex that shares a layer with it. A connection draws its
+//! direction from one vertex's lobe (its BSDF or phase function) and
+//! evaluates the other vertex, with the transmittance between their depths;
+//! each pair is connected twice, once from each side. Every contribution is
+//! weighted by the power heuristic over all the strategies that could have
+//! made its path ([`Strategies`]), so that the weights of a path sum to one.
+//!
+//! **The path measure.** A path `v_1 … v_n` (entrance `v_1`, exit `v_n`)
+//! with directions `d_1 … d_{n−1}` has the value `Π f(v_i) · Π G(d_i)`: an
+//! interface's BSDF in the light's sense, or at a medium collision `σ_s`
+//! times the phase function; a segment's transmittance times `|d.z|` once
+//! per interface it joins, less one (method.md §3: the `1/|d.z|` of a depth
+//! against the cosine of a solid angle). A strategy samples each direction
+//! from one of its two vertices and each collision depth by a free flight
+//! from one of its neighbours; its density is the product of those densities
+//! (an interface reached without collision counts the probability of that).
+//!
+//! **Which strategies.** Splitting the path between `v_s` and `v_{s+1}`
+//! (`1 ≤ s < n`), the light side samples `d_1 … d_{s−1}` and the depths of
+//! `v_2 … v_s`, the eye side `d_{s+1} … d_{n−1}` and the depths of `v_{s+1} …
+//! v_{n−1}`, and `d_s` is drawn by `v_s` (strategy `(s, L)`) or by `v_{s+1}`
+//! (`(s, E)`). A strategy that would *evaluate* a smooth interface (`v_{s+1}`
+//! for `L`, `v_s` for `E`) cannot make the path and is skipped; a smooth
+//! interface that *samples* takes part with a density of 1 (the same
+//! placeholder in every strategy, so the weights remain a partition of
+//! unity). Russian roulette stays out of the densities, on every strategy
+//! alike. Densities of collision depths are the channel mixture of the free
+//! flight (`medium::collision_density`), a deterministic function of the
+//! path, as every weight must be.
+//!
+//! **Subpaths.** Both are random walks of `sample()`'s kind: one vertex per
+//! step (sample a direction at the vertex, then a free flight or a crossing
+//! to the next vertex), so that lanes stay in step vertex by vertex and a
+//! subpath's vertices are rows of lanes (structure of arrays). Russian
+//! roulette ends them; there is no depth cap beyond the settings' optional
+//! one. The eye subpath samples interfaces from the side light leaves by and
+//! weights each step with the light-sense value (`f(b → a)` rather than `f(a
+//! → b)`: the η² of refraction and the shading normal's asymmetry included);
+//! collisions need no change, as `σ_s · phase` is reciprocal.
+//!
+//! Not supported: phase functions without a closed form (diffuse SGGX
+//! flakes: their estimated value is no density for the weights), and a cap
+//! on the scattering order (a property of whole paths). `LayeredBsdf`
+//! refuses the first and ignores nothing silently: see `api::strategy`.
+
+use super::layout::{LayerKind, Layout, MediumLanes};
+use super::{events, Settings};
+use crate::interface::InterfaceLanes;
+use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::medium;
+
+/// The stack as the bidirectional walk reads it.
+pub struct BidirWalk<'a, L: Lane> {
+    /// Interfaces, top first.
+    pub ifaces: &'a [InterfaceLanes<L>],
+    /// Media, layer `l` between interfaces `l` and `l + 1`.
+    pub media: &'a [MediumLanes<L>],
+    /// Walk settings (Russian roulette, the optional event cap).
+    pub settings: &'a Settings,
+}
+
+/// A subpath vertex, per lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Vertex<L: Lane> {
+    /// Lanes where the subpath has this vertex.
+    pub exists: L::Mask,
+    /// On an interface (else a medium collision).
+    pub surface: L::Mask,
+    /// A smooth interface: its lobes are deltas, never evaluated.
+    pub delta: L::Mask,
+    /// Interface index (surface) or layer (collision).
+    pub idx: L,
+    /// Depth in layer `idx` (collisions).
+    pub z: L,
+    /// The subpath's arrival, pointing away from the vertex.
+    pub a: V3<L>,
+    /// The subpath's throughput on arrival (a collision's includes its `σ_s`).
+    pub beta: Rgb<L>,
+    /// The density of the direction the subpath sampled here (1 at a delta).
+    pub own: L,
+    /// The density with which this vertex samples the arrival `a` given
+    /// that direction: the other side's (1 at a delta).
+    pub other: L,
+    /// The density of the free flight that reached this vertex from the
+    /// previous one (a collision depth, or no collision up to an interface).
+    pub land: L,
+    /// The same along the next segment, from the next vertex.
+    pub land_rev: L,
+}
+
+/// Working memory of a walk: the two subpaths' vertices, and the running
+/// products of the weight computation.
+#[derive(Clone, Debug, Default)]
+pub struct Buffers<L: Lane> {
+    light: Vec<Vertex<L>>,
+    eye: Vec<Vertex<L>>,
+    ratios: Vec<L>,
+}
+
+/// A connection's own values at one end: the vertex's term (value) in the
+/// light's sense, and the densities with which it samples the connecting
+/// direction (`own`) and, given it, its own arrival (`other`).
+#[derive(Clone, Copy)]
+struct End<L: Lane> {
+    value: Rgb<L>,
+    own: L,
+    other: L,
+}
+
+/// Where a connection runs: the layer, the depth it crosses, the lanes
+/// where the direction from one vertex reaches the other.
+#[derive(Clone, Copy)]
+struct Reach<L: Lane> {
+    ok: L::Mask,
+    layer: L,
+    dz: L,
+}
+
+impl<L: Lane> BidirWalk<'_, L> {
+    fn n(&self) -> usize {
+        self.ifaces.len()
+    }
+
+    fn layout(&self) -> Layout {
+        Layout { n: self.n() }
+    }
+
+    /// Interface `i[j]` on lane `j`.
+    fn at(&self, i: L) -> InterfaceLanes<L> {
+        super::layout::iface_at(self.ifaces, i)
+    }
+
+    fn thickness(&self, l: L) -> L {
+        super::layout::thickness_at(self.media, l)
+    }
+
+    /// Transmittance across `dz` of layer `l` along `d`, and the densities
+    /// of a free flight along that segment: no collision (an interface at
+    /// its end), a collision at its end. Clear and absorbing layers are
+    /// crossed without sampling (both densities 1).
+    fn segment(&self, l: L, dz: L, d: V3<L>, m: L::Mask) -> (Rgb<L>, L, L) {
+        let (mut t, mut p_nc, mut p_col) = (Rgb::one(), L::one(), L::one());
+        let mu = d.z.abs();
+        for (ll, med) in self.media.iter().enumerate() {
+            let here = m & l.eq(L::splat(ll as f64));
+            if !here.any() || med.kind == LayerKind::Clear {
+                continue;
+            }
+            t = Rgb::select(here, med.transmittance(dz, d), t);
+            if med.kind == LayerKind::Scattering {
+                let s = med.sigma_along(d);
+                let dist = super::layout::flight_limit(dz, mu);
+                let nc = s.map(|x| (-(x * dist)).exp()).average();
+                p_nc = L::select(here, nc, p_nc);
+                p_col = L::select(here, medium::collision_density(s, dist, mu), p_col);
+            }
+        }
+        (t, p_nc, p_col)
+    }
+
+    /// Whether the travel direction `d` from vertex `f` reaches vertex `t`
+    /// (sharing a layer, heading the right way), and across which depth.
+    fn reach(&self, f: &Vertex<L>, t: &Vertex<L>, d: V3<L>, m: L::Mask) -> Reach<L> {
+        let zero = L::zero();
+        let up = d.z.gt(zero);
+        let (l_s, out) = self.layout().enter(f.idx, up);
+        let layer = L::select(f.surface, l_s, f.idx);
+        let ok = m & f.exists & t.exists & !(f.surface & out) & d.z.abs().gt(zero);
+        let h = self.thickness(layer);
+        let z0 = L::select(f.surface, L::select(up, h, zero), f.z);
+        let to_surface = t.idx.eq(self.layout().arrive(layer, up));
+        let ahead = L::select(up, z0 - t.z, t.z - z0).gt(zero);
+        let to_collision = t.idx.eq(layer) & ahead;
+        let ok = ok & ((t.surface & to_surface) | (!t.surface & to_collision));
+        let z1 = L::select(t.surface, L::select(up, zero, h), t.z);
+        Reach {
+            ok,
+            layer,
+            dz: (z1 - z0).abs(),
+        }
+    }
+
+    /// The phase function of the collision lanes `m` of vertex `v`, from
+    /// the travel direction `d_in` into `d_out`.
+    fn phase(&self, v: &Vertex<L>, d_in: V3<L>, d_out: V3<L>, m: L::Mask) -> L {
+        let mut p = L::zero();
+        for (ll, med) in self.media.iter().enumerate() {
+            let here = m & v.idx.eq(L::splat(ll as f64));
+            if here.any() {
+                let none = (L::zero(), L::zero());
+                p = L::select(here, med.phase.eval(d_in, d_out, none), p);
+            }
+        }
+        p
+    }
+
+    /// Vertex `v`'s end of a connection leaving it along `o` (pointing away
+    /// from it): its value in the light's sense (`eye`: `v` is an eye
+    /// vertex, light arrives from `o`), and its densities (`endpoint`: the
+    /// subpath's first vertex, which samples transmission only).
+    fn end(&self, v: &Vertex<L>, o: V3<L>, eye: bool, endpoint: bool, m: L::Mask) -> End<L> {
+        let s = m & v.surface;
+        let c = m & !v.surface;
+        let one = L::one();
+        let mut e = End {
+            value: Rgb::zero(),
+            own: one,
+            other: one,
+        };
+        if s.any() {
+            let it = self.at(v.idx);
+            let f = if eye {
+                it.eval(o, v.a)
+            } else {
+                it.eval(v.a, o)
+            };
+            let first = L::Mask::splat(endpoint);
+            let no = L::Mask::splat(false);
+            e.value = Rgb::select(s, f, e.value);
+            e.own = L::select(s & !v.delta, it.pdf(v.a, o, first), e.own);
+            e.other = L::select(s & !v.delta, it.pdf(o, v.a, no), e.other);
+        }
+        if c.any() {
+            let p = self.phase(v, -v.a, o, c);
+            e.value = Rgb::select(c, Rgb::splat(p), e.value);
+            e.own = L::select(c, p, e.own);
+            e.other = L::select(c, self.phase(v, -o, v.a, c), e.other);
+        }
+        e
+    }
+
+    /// Samples a direction `o` leaving vertex `v` (lanes `m`): `o`, the
+    /// value over the density (an interface's BSDF without its cosine, in
+    /// the light's sense; 1 at a collision), the densities of [`End`], and
+    /// the lanes where a direction was made.
+    #[allow(clippy::type_complexity)]
+    fn sample_end(
+        &self,
+        v: &Vertex<L>,
+        eye: bool,
+        endpoint: bool,
+        m: L::Mask,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> (V3<L>, Rgb<L>, L, L, L::Mask) {
+        let s_m = m & v.surface;
+        let c_m = m & !v.surface;
+        let zero = L::zero();
+        let mut o = V3::z_axis();
+        let mut w = Rgb::zero();
+        let (mut own, mut other) = (L::one(), L::one());
+        let mut ok = L::Mask::splat(false);
+        let u = (draw(s_m), draw(s_m), draw(s_m));
+        if s_m.any() {
+            let it = self.at(v.idx);
+            let s = it.sample(v.a, u.0, u.1, u.2, L::Mask::splat(endpoint));
+            let good = s_m & s.valid;
+            let weight = if eye {
+                eye_weight(&it, v.a, &s)
+            } else {
+                s.weight
+            };
+            let cos = s.b.z.abs();
+            let wv = weight.scale(L::div_or_zero(L::one(), cos, cos.gt(zero)));
+            o = V3::select(s_m, s.b, o);
+            w = Rgb::select(good, wv, w);
+            let rough = good & !s.delta;
+            own = L::select(rough, s.pdf, own);
+            let no = L::Mask::splat(false);
+            other = L::select(rough, it.pdf(s.b, v.a, no), other);
+            ok = ok | (good & (s.delta | s.pdf.gt(zero)));
+        }
+        for (ll, med) in self.media.iter().enumerate() {
+            let here = c_m & v.idx.eq(L::splat(ll as f64));
+            let u = events::phase_uniforms(med, || draw(here));
+            if !here.any() {
+                continue;
+            }
+            let d = med.phase.sample(-v.a, u);
+            let none = (zero, zero);
+            let p = med.phase.eval(-v.a, d, none);
+            o = V3::select(here, d, o);
+            w = Rgb::select(here, Rgb::one(), w);
+            own = L::select(here, p, own);
+            other = L::select(here, med.phase.eval(-d, v.a, none), other);
+            ok = ok | (here & p.gt(zero));
+        }
+        (o, w, own, other, ok)
+    }
+
+    /// Traces a subpath from `w` (pointing away from the stack): the light
+    /// subpath from `wi`, or (`eye`) the eye subpath from `wo`. One vertex
+    /// per step, every lane in step.
+    fn trace(
+        &self,
+        w: V3<L>,
+        eye: bool,
+        out: &mut Vec<Vertex<L>>,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) {
+        let zero = L::zero();
+        let last = L::splat(self.n() as f64 - 1.0);
+        let yes = L::Mask::splat(true);
+        out.clear();
+        let start = events::WalkStart::<L>::new(draw(yes));
+        let (hero, mut ratios, mut events) = (start.hero, start.ratios, start.events);
+        let i0 = L::select(w.z.gt(zero), zero, last);
+        let it0 = self.at(i0);
+        let mut v = Vertex {
+            exists: yes,
+            surface: yes,
+            delta: it0.smooth,
+            idx: i0,
+            z: zero,
+            a: w,
+            beta: Rgb::one(),
+            own: L::one(),
+            other: L::one(),
+            land: L::one(),
+            land_rev: L::one(),
+        };
+        let mut alive = yes;
+        loop {
+            let endpoint = out.is_empty();
+            let (d, wv, own, other, ok) = self.sample_end(&v, eye, endpoint, alive, draw);
+            v.own = L::select(ok, own, v.own);
+            v.other = L::select(ok, other, v.other);
+            out.push(v);
+            let here = out.len() - 1;
+            alive = ok;
+            // The travel weight of the step: the sampled value over its
+            // density, with the cosine a surface vertex's direction carries.
+            let cos = L::select(v.surface, d.z.abs(), L::one());
+            let mut beta = Rgb::select(alive, v.beta * wv.scale(cos), v.beta);
+            events = L::select(alive, events + L::one(), events);
+            let up = d.z.gt(zero);
+            let (l_s, out_s) = self.layout().enter(v.idx, up);
+            let layer = L::select(v.surface, l_s, v.idx);
+            alive = alive & !(v.surface & out_s) & d.z.abs().gt(zero);
+            alive = events::survive(&mut beta, events, draw(alive), alive, self.settings);
+            if !alive.any() {
+                break;
+            }
+            // The flight to the next vertex.
+            let h = self.thickness(layer);
+            let z0 = L::select(v.surface, L::select(up, h, zero), v.z);
+            let mut z = z0;
+            let mut col = L::Mask::splat(false);
+            for (ll, med) in self.media.iter().enumerate() {
+                let m = alive & layer.eq(L::splat(ll as f64));
+                if !m.any() {
+                    continue;
+                }
+                if med.kind != LayerKind::Scattering {
+                    alive = alive & !events::cross_inert(med, z0, d, m, &mut beta);
+                } else {
+                    let mut order = zero;
+                    let fl = events::Flight {
+                        z: &mut z,
+                        beta: &mut beta,
+                        ratios: &mut ratios,
+                        order: &mut order,
+                    };
+                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), m, None);
+                    alive = alive & !(m & !hit & !pass);
+                    col = col | hit;
+                }
+            }
+            let arrive = self.layout().arrive(layer, up);
+            let z_end = L::select(col, z, L::select(up, zero, h));
+            let (_, p_nc, p_col) = self.segment(layer, (z_end - z0).abs(), d, alive);
+            let prev = &mut out[here];
+            prev.land_rev = L::select(alive, L::select(v.surface, p_nc, p_col), prev.land_rev);
+            let next_i = L::select(col, layer, arrive);
+            let it = self.at(L::select(alive, next_i, zero).max(zero).min(last));
+            v = Vertex {
+                exists: alive,
+                surface: !col,
+                delta: !col & it.smooth,
+                idx: next_i,
+                z: z_end,
+                a: -d,
+                beta,
+                own: L::one(),
+                other: L::one(),
+                land: L::select(col, p_col, p_nc),
+                land_rev: L::one(),
+            };
+            if !alive.any() {
+                break;
+            }
+        }
+    }
+
+    /// One bidirectional walk per lane: its estimate of `f(wi, wo)` without
+    /// the first-order term (the entrance alone, which the engines add
+    /// exactly). `draw(m)` returns a uniform for every lane of `m`.
+    pub fn run(
+        &self,
+        wi: V3<L>,
+        wo: V3<L>,
+        buf: &mut Buffers<L>,
+        mut draw: impl FnMut(L::Mask) -> L,
+    ) -> Rgb<L> {
+        if self.n() < 2 {
+            return Rgb::zero();
+        }
+        let Buffers { light, eye, ratios } = buf;
+        self.trace(wi, false, light, &mut draw);
+        self.trace(wo, true, eye, &mut draw);
+        let mut acc = Rgb::zero();
+        for jy in 0..light.len() {
+            for jz in 0..eye.len() {
+                let (y, z) = (light[jy], eye[jz]);
+                let m = y.exists & z.exists & !(y.surface & z.surface & y.idx.eq(z.idx));
+                if !m.any() {
+                    continue;
+                }
+                let path = Path { light, eye, jy, jz };
+                // (s, L): y draws the direction, z is evaluated.
+                let (d, wy, own_y, other_y, ok) = self.sample_end(&y, false, jy == 0, m, &mut draw);
+                let ok = ok & !z.delta;
+                let r = self.reach(&y, &z, d, ok);
+                if r.ok.any() {
+                    let ez = self.end(&z, -d, true, jz == 0, r.ok);
+                    let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
+                    let g = t.scale(geometry(&y, &z, d));
+                    let conn = Conn {
+                        c_l: own_y,
+                        c_e: ez.own,
+                        other_y,
+                        other_z: ez.other,
+                        land_y: L::select(y.surface, p_nc, p_col),
+                        land_z: L::select(z.surface, p_nc, p_col),
+                    };
+                    let mis = path.weight(&conn, true, r.ok, ratios);
+                    let c = y.beta * wy * g * ez.value * z.beta;
+                    acc += Rgb::select(r.ok, c.scale(mis), Rgb::zero());
+                }
+                // (s, E): z draws the direction, y is evaluated.
+                let (o, wz, own_z, other_z, ok) = self.sample_end(&z, true, jz == 0, m, &mut draw);
+                let d = -o;
+                let ok = ok & !y.delta;
+                let r = self.reach(&z, &y, o, ok);
+                if r.ok.any() {
+                    let ey = self.end(&y, d, false, jy == 0, r.ok);
+                    let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
+                    let g = t.scale(geometry(&y, &z, d));
+                    let conn = Conn {
+                        c_l: ey.own,
+                        c_e: own_z,
+                        other_y: ey.other,
+                        other_z,
+                        land_y: L::select(y.surface, p_nc, p_col),
+                        land_z: L::select(z.surface, p_nc, p_col),
+                    };
+                    let mis = path.weight(&conn, false, r.ok, ratios);
+                    let c = y.beta * ey.value * g * wz * z.beta;
+                    acc += Rgb::select(r.ok, c.scale(mis), Rgb::zero());
+                }
+            }
+        }
+        acc
+    }
+}
+
+/// The light-sense weight of an eye subpath's interface sample `s` drawn
+/// from `a` (the side light leaves by): `f(b → a) |b.z| / pdf` for a rough
+/// lobe; for a delta lobe, its discrete weight turned around (the shading
+/// normal's factor, and the η² of a refraction: `(n_a / n_b)²`).
+fn eye_weight<L: Lane>(
+    it: &InterfaceLanes<L>,
+    a: V3<L>,
+    s: &crate::interface::BsdfSample<L>,
+) -> Rgb<L> {
+    let zero = L::zero();
+    let rough = it
+        .eval(s.b, a)
+        .scale(L::div_or_zero(s.b.z.abs(), s.pdf, s.pdf.gt(zero)));
+    let (n_a, n_b) = it.sides(a);
+    let refracted = (a.z * s.b.z).lt(zero);
+    let eta2 = L::select(
+        refracted,
+        L::div_or_zero(n_a * n_a, n_b * n_b, n_b.gt(zero)),
+        L::one(),
+    );
+    let delta = s.weight.scale(it.reverse(a, s.b) * eta2);
+    Rgb::select(s.delta, delta, rough)
+}
+
+/// The segment's cosine factor between `y` and `z` along `d`: `|d.z|` once
+/// per interface it joins, less one (see the module docs).
+fn geometry<L: Lane>(y: &Vertex<L>, z: &Vertex<L>, d: V3<L>) -> L {
+    let mu = d.z.abs();
+    let inv = L::div_or_zero(L::one(), mu, mu.gt(L::zero()));
+    let both = y.surface & z.surface;
+    let none = !y.surface & !z.surface;
+    L::select(both, mu, L::select(none, inv, L::one()))
+}
+
+/// What a connection knows of its path beyond the stored vertices: the
+/// densities of its direction from each end (`c_l` from the light vertex,
+/// `c_e` from the eye vertex), of each end's arrival given it, and of a free
+/// flight along it landing at each end.
+struct Conn<L: Lane> {
+    c_l: L,
+    c_e: L,
+    other_y: L,
+    other_z: L,
+    land_y: L,
+    land_z: L,
+}
+
+/// The path of a connection: light vertices `0..=jy`, eye vertices
+/// `0..=jz`, in the light's order `v_1 … v_n` = `light[0..=jy]`,
+/// `eye[jz..=0]`.
+struct Path<'a, L: Lane> {
+    light: &'a [Vertex<L>],
+    eye: &'a [Vertex<L>],
+    jy: usize,
+    jz: usize,
+}
+
+/// Products of density ratios are kept below this, so that a later zero
+/// cannot meet an infinity.
+const RATIO_CAP: f64 = 1e30;
+
+impl<L: Lane> Path<'_, L> {
+    fn n(&self) -> usize {
+        self.jy + self.jz + 2
+    }
+
+    fn delta(&self, i: usize) -> L::Mask {
+        if i <= self.jy + 1 {
+            self.light[i - 1].delta
+        } else {
+            self.eye[self.n() - i].delta
+        }
+    }
+
+    /// `(F_i, B_i)` for `2 ≤ i ≤ n − 1`: the densities of generating vertex
+    /// `v_i` from `v_{i−1}` (direction and flight) and from `v_{i+1}`.
+    fn densities(&self, i: usize, c: &Conn<L>) -> (L, L) {
+        let s = self.jy + 1;
+        if i <= s {
+            let j = i - 1;
+            let y = &self.light[j];
+            let f = self.light[j - 1].own * y.land;
+            let b = if j == self.jy {
+                c.c_e * c.land_y
+            } else if j + 1 == self.jy {
+                c.other_y * y.land_rev
+            } else {
+                self.light[j + 1].other * y.land_rev
+            };
+            (f, b)
+        } else {
+            let j = self.n() - i;
+            let z = &self.eye[j];
+            let b = self.eye[j - 1].own * z.land;
+            let f = if j == self.jz {
+                c.c_l * c.land_z
+            } else if j + 1 == self.jz {
+                c.other_z * z.land_rev
+            } else {
+                self.eye[j + 1].other * z.land_rev
+            };
+            (f, b)
+        }
+    }
+
+    /// `(c_L(k), c_E(k))`: the density of `d_k` drawn by `v_k`, and by
+    /// `v_{k+1}`.
+    fn directions(&self, k: usize, c: &Conn<L>) -> (L, L) {
+        let s = self.jy + 1;
+        let n = self.n();
+        let c_l = if k < s {
+            self.light[k - 1].own
+        } else if k == s {
+            c.c_l
+        } else if n - k == self.jz {
+            c.other_z
+        } else {
+            self.eye[n - k].other
+        };
+        let c_e = if k > s {
+            self.eye[n - k - 1].own
+        } else if k == s {
+            c.c_e
+        } else if k == self.jy {
+            c.other_y
+        } else {
+            self.light[k].other
+        };
+        (c_l, c_e)
+    }
+
+    /// The power-heuristic weight of this connection's strategy (`(s, L)`
+    /// where `light_draws`, else `(s, E)`), over every strategy of the path
+    /// (lanes `m`). `ratios` is working memory.
+    fn weight(&self, c: &Conn<L>, light_draws: bool, m: L::Mask, ratios: &mut Vec<L>) -> L {
+        let zero = L::zero();
+        let one = L::one();
+        let cap = L::splat(RATIO_CAP);
+        let (n, s) = (self.n(), self.jy + 1);
+        // r[k] = R_k / R_s for k = 1 … n − 1 (index k − 1).
+        ratios.clear();
+        ratios.resize(n - 1, one);
+        for k in s + 1..n {
+            let (f, b) = self.densities(k, c);
+            let step = L::div_or_zero(f, b, b.gt(zero));
+            ratios[k - 1] = (ratios[k - 2] * step).min(cap);
+        }
+        for k in (1..s).rev() {
+            let (f, b) = self.densities(k + 1, c);
+            let step = L::div_or_zero(b, f, f.gt(zero));
+            ratios[k - 1] = (ratios[k] * step).min(cap);
+        }
+        let mine = if light_draws { c.c_l } else { c.c_e };
+        let mut sum = zero;
+        for k in 1..n {
+            let (c_l, c_e) = self.directions(k, c);
+            let r = L::div_or_zero(ratios[k - 1], mine, mine.gt(zero));
+            let l = (r * c_l).min(cap);
+            let e = (r * c_e).min(cap);
+            sum += L::select(self.delta(k + 1), zero, l * l);
+            sum += L::select(self.delta(k), zero, e * e);
+        }
+        L::select(
+            m & sum.gt(zero),
+            L::div_or_zero(one, sum, sum.gt(zero)),
+            zero,
+        )
+    }
+}
