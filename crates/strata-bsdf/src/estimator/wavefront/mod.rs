@@ -42,6 +42,7 @@
 //!   that off (every layer runs free flight, every interface all code paths):
 //!   the unspecialized walk the benchmarks compare against.
 
+mod bidir;
 mod deferred;
 mod stages;
 pub mod walks;
