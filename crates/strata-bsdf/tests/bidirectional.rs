@@ -205,9 +205,9 @@ fn bidirectional_matches_the_clear_coat_closed_form() {
     for (q, (wi, wo)) in pairs(false).into_iter().enumerate() {
         let b = eng.eval_bidir(wi, wo, 20_000, 3, q as u64);
         let x = exact.eval(wi, wo);
-        for c in 0..3 {
+        for (c, &x) in x.iter().enumerate() {
             let what = format!("pair {q}, channel {c}");
-            assert_z(&what, b.value[c], x[c], b.stderr[c], 4.0, 1e-6 * x[c]);
+            assert_z(&what, b.value[c], x, b.stderr[c], 4.0, 1e-6 * x);
         }
     }
 }
