@@ -95,13 +95,11 @@ pub struct Vertex<L: Lane> {
     pub land_rev: L,
 }
 
-/// Working memory of a walk: the two subpaths' vertices, and the running
-/// products of the weight computation.
+/// Working memory of a walk: the two subpaths' vertices.
 #[derive(Clone, Debug, Default)]
 pub struct Buffers<L: Lane> {
     light: Vec<Vertex<L>>,
     eye: Vec<Vertex<L>>,
-    ratios: Vec<L>,
 }
 
 /// A connection's own values at one end: the vertex's term (value) in the
@@ -411,26 +409,26 @@ impl<L: Lane> BidirWalk<'_, L> {
         if self.n() < 2 {
             return Rgb::zero();
         }
-        let Buffers { light, eye, ratios } = buf;
+        let Buffers { light, eye } = buf;
         self.trace(wi, false, light, &mut draw);
         self.trace(wo, true, eye, &mut draw);
         let mut acc = Rgb::zero();
         for jy in 0..light.len() {
             for jz in 0..eye.len() {
-                let (y, z) = (light[jy], eye[jz]);
-                let m = y.exists & z.exists & !(y.surface & z.surface & y.idx.eq(z.idx));
+                let (y, z) = (&light[jy], &eye[jz]);
+                let m = y.exists & z.exists & share_layer(y, z);
                 if !m.any() {
                     continue;
                 }
                 let path = Path { light, eye, jy, jz };
                 // (s, L): y draws the direction, z is evaluated.
-                let (d, wy, own_y, other_y, ok) = self.sample_end(&y, false, jy == 0, m, &mut draw);
-                let ok = ok & !z.delta;
-                let r = self.reach(&y, &z, d, ok);
+                let (d, wy, own_y, other_y, ok) =
+                    self.sample_end(y, false, jy == 0, m & !z.delta, &mut draw);
+                let r = self.reach(y, z, d, ok);
                 if r.ok.any() {
-                    let ez = self.end(&z, -d, true, jz == 0, r.ok);
+                    let ez = self.end(z, -d, true, jz == 0, r.ok);
                     let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
-                    let g = t.scale(geometry(&y, &z, d));
+                    let g = t.scale(geometry(y, z, d));
                     let conn = Conn {
                         c_l: own_y,
                         c_e: ez.own,
@@ -439,19 +437,19 @@ impl<L: Lane> BidirWalk<'_, L> {
                         land_y: L::select(y.surface, p_nc, p_col),
                         land_z: L::select(z.surface, p_nc, p_col),
                     };
-                    let mis = path.weight(&conn, true, r.ok, ratios);
+                    let mis = path.weight(&conn, true, r.ok);
                     let c = y.beta * wy * g * ez.value * z.beta;
                     acc += Rgb::select(r.ok, c.scale(mis), Rgb::zero());
                 }
                 // (s, E): z draws the direction, y is evaluated.
-                let (o, wz, own_z, other_z, ok) = self.sample_end(&z, true, jz == 0, m, &mut draw);
+                let (o, wz, own_z, other_z, ok) =
+                    self.sample_end(z, true, jz == 0, m & !y.delta, &mut draw);
                 let d = -o;
-                let ok = ok & !y.delta;
-                let r = self.reach(&z, &y, o, ok);
+                let r = self.reach(z, y, o, ok);
                 if r.ok.any() {
-                    let ey = self.end(&y, d, false, jy == 0, r.ok);
+                    let ey = self.end(y, d, false, jy == 0, r.ok);
                     let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
-                    let g = t.scale(geometry(&y, &z, d));
+                    let g = t.scale(geometry(y, z, d));
                     let conn = Conn {
                         c_l: ey.own,
                         c_e: own_z,
@@ -460,7 +458,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                         land_y: L::select(y.surface, p_nc, p_col),
                         land_z: L::select(z.surface, p_nc, p_col),
                     };
-                    let mis = path.weight(&conn, false, r.ok, ratios);
+                    let mis = path.weight(&conn, false, r.ok);
                     let c = y.beta * ey.value * g * wz * z.beta;
                     acc += Rgb::select(r.ok, c.scale(mis), Rgb::zero());
                 }
@@ -468,6 +466,21 @@ impl<L: Lane> BidirWalk<'_, L> {
         }
         acc
     }
+}
+
+/// The lanes where vertices `y` and `z` lie in a common layer (an
+/// interface borders two, a collision is in one) and are not on the same
+/// interface: only there can a direction join them.
+fn share_layer<L: Lane>(y: &Vertex<L>, z: &Vertex<L>) -> L::Mask {
+    let one = L::one();
+    let both = y.surface & z.surface;
+    let apart = (y.idx - z.idx).abs().eq(one);
+    let none = !y.surface & !z.surface;
+    let same = y.idx.eq(z.idx);
+    // One on an interface `i`, the other in layer `l`: `l` is `i − 1` or `i`.
+    let (i, l) = (L::select(y.surface, y.idx, z.idx), L::select(y.surface, z.idx, y.idx));
+    let borders = l.eq(i) | l.eq(i - one);
+    (both & apart) | (none & same) | (!both & !none & borders)
 }
 
 /// The light-sense weight of an eye subpath's interface sample `s` drawn
@@ -603,39 +616,34 @@ impl<L: Lane> Path<'_, L> {
 
     /// The power-heuristic weight of this connection's strategy (`(s, L)`
     /// where `light_draws`, else `(s, E)`), over every strategy of the path
-    /// (lanes `m`). `ratios` is working memory.
-    fn weight(&self, c: &Conn<L>, light_draws: bool, m: L::Mask, ratios: &mut Vec<L>) -> L {
+    /// (lanes `m`): one pass from `s` towards each end, each step one ratio
+    /// of vertex densities (O(n)).
+    fn weight(&self, c: &Conn<L>, light_draws: bool, m: L::Mask) -> L {
         let zero = L::zero();
-        let one = L::one();
         let cap = L::splat(RATIO_CAP);
         let (n, s) = (self.n(), self.jy + 1);
-        // r[k] = R_k / R_s for k = 1 … n − 1 (index k − 1).
-        ratios.clear();
-        ratios.resize(n - 1, one);
+        let mine = if light_draws { c.c_l } else { c.c_e };
+        let inv = L::div_or_zero(L::one(), mine, mine.gt(zero));
+        // Strategy k's share, `r = R_k / R_s` (see the module docs).
+        let term = |k: usize, r: L| {
+            let (c_l, c_e) = self.directions(k, c);
+            let l = (r * c_l * inv).min(cap);
+            let e = (r * c_e * inv).min(cap);
+            L::select(self.delta(k + 1), zero, l * l) + L::select(self.delta(k), zero, e * e)
+        };
+        let mut sum = term(s, L::one());
+        let mut r = L::one();
         for k in s + 1..n {
             let (f, b) = self.densities(k, c);
-            let step = L::div_or_zero(f, b, b.gt(zero));
-            ratios[k - 1] = (ratios[k - 2] * step).min(cap);
+            r = (r * L::div_or_zero(f, b, b.gt(zero))).min(cap);
+            sum += term(k, r);
         }
+        r = L::one();
         for k in (1..s).rev() {
             let (f, b) = self.densities(k + 1, c);
-            let step = L::div_or_zero(b, f, f.gt(zero));
-            ratios[k - 1] = (ratios[k] * step).min(cap);
+            r = (r * L::div_or_zero(b, f, f.gt(zero))).min(cap);
+            sum += term(k, r);
         }
-        let mine = if light_draws { c.c_l } else { c.c_e };
-        let mut sum = zero;
-        for k in 1..n {
-            let (c_l, c_e) = self.directions(k, c);
-            let r = L::div_or_zero(ratios[k - 1], mine, mine.gt(zero));
-            let l = (r * c_l).min(cap);
-            let e = (r * c_e).min(cap);
-            sum += L::select(self.delta(k + 1), zero, l * l);
-            sum += L::select(self.delta(k), zero, e * e);
-        }
-        L::select(
-            m & sum.gt(zero),
-            L::div_or_zero(one, sum, sum.gt(zero)),
-            zero,
-        )
+        L::select(m & sum.gt(zero), L::div_or_zero(L::one(), sum, sum.gt(zero)), zero)
     }
 }
