@@ -45,10 +45,12 @@
 //! → b)`: the η² of refraction and the shading normal's asymmetry included);
 //! collisions need no change, as `σ_s · phase` is reciprocal.
 //!
-//! Not supported: phase functions without a closed form (diffuse SGGX
-//! flakes: their estimated value is no density for the weights), and a cap
-//! on the scattering order (a property of whole paths). `LayeredBsdf`
-//! refuses the first and ignores nothing silently: see `api::strategy`.
+//! A phase function without a closed form (diffuse SGGX flakes) is
+//! evaluated by its unbiased one-sample estimate, on uniforms of its own;
+//! its weights take the isotropic density instead of its own (any function
+//! of the path keeps them a partition of unity). A cap on the scattering
+//! order (`Settings::max_scatter_order`) counts a path's collisions on both
+//! subpaths: a subpath stops past it, a connection beyond it scores nothing.
 
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::{events, Settings};
@@ -93,6 +95,8 @@ pub struct Vertex<L: Lane> {
     pub land: L,
     /// The same along the next segment, from the next vertex.
     pub land_rev: L,
+    /// Collisions among the subpath's vertices up to this one.
+    pub order: L,
 }
 
 /// Working memory of a walk: the two subpaths' vertices.
@@ -185,15 +189,44 @@ impl<L: Lane> BidirWalk<'_, L> {
         }
     }
 
-    /// The phase function of the collision lanes `m` of vertex `v`, from
-    /// the travel direction `d_in` into `d_out`.
-    fn phase(&self, v: &Vertex<L>, d_in: V3<L>, d_out: V3<L>, m: L::Mask) -> L {
+    /// The phase function's density for the weights at the collision
+    /// lanes `m` of vertex `v`, from the travel direction `d_in` into
+    /// `d_out`: its value where it has a closed form, else the isotropic
+    /// density (any function of the path serves the weights; this one is
+    /// positive wherever the phase is).
+    fn phase_density(&self, v: &Vertex<L>, d_in: V3<L>, d_out: V3<L>, m: L::Mask) -> L {
         let mut p = L::zero();
         for (ll, med) in self.media.iter().enumerate() {
             let here = m & v.idx.eq(L::splat(ll as f64));
             if here.any() {
                 let none = (L::zero(), L::zero());
-                p = L::select(here, med.phase.eval(d_in, d_out, none), p);
+                let x = if med.phase.exact() {
+                    med.phase.eval(d_in, d_out, none)
+                } else {
+                    L::splat(std::f64::consts::FRAC_1_PI / 4.0)
+                };
+                p = L::select(here, x, p);
+            }
+        }
+        p
+    }
+
+    /// The phase function's value at the collision lanes `m` of vertex
+    /// `v`: closed form, or an unbiased estimate from uniforms of its own.
+    fn phase_value(
+        &self,
+        v: &Vertex<L>,
+        d_in: V3<L>,
+        d_out: V3<L>,
+        m: L::Mask,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> L {
+        let mut p = L::zero();
+        for (ll, med) in self.media.iter().enumerate() {
+            let here = m & v.idx.eq(L::splat(ll as f64));
+            let e = events::estimate_uniforms(med, || draw(here));
+            if here.any() {
+                p = L::select(here, med.phase.eval(d_in, d_out, e), p);
             }
         }
         p
@@ -203,7 +236,15 @@ impl<L: Lane> BidirWalk<'_, L> {
     /// from it): its value in the light's sense (`eye`: `v` is an eye
     /// vertex, light arrives from `o`), and its densities (`endpoint`: the
     /// subpath's first vertex, which samples transmission only).
-    fn end(&self, v: &Vertex<L>, o: V3<L>, eye: bool, endpoint: bool, m: L::Mask) -> End<L> {
+    fn end(
+        &self,
+        v: &Vertex<L>,
+        o: V3<L>,
+        eye: bool,
+        endpoint: bool,
+        m: L::Mask,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> End<L> {
         let s = m & v.surface;
         let c = m & !v.surface;
         let one = L::one();
@@ -225,11 +266,11 @@ impl<L: Lane> BidirWalk<'_, L> {
             e.own = L::select(s & !v.delta, it.pdf(v.a, o, first), e.own);
             e.other = L::select(s & !v.delta, it.pdf(o, v.a, no), e.other);
         }
+        let p = self.phase_value(v, -v.a, o, c, draw);
         if c.any() {
-            let p = self.phase(v, -v.a, o, c);
             e.value = Rgb::select(c, Rgb::splat(p), e.value);
-            e.own = L::select(c, p, e.own);
-            e.other = L::select(c, self.phase(v, -o, v.a, c), e.other);
+            e.own = L::select(c, self.phase_density(v, -v.a, o, c), e.own);
+            e.other = L::select(c, self.phase_density(v, -o, v.a, c), e.other);
         }
         e
     }
@@ -281,12 +322,11 @@ impl<L: Lane> BidirWalk<'_, L> {
                 continue;
             }
             let d = med.phase.sample(-v.a, u);
-            let none = (zero, zero);
-            let p = med.phase.eval(-v.a, d, none);
+            let p = self.phase_density(v, -v.a, d, here);
             o = V3::select(here, d, o);
             w = Rgb::select(here, Rgb::one(), w);
             own = L::select(here, p, own);
-            other = L::select(here, med.phase.eval(-d, v.a, none), other);
+            other = L::select(here, self.phase_density(v, -d, v.a, here), other);
             ok = ok | (here & p.gt(zero));
         }
         (o, w, own, other, ok)
@@ -322,7 +362,9 @@ impl<L: Lane> BidirWalk<'_, L> {
             other: L::one(),
             land: L::one(),
             land_rev: L::one(),
+            order: zero,
         };
+        let mut order = zero;
         let mut alive = yes;
         loop {
             let endpoint = out.is_empty();
@@ -358,14 +400,14 @@ impl<L: Lane> BidirWalk<'_, L> {
                 if med.kind != LayerKind::Scattering {
                     alive = alive & !events::cross_inert(med, z0, d, m, &mut beta);
                 } else {
-                    let mut order = zero;
                     let fl = events::Flight {
                         z: &mut z,
                         beta: &mut beta,
                         ratios: &mut ratios,
                         order: &mut order,
                     };
-                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), m, None);
+                    let cap = self.settings.max_scatter_order;
+                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), m, cap);
                     alive = alive & !(m & !hit & !pass);
                     col = col | hit;
                 }
@@ -389,6 +431,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                 other: L::one(),
                 land: L::select(col, p_col, p_nc),
                 land_rev: L::one(),
+                order,
             };
             if !alive.any() {
                 break;
@@ -416,7 +459,11 @@ impl<L: Lane> BidirWalk<'_, L> {
         for jy in 0..light.len() {
             for jz in 0..eye.len() {
                 let (y, z) = (&light[jy], &eye[jz]);
-                let m = y.exists & z.exists & share_layer(y, z);
+                let within = match self.settings.max_scatter_order {
+                    Some(k) => (y.order + z.order).le(L::splat(k as f64)),
+                    None => L::Mask::splat(true),
+                };
+                let m = y.exists & z.exists & within & share_layer(y, z);
                 if !m.any() {
                     continue;
                 }
@@ -426,7 +473,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                     self.sample_end(y, false, jy == 0, m & !z.delta, &mut draw);
                 let r = self.reach(y, z, d, ok);
                 if r.ok.any() {
-                    let ez = self.end(z, -d, true, jz == 0, r.ok);
+                    let ez = self.end(z, -d, true, jz == 0, r.ok, &mut draw);
                     let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
                     let g = t.scale(geometry(y, z, d));
                     let conn = Conn {
@@ -447,7 +494,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                 let d = -o;
                 let r = self.reach(z, y, o, ok);
                 if r.ok.any() {
-                    let ey = self.end(y, d, false, jy == 0, r.ok);
+                    let ey = self.end(y, d, false, jy == 0, r.ok, &mut draw);
                     let (t, p_nc, p_col) = self.segment(r.layer, r.dz, d, r.ok);
                     let g = t.scale(geometry(y, z, d));
                     let conn = Conn {
