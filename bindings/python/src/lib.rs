@@ -24,9 +24,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
-    MaterialError as StackMaterialError, Materials, SetError, SetPath, Transport, Vectors,
-    VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
+    LayeredBsdf, MaterialError as StackMaterialError, Materials, SetError, SetPath, Transport,
+    Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -617,6 +617,7 @@ fn build(
     seed: u64,
     transport: &str,
     pdf_samples: u32,
+    estimator: &str,
 ) -> PyResult<Bsdf> {
     check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
     if pdf_samples == 0 {
@@ -625,12 +626,14 @@ fn build(
         ));
     }
     let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
+    let estimator: Estimator = estimator.parse().map_err(PyValueError::new_err)?;
     Ok(Bsdf {
         inner: LayeredBsdf::new(stack)
             .samples(samples)
             .seed(seed)
             .pdf_samples(pdf_samples)
-            .transport(transport),
+            .transport(transport)
+            .estimator(estimator),
     })
 }
 
@@ -641,48 +644,55 @@ impl Bsdf {
     /// `samples` is the number of walks per `eval` query, `seed` seeds every
     /// random stream, `transport` is "radiance" (light flows from `wi` to
     /// `wo`) or "importance" (the adjoint), `pdf_samples` the density walks
-    /// per approximate `pdf` (default 4, the library's). Raises `MaterialError` (a ValueError) naming the layer, the
-    /// field and the value.
+    /// per approximate `pdf` (default 4, the library's), `estimator` the
+    /// estimator of `eval`: "auto" (a closed form where the stack has one,
+    /// the bidirectional walks on stacks of three interfaces or more, the
+    /// unidirectional walks elsewhere), "uni" or "bidir". Raises
+    /// `MaterialError` (a ValueError) naming the layer, the field and the
+    /// value.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
     fn from_toml(
         text: &str,
         samples: u64,
         seed: u64,
         transport: &str,
         pdf_samples: u32,
+        estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples)
+        build(stack, samples, seed, transport, pdf_samples, estimator)
     }
 
     /// A BSDF from a JSON material description; arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
     fn from_json(
         text: &str,
         samples: u64,
         seed: u64,
         transport: &str,
         pdf_samples: u32,
+        estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples)
+        build(stack, samples, seed, transport, pdf_samples, estimator)
     }
 
     /// A BSDF from a material file (`.json` as JSON, anything else as TOML);
     /// arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES))]
+    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
     fn from_path(
         path: std::path::PathBuf,
         samples: u64,
         seed: u64,
         transport: &str,
         pdf_samples: u32,
+        estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples)
+        build(stack, samples, seed, transport, pdf_samples, estimator)
     }
 
     /// The same material and settings in another transport mode
@@ -692,6 +702,27 @@ impl Bsdf {
         Ok(Bsdf {
             inner: self.inner.clone().transport(t),
         })
+    }
+
+    /// The same material and settings with another estimator of `eval`
+    /// ("auto", "uni" or "bidir").
+    fn with_estimator(&self, estimator: &str) -> PyResult<Self> {
+        let e: Estimator = estimator.parse().map_err(PyValueError::new_err)?;
+        Ok(Bsdf {
+            inner: self.inner.clone().estimator(e),
+        })
+    }
+
+    /// The estimator of `eval` as chosen ("auto", "uni" or "bidir").
+    #[getter]
+    fn estimator(&self) -> &'static str {
+        self.inner.estimator_choice().as_str()
+    }
+
+    /// Whether `eval` runs the bidirectional estimator on this material.
+    #[getter]
+    fn bidirectional(&self) -> bool {
+        self.inner.bidirectional()
     }
 
     /// `f(wi, wo)` per RGB channel, without the cosine, and its standard
@@ -963,10 +994,11 @@ impl Bsdf {
             .clone()
             .unwrap_or_else(|| format!("{} interfaces", self.inner.stack().len()));
         format!(
-            "Bsdf({what:?}, samples={}, seed={}, transport={:?})",
+            "Bsdf({what:?}, samples={}, seed={}, transport={:?}, estimator={:?})",
             self.inner.samples_per_eval(),
             self.inner.seed_value(),
-            self.inner.transport_mode().as_str()
+            self.inner.transport_mode().as_str(),
+            self.inner.estimator_choice().as_str()
         )
     }
 }

@@ -89,6 +89,38 @@ def test_eval_and_pdf_bit_identical_to_cli(strata_cli, materials, material, lowe
     assert np.all(f >= 0) and np.any(f > 0)
 
 
+@pytest.mark.parametrize("material", ["coated_copper.toml", "three_interfaces.toml"])
+@pytest.mark.parametrize("estimator", ["uni", "bidir", "auto"])
+def test_estimators_bit_identical_to_cli(strata_cli, materials, material, estimator):
+    path = materials / material
+    rng = np.random.default_rng(3)
+    n, samples, seed = 12, 32, 7
+    wi = fixed_directions(n, rng)
+    wo = fixed_directions(n, rng)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    args = ["eval", "--material", str(path), "--samples", str(samples), "--seed", str(seed), "--estimator", estimator]
+    cli = run_cli(strata_cli, args, lines)
+    bsdf = Bsdf.from_path(path, samples=samples, seed=seed, estimator=estimator)
+    assert bsdf.estimator == estimator
+    # Auto runs the bidirectional walks on three interfaces, not on two.
+    assert bsdf.bidirectional == (estimator == "bidir" or (estimator == "auto" and material.startswith("three")))
+    f, se = bsdf.eval(wi, wo)
+    np.testing.assert_array_equal(f, np.array([c["f"] for c in cli], dtype=np.float64).astype(np.float32))
+    np.testing.assert_array_equal(se, np.array([c["stderr"] for c in cli], dtype=np.float64).astype(np.float32))
+    assert np.all(f >= 0) and np.any(f > 0)
+    other = bsdf.with_estimator("uni" if estimator != "uni" else "bidir")
+    assert other.estimator != estimator and "estimator=" in repr(other)
+
+
+def test_bad_estimator_is_a_value_error_naming_it():
+    with pytest.raises(ValueError, match="unknown estimator \"both\""):
+        Bsdf.from_toml(GLASS, estimator="both")
+    with pytest.raises(ValueError, match="expected auto, uni or bidir"):
+        Bsdf.from_toml(GLASS).with_estimator("")
+
+
 @pytest.mark.parametrize("material", ["coated_copper.toml", "scattering_slab.toml"])
 def test_unbiased_pdf_bit_identical_to_cli(strata_cli, materials, material):
     path = materials / material

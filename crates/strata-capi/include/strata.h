@@ -69,6 +69,23 @@
 #define STRATA_TRANSPORT_IMPORTANCE 1
 
 /**
+ * Estimator of eval: a closed form where the stack has one, the
+ * bidirectional estimator on stacks of three interfaces or more, the
+ * unidirectional one elsewhere (the default).
+ */
+#define STRATA_ESTIMATOR_AUTO 0
+
+/**
+ * Estimator of eval: the unidirectional walks, always.
+ */
+#define STRATA_ESTIMATOR_UNIDIRECTIONAL 1
+
+/**
+ * Estimator of eval: the bidirectional walks, always.
+ */
+#define STRATA_ESTIMATOR_BIDIRECTIONAL 2
+
+/**
  * `StrataSample::flags` bit: the walk left on the side it entered.
  */
 #define STRATA_SAMPLE_REFLECTION 1
@@ -275,6 +292,20 @@ int32_t strata_bsdf_from_path(const char *path,
  * thread uses during the call.
  */
 int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
+
+/**
+ * Chooses the estimator of eval: `STRATA_ESTIMATOR_AUTO` (0, the default:
+ * a closed form where the stack has one, the bidirectional estimator on
+ * stacks of three interfaces or more, the unidirectional one elsewhere),
+ * `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
+ * (2). Configure a BSDF before sharing it: this call must not run while
+ * another thread uses `b`.
+ *
+ * # Safety
+ * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+ * thread uses during the call.
+ */
+int32_t strata_bsdf_set_estimator(struct StrataBsdf *b, uint32_t estimator);
 
 /**
  * Runs the BSDF's large batches on a pool of `threads` threads of its own

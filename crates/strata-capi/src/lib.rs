@@ -32,8 +32,8 @@ use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, LayerStack, LayeredBsdf,
-    Materials, SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
+    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
+    LayeredBsdf, Materials, SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -66,6 +66,14 @@ pub const STRATA_TRANSPORT_RADIANCE: u32 = 0;
 /// Transport mode: importance flows from `wi` to `wo` (`wi` points to the
 /// viewer): `eval` is the adjoint `f(wo -> wi)`.
 pub const STRATA_TRANSPORT_IMPORTANCE: u32 = 1;
+/// Estimator of eval: a closed form where the stack has one, the
+/// bidirectional estimator on stacks of three interfaces or more, the
+/// unidirectional one elsewhere (the default).
+pub const STRATA_ESTIMATOR_AUTO: u32 = 0;
+/// Estimator of eval: the unidirectional walks, always.
+pub const STRATA_ESTIMATOR_UNIDIRECTIONAL: u32 = 1;
+/// Estimator of eval: the bidirectional walks, always.
+pub const STRATA_ESTIMATOR_BIDIRECTIONAL: u32 = 2;
 
 /// `StrataSample::flags` bit: the walk left on the side it entered.
 pub const STRATA_SAMPLE_REFLECTION: u32 = 1;
@@ -594,6 +602,41 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
             }
         };
         b.inner = b.inner.clone().transport(t);
+        Ok(())
+    })
+}
+
+/// Chooses the estimator of eval: `STRATA_ESTIMATOR_AUTO` (0, the default:
+/// a closed form where the stack has one, the bidirectional estimator on
+/// stacks of three interfaces or more, the unidirectional one elsewhere),
+/// `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
+/// (2). Configure a BSDF before sharing it: this call must not run while
+/// another thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator: u32) -> i32 {
+    guard("strata_bsdf_set_estimator", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread, so this is the only reference to it.
+        let b = match unsafe { b.as_mut() } {
+            Some(b) => b,
+            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+        };
+        let e = match estimator {
+            STRATA_ESTIMATOR_AUTO => Estimator::Auto,
+            STRATA_ESTIMATOR_UNIDIRECTIONAL => Estimator::Unidirectional,
+            STRATA_ESTIMATOR_BIDIRECTIONAL => Estimator::Bidirectional,
+            _ => {
+                return Err(Failure::invalid(format!(
+                    "estimator = {estimator}: expected 0 (STRATA_ESTIMATOR_AUTO), 1 \
+                     (STRATA_ESTIMATOR_UNIDIRECTIONAL) or 2 (STRATA_ESTIMATOR_BIDIRECTIONAL)"
+                )))
+            }
+        };
+        b.inner = b.inner.clone().estimator(e);
         Ok(())
     })
 }

@@ -8,7 +8,8 @@ use glam::Vec3;
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
 use strata_bsdf::{
-    AlbedoRecord, EvalRecord, LayerStack, LayeredBsdf, SampleRecord, Transport, Vectors, VectorsMut,
+    AlbedoRecord, Estimator, EvalRecord, LayerStack, LayeredBsdf, SampleRecord, Transport, Vectors,
+    VectorsMut,
 };
 use strata_capi::*;
 
@@ -827,4 +828,58 @@ fn info_describes_the_stack() {
         assert_eq!(last_error(), "strata_bsdf_info: out is NULL");
         assert_eq!(strata_bsdf_info(null(), &mut info), STRATA_ERR_NULL);
     }
+}
+
+#[test]
+fn the_estimator_is_the_rust_apis() {
+    // Three interfaces: `Auto` runs the bidirectional estimator there.
+    let three = r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.8, roughness = 0.3 }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.7 }
+    "#;
+    let wi = [[0.2f32, 0.1, 0.9], [0.5, 0.0, 0.6]];
+    let wo = [[-0.3f32, 0.0, 0.8], [0.0, 0.4, 0.7]];
+    for (code, est) in [
+        (STRATA_ESTIMATOR_AUTO, Estimator::Auto),
+        (STRATA_ESTIMATOR_UNIDIRECTIONAL, Estimator::Unidirectional),
+        (STRATA_ESTIMATOR_BIDIRECTIONAL, Estimator::Bidirectional),
+    ] {
+        let c = Capi::toml(three, 64, 3);
+        // SAFETY: `c.0` is a live BSDF used by this thread only.
+        assert_eq!(unsafe { strata_bsdf_set_estimator(c.0, code) }, STRATA_OK);
+        let r = rust(three, 64, 3).estimator(est);
+        let mut want = vec![EvalRecord::default(); 2];
+        r.eval_records(Vectors::Aos(&wi), Vectors::Aos(&wo), None, &mut want)
+            .unwrap();
+        let mut f = [0.0f32; 6];
+        // SAFETY: two queries: 6 floats each.
+        let status = unsafe {
+            strata_eval_batch(
+                c.0,
+                2,
+                flat(&wi).as_ptr(),
+                flat(&wo).as_ptr(),
+                f.as_mut_ptr(),
+                null_mut(),
+            )
+        };
+        assert_eq!(status, STRATA_OK);
+        assert_eq!(bits(&f[..3]), bits(&want[0].f), "{est:?}");
+        assert_eq!(bits(&f[3..]), bits(&want[1].f), "{est:?}");
+    }
+    let c = Capi::toml(three, 64, 3);
+    // SAFETY: as above.
+    assert_eq!(
+        unsafe { strata_bsdf_set_estimator(c.0, 3) },
+        STRATA_ERR_INVALID_ARGUMENT
+    );
+    assert_eq!(
+        last_error(),
+        "strata_bsdf_set_estimator: estimator = 3: expected 0 (STRATA_ESTIMATOR_AUTO), 1 \
+         (STRATA_ESTIMATOR_UNIDIRECTIONAL) or 2 (STRATA_ESTIMATOR_BIDIRECTIONAL)"
+    );
 }

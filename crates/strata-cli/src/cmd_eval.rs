@@ -41,8 +41,10 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Estimator: auto (a closed form where the stack has one, the walks
-    /// elsewhere) or uni (always the unidirectional walks).
+    /// Estimator: auto (a closed form where the stack has one, the
+    /// bidirectional walks on stacks of three interfaces or more, the
+    /// unidirectional walks elsewhere), uni (always the unidirectional
+    /// walks) or bidir (always the bidirectional walks).
     #[arg(long, default_value = "auto")]
     estimator: strata_bsdf::Estimator,
     /// Where the walks start: from whichever of wi and wo is nearer the

@@ -288,6 +288,17 @@ impl LayeredBsdf {
         control_variate_for(self.estimator, stack, &self.settings)
     }
 
+    /// Whether `eval` runs the bidirectional estimator (the estimator is
+    /// [`Estimator::Bidirectional`], or `Auto` on a stack where it pays).
+    pub fn bidirectional(&self) -> bool {
+        self.estimator.is_bidirectional_for(self.stack())
+    }
+
+    /// The estimator of `eval`.
+    pub fn estimator_choice(&self) -> Estimator {
+        self.estimator
+    }
+
     /// Whether `eval` is answered by a closed form (the stack has one and the
     /// estimator is [`Estimator::Auto`]): exact values, standard error 0.
     pub fn eval_is_exact(&self) -> bool {
@@ -626,9 +637,13 @@ impl LayeredBsdf {
             out(k, self.scaled(self.stack_in(per, k), e, a, b, swapped));
         };
         let serial = self.serial();
+        let (sets, seed) = (per.sets(), self.seed);
         self.install(n, samples, || {
-            self.wave
-                .eval_each(per.sets(), n, walked, samples, self.seed, serial, finish)
+            if self.bidirectional() {
+                (self.wave).eval_bidir_each(sets, n, walked, samples, seed, serial, finish)
+            } else {
+                (self.wave).eval_each(sets, n, walked, samples, seed, serial, finish);
+            }
         });
     }
 
@@ -647,7 +662,12 @@ impl LayeredBsdf {
         }
         let s = self.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
-        let e = self.scalar_in(per, k).eval(x, y, samples, self.seed, key);
+        let eng = self.scalar_in(per, k);
+        let e = if self.bidirectional() {
+            eng.eval_bidir(x, y, samples, self.seed, key)
+        } else {
+            eng.eval(x, y, samples, self.seed, key)
+        };
         self.scaled(stack, e, a, b, s)
     }
 

@@ -525,7 +525,10 @@ fn share_layer<L: Lane>(y: &Vertex<L>, z: &Vertex<L>) -> L::Mask {
     let none = !y.surface & !z.surface;
     let same = y.idx.eq(z.idx);
     // One on an interface `i`, the other in layer `l`: `l` is `i − 1` or `i`.
-    let (i, l) = (L::select(y.surface, y.idx, z.idx), L::select(y.surface, z.idx, y.idx));
+    let (i, l) = (
+        L::select(y.surface, y.idx, z.idx),
+        L::select(y.surface, z.idx, y.idx),
+    );
     let borders = l.eq(i) | l.eq(i - one);
     (both & apart) | (none & same) | (!both & !none & borders)
 }
@@ -691,6 +694,10 @@ impl<L: Lane> Path<'_, L> {
             r = (r * L::div_or_zero(b, f, f.gt(zero))).min(cap);
             sum += term(k, r);
         }
-        L::select(m & sum.gt(zero), L::div_or_zero(L::one(), sum, sum.gt(zero)), zero)
+        L::select(
+            m & sum.gt(zero),
+            L::div_or_zero(L::one(), sum, sum.gt(zero)),
+            zero,
+        )
     }
 }

@@ -64,6 +64,8 @@ int main(void) {
            "b is NULL", NULL);
     expect("transport, NULL b", strata_bsdf_set_transport(NULL, 0), STRATA_ERR_NULL,
            "b is NULL", NULL);
+    expect("estimator, NULL b", strata_bsdf_set_estimator(NULL, 0), STRATA_ERR_NULL,
+           "b is NULL", NULL);
     expect("NULL b even with n = 0", strata_eval_batch(NULL, 0, NULL, NULL, NULL, NULL),
            STRATA_ERR_NULL, "b is NULL", NULL);
     expect("keyed, NULL b and keys", strata_eval_batch_keyed(NULL, 4, wi, wo, NULL, f, NULL),
@@ -164,6 +166,8 @@ int main(void) {
            STRATA_ERR_INVALID_ARGUMENT, "walks = 0", NULL);
     expect("transport 7", strata_bsdf_set_transport(b, 7), STRATA_ERR_INVALID_ARGUMENT,
            "mode = 7", NULL);
+    expect("estimator 3", strata_bsdf_set_estimator(b, 3), STRATA_ERR_INVALID_ARGUMENT,
+           "estimator = 3", NULL);
     expect("overlapping arrays", strata_eval_batch(b, 4, wi, wo, (float *)wi, NULL),
            STRATA_ERR_INVALID_ARGUMENT, "wi and f_out overlap", NULL);
     char raw[64];
