@@ -40,11 +40,13 @@ pub struct Args {
     #[arg(long)]
     out: Option<PathBuf>,
     /// Run a built-in suite of stacks instead of --material: `docs` (the
-    /// five stacks of docs/results.md).
+    /// seven stacks of docs/results.md).
     #[arg(long)]
     suite: Option<String>,
-    /// Comma-separated estimators: scalar, brute, brute:DEG (bin half-angle).
-    /// Default: every estimator available.
+    /// Comma-separated estimators: scalar, wavefront, wavefront-mt, bidir,
+    /// bidir-wavefront, bidir-wavefront-mt, brute, brute:DEG (bin
+    /// half-angle). Default: scalar, wavefront, bidir, bidir-wavefront,
+    /// brute.
     #[arg(long, value_delimiter = ',')]
     estimators: Option<Vec<String>>,
     /// Directory of cached references.
@@ -62,8 +64,11 @@ pub struct Args {
     seed: u64,
 }
 
-/// The stacks of `--suite docs`: name, one-line description, material (TOML).
-pub const DOCS_SUITE: &[(&str, &str, &str)] = &[
+/// The stacks of `--suite docs`: name, one-line description, material
+/// (TOML), and the reference estimator (`auto`: `converge::reference_for`,
+/// the estimator `Estimator::Auto` runs there; else a name
+/// `EstimatorKind::parse` takes).
+pub const DOCS_SUITE: &[(&str, &str, &str, &str)] = &[
     (
         "clear-coat",
         "smooth dielectric (IOR 1.5) over a coloured Lambertian base: closed-form reference",
@@ -73,6 +78,7 @@ interface = { kind = "dielectric", ior = 1.5 }
 [[layers]]
 interface = { kind = "diffuse", albedo = [0.8, 0.45, 0.2] }
 "#,
+        "auto",
     ),
     (
         "coated-conductor",
@@ -84,6 +90,7 @@ medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
 [[layers]]
 interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
 "#,
+        "auto",
     ),
     (
         "scattering-varnish",
@@ -95,6 +102,7 @@ medium = { thickness = 0.3, sigma_t = 2.0, albedo = [0.9, 0.85, 0.7], phase = { 
 [[layers]]
 interface = { kind = "diffuse", albedo = [0.55, 0.33, 0.15] }
 "#,
+        "auto",
     ),
     (
         "thick-scattering",
@@ -106,6 +114,7 @@ medium = { thickness = 1.0, sigma_t = 10.0, albedo = 0.99, phase = { kind = "hg"
 [[layers]]
 interface = { kind = "diffuse", albedo = 0.5 }
 "#,
+        "auto",
     ),
     (
         "transmissive-slab",
@@ -117,6 +126,33 @@ medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.9, phase = { k
 [[layers]]
 interface = { kind = "dielectric", ior = 1.0, roughness = 0.2 }
 "#,
+        "auto",
+    ),
+    (
+        "three-interfaces",
+        "rough coat (α 0.1) over a tinted absorber, an anisotropic rough boundary (α 0.3/0.15) into a scattering film (IOR 2), rough gold (Beckmann α 0.15)",
+        r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
+medium = { thickness = 0.2, sigma_t = [0.5, 0.3, 0.1], albedo = 0.0 }
+[[layers]]
+interface = { kind = "dielectric", ior = 2.0, roughness = [0.3, 0.15] }
+medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.8, phase = { kind = "isotropic" } }
+[[layers]]
+interface = { kind = "conductor", preset = "Au", roughness = 0.15, distribution = "beckmann" }
+"#,
+        "auto",
+    ),
+    (
+        "near-specular",
+        "near-specular coat (α 0.01) over near-specular copper (α 0.02): the unidirectional estimator is heavy-tailed here, so the reference is bidirectional",
+        r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.01 }
+[[layers]]
+interface = { kind = "conductor", preset = "Cu", roughness = 0.02 }
+"#,
+        "bidir-wavefront-mt",
     ),
 ];
 
@@ -183,13 +219,17 @@ pub fn run(args: Args) -> Result<(), String> {
     cfg.reference_spec.max_seconds = args.reference_seconds;
     cfg.seed = args.seed;
 
-    let mut jobs: Vec<(String, String, LayerStack)> = Vec::new();
+    let mut jobs: Vec<(String, String, LayerStack, EstimatorKind)> = Vec::new();
     let out = match args.suite.as_deref() {
         Some("docs") => {
-            for (name, what, toml) in DOCS_SUITE {
+            for (name, what, toml, reference) in DOCS_SUITE {
                 let st = LayerStack::from_toml_str(toml)
                     .map_err(|e| format!("built-in stack {name}: {e}"))?;
-                jobs.push((name.to_string(), what.to_string(), st));
+                let r = match *reference {
+                    "auto" => converge::reference_for(&st),
+                    other => EstimatorKind::parse(other)?,
+                };
+                jobs.push((name.to_string(), what.to_string(), st, r));
             }
             args.out
                 .clone()
@@ -203,7 +243,8 @@ pub fn run(args: Args) -> Result<(), String> {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "material".into());
-            jobs.push((name, path.display().to_string(), st));
+            let r = converge::reference_for(&st);
+            jobs.push((name, path.display().to_string(), st, r));
             args.out
                 .clone()
                 .unwrap_or_else(|| PathBuf::from("out/converge"))
@@ -215,7 +256,7 @@ pub fn run(args: Args) -> Result<(), String> {
                 .map_err(|e| format!("--queries {}: cannot read: {e}", p.display()))?;
             let qs = QuerySet::parse_json_lines(&text)
                 .map_err(|e| format!("--queries {}: {e}", p.display()))?;
-            for (name, _, st) in &jobs {
+            for (name, _, st, _) in &jobs {
                 check_queries_see(&text, name, st)
                     .map_err(|e| format!("--queries {}: {e}", p.display()))?;
             }
@@ -227,7 +268,7 @@ pub fn run(args: Args) -> Result<(), String> {
     // Every output location is checked before the work.
     prepare_dir("--out", &out)?;
     let mut targets: Vec<PathBuf> = Vec::new();
-    for (name, _, _) in &jobs {
+    for (name, _, _, _) in &jobs {
         for suffix in [".csv", "-reference.csv", ".md", ".png"] {
             targets.push(out.join(format!("{name}{suffix}")));
         }
@@ -246,7 +287,8 @@ pub fn run(args: Args) -> Result<(), String> {
     let bars = Bars::new();
     let mut summaries = Vec::new();
     let mut staged = Vec::new();
-    for (name, what, st) in &jobs {
+    for (name, what, st, reference) in &jobs {
+        cfg.reference = *reference;
         let qs = queries.clone().unwrap_or_else(|| QuerySet::default_for(st));
         let bins = cfg.bin_half_angles(st);
         let ref_name = cfg.reference.build(st, cfg.settings).name();

@@ -265,6 +265,16 @@ pub enum EstimatorKind {
         /// Threads of its own pool; `None` runs on the current rayon pool.
         threads: Option<usize>,
     },
+    /// The position-free bidirectional estimator (`estimator::bidir`) on
+    /// the scalar engine.
+    Bidirectional,
+    /// The bidirectional estimator on the SIMD wavefront engine (one walk
+    /// per lane): on one thread (`Some(1)`) or on the current pool (`None`).
+    /// Its walks are the scalar row's.
+    BidirectionalWavefront {
+        /// Threads of its own pool; `None` runs on the current rayon pool.
+        threads: Option<usize>,
+    },
     /// The position-based baseline with cone bins of this half-angle.
     BruteForce {
         /// Half-angle of the bins, degrees.
@@ -277,6 +287,8 @@ pub enum EstimatorKind {
 pub const ESTIMATORS: &[EstimatorKind] = &[
     EstimatorKind::Scalar,
     EstimatorKind::Wavefront { threads: Some(1) },
+    EstimatorKind::Bidirectional,
+    EstimatorKind::BidirectionalWavefront { threads: Some(1) },
     EstimatorKind::BruteForce {
         half_angle_deg: 5.0,
     },
@@ -285,6 +297,17 @@ pub const ESTIMATORS: &[EstimatorKind] = &[
 /// The estimator long-run references use (it must be unbiased; the fastest
 /// one is the best choice): the wavefront engine on the current pool.
 pub const REFERENCE_ESTIMATOR: EstimatorKind = EstimatorKind::Wavefront { threads: None };
+
+/// The reference estimator for `stack`: the estimator `Estimator::Auto`
+/// runs there (bidirectional on three interfaces or more), on the wavefront
+/// engine on the current pool.
+pub fn reference_for(stack: &LayerStack) -> EstimatorKind {
+    if strata_bsdf::Estimator::bidirectional_pays(stack) {
+        EstimatorKind::BidirectionalWavefront { threads: None }
+    } else {
+        REFERENCE_ESTIMATOR
+    }
+}
 
 impl EstimatorKind {
     /// The estimator for `stack`.
@@ -302,6 +325,20 @@ impl EstimatorKind {
                         .expect("a thread pool")
                 }),
             }),
+            EstimatorKind::Bidirectional => Box::new(BidirEstimator {
+                eng: ScalarEngine::new(stack, settings),
+            }),
+            EstimatorKind::BidirectionalWavefront { threads } => Box::new(BidirWavefrontEstimator {
+                wf: WavefrontEstimator {
+                    wf: Wavefront::new(stack, settings, Plan::Specialized),
+                    pool: threads.map(|n| {
+                        rayon::ThreadPoolBuilder::new()
+                            .num_threads(n)
+                            .build()
+                            .expect("a thread pool")
+                    }),
+                },
+            }),
             EstimatorKind::BruteForce { half_angle_deg } => Box::new(BruteEstimator {
                 bf: BruteForce::new(
                     stack,
@@ -315,7 +352,8 @@ impl EstimatorKind {
         }
     }
 
-    /// `scalar`, `brute` (5° bins) or `brute:DEG`.
+    /// `scalar`, `wavefront`, `wavefront-mt`, `bidir`, `bidir-wavefront`,
+    /// `bidir-wavefront-mt`, `brute` (5° bins) or `brute:DEG`.
     pub fn parse(s: &str) -> Result<Self, String> {
         let s = s.trim();
         if s == "scalar" {
@@ -326,6 +364,15 @@ impl EstimatorKind {
         }
         if s == "wavefront-mt" {
             return Ok(EstimatorKind::Wavefront { threads: None });
+        }
+        if s == "bidir" {
+            return Ok(EstimatorKind::Bidirectional);
+        }
+        if s == "bidir-wavefront" {
+            return Ok(EstimatorKind::BidirectionalWavefront { threads: Some(1) });
+        }
+        if s == "bidir-wavefront-mt" {
+            return Ok(EstimatorKind::BidirectionalWavefront { threads: None });
         }
         if s == "brute" {
             return Ok(EstimatorKind::BruteForce {
@@ -344,7 +391,8 @@ impl EstimatorKind {
             return Ok(EstimatorKind::BruteForce { half_angle_deg: v });
         }
         Err(format!(
-            "unknown estimator {s:?} (known: scalar, wavefront, wavefront-mt, brute, brute:DEG)"
+            "unknown estimator {s:?} (known: scalar, wavefront, wavefront-mt, bidir, \
+             bidir-wavefront, bidir-wavefront-mt, brute, brute:DEG)"
         ))
     }
 }
@@ -440,6 +488,96 @@ impl Estimator for WavefrontEstimator {
             }
         };
         match &self.pool {
+            Some(p) => p.install(go),
+            None => go(),
+        }
+    }
+}
+
+/// The albedo of the bidirectional rows: `sample()`'s analog walks, as the
+/// unidirectional rows compute it (the bidirectional estimator is one of
+/// `f`), so that their albedo columns are the unidirectional ones.
+struct BidirEstimator {
+    eng: ScalarEngine<f32>,
+}
+
+impl Estimator for BidirEstimator {
+    fn name(&self) -> String {
+        "bidir".into()
+    }
+    fn description(&self) -> String {
+        "position-free, bidirectional, scalar reference (albedo: analog walks)".into()
+    }
+    fn start_samples(&self) -> u64 {
+        16
+    }
+    fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
+        let t = Instant::now();
+        let f =
+            qs.f.iter()
+                .enumerate()
+                .map(|(j, q)| self.eng.eval_bidir(q.wi, q.wo, samples, seed, j as u64))
+                .collect();
+        let time_f = t.elapsed().as_secs_f64();
+        let t2 = Instant::now();
+        let albedo = qs
+            .albedo
+            .iter()
+            .enumerate()
+            .map(|(j, &wi)| self.eng.albedo(wi, samples, seed, ALBEDO_KEY + j as u64))
+            .collect();
+        Run {
+            samples,
+            f,
+            albedo,
+            time_f,
+            time_albedo: t2.elapsed().as_secs_f64(),
+            time: t.elapsed().as_secs_f64(),
+            lost_weight: 0.0,
+        }
+    }
+}
+
+struct BidirWavefrontEstimator {
+    wf: WavefrontEstimator,
+}
+
+impl Estimator for BidirWavefrontEstimator {
+    fn name(&self) -> String {
+        format!("bidir-{}", self.wf.name())
+    }
+    fn description(&self) -> String {
+        self.wf
+            .description()
+            .replace("unidirectional", "bidirectional")
+            + " (albedo: analog walks)"
+    }
+    fn start_samples(&self) -> u64 {
+        16
+    }
+    fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
+        let go = || {
+            let t = Instant::now();
+            let pairs: Vec<_> = qs.f.iter().map(|q| (q.wi, q.wo)).collect();
+            let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+            let f = self.wf.wf.eval_bidir_batch(&pairs, samples, seed, &keys);
+            let time_f = t.elapsed().as_secs_f64();
+            let t2 = Instant::now();
+            let keys: Vec<u64> = (0..qs.albedo.len() as u64)
+                .map(|j| ALBEDO_KEY + j)
+                .collect();
+            let albedo = self.wf.wf.albedo_batch(&qs.albedo, samples, seed, &keys).0;
+            Run {
+                samples,
+                f,
+                albedo,
+                time_f,
+                time_albedo: t2.elapsed().as_secs_f64(),
+                time: t.elapsed().as_secs_f64(),
+                lost_weight: 0.0,
+            }
+        };
+        match &self.wf.pool {
             Some(p) => p.install(go),
             None => go(),
         }
