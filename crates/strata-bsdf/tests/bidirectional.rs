@@ -456,3 +456,31 @@ fn api_estimators_agree_on_a_tilted_stack_in_both_modes() {
         }
     }
 }
+
+/// `Auto`'s rule: the bidirectional estimator on three interfaces or more,
+/// and on a near-specular rough coat over a rough conductor; the
+/// unidirectional one on every other stack of this file.
+#[test]
+fn auto_picks_by_the_measured_rule() {
+    use strata_bsdf::api::NEAR_SPECULAR_ALPHA as A;
+    use strata_bsdf::Estimator;
+    let coated = |top: f64, base: f64| {
+        stack(&format!(
+            "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = 1.5, roughness = {top} }}\n\
+             [[layers]]\ninterface = {{ kind = \"conductor\", preset = \"Cu\", roughness = {base} }}\n"
+        ))
+    };
+    assert!(Estimator::bidirectional_pays(&coated(0.01, 0.02)));
+    assert!(Estimator::bidirectional_pays(&coated(A, A)));
+    assert!(!Estimator::bidirectional_pays(&coated(0.01, 2.0 * A)));
+    assert!(!Estimator::bidirectional_pays(&coated(0.1, 0.2)));
+    for (name, toml) in STACKS.iter().chain(RULE_STACKS).chain(NEAR_SPECULAR) {
+        let st = stack(toml);
+        let near_coated_conductor = name.starts_with("near-specular: coat");
+        let want = st.len() >= 3 || near_coated_conductor;
+        assert_eq!(Estimator::bidirectional_pays(&st), want, "{name}");
+        assert_eq!(Estimator::Auto.is_bidirectional_for(&st), want, "{name}");
+        assert!(Estimator::Bidirectional.is_bidirectional_for(&st));
+        assert!(!Estimator::Unidirectional.is_bidirectional_for(&st));
+    }
+}

@@ -70,7 +70,7 @@
 
 /**
  * Estimator of eval: a closed form where the stack has one, the
- * bidirectional estimator on stacks of three interfaces or more, the
+ * bidirectional estimator on stacks of three interfaces or more and near-specular coated conductors, the
  * unidirectional one elsewhere (the default).
  */
 #define STRATA_ESTIMATOR_AUTO 0
@@ -296,7 +296,7 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
 /**
  * Chooses the estimator of eval: `STRATA_ESTIMATOR_AUTO` (0, the default:
  * a closed form where the stack has one, the bidirectional estimator on
- * stacks of three interfaces or more, the unidirectional one elsewhere),
+ * stacks of three interfaces or more and near-specular coated conductors, the unidirectional one elsewhere),
  * `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
  * (2). Configure a BSDF before sharing it: this call must not run while
  * another thread uses `b`.
@@ -305,7 +305,8 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
  * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
  * thread uses during the call.
  */
-int32_t strata_bsdf_set_estimator(struct StrataBsdf *b, uint32_t estimator);
+int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
+                                  uint32_t estimator);
 
 /**
  * Runs the BSDF's large batches on a pool of `threads` threads of its own

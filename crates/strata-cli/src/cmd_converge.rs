@@ -65,10 +65,9 @@ pub struct Args {
 }
 
 /// The stacks of `--suite docs`: name, one-line description, material
-/// (TOML), and the reference estimator (`auto`: `converge::reference_for`,
-/// the estimator `Estimator::Auto` runs there; else a name
-/// `EstimatorKind::parse` takes).
-pub const DOCS_SUITE: &[(&str, &str, &str, &str)] = &[
+/// (TOML). Each one's reference is `converge::reference_for`'s: the
+/// estimator `Estimator::Auto` runs there.
+pub const DOCS_SUITE: &[(&str, &str, &str)] = &[
     (
         "clear-coat",
         "smooth dielectric (IOR 1.5) over a coloured Lambertian base: closed-form reference",
@@ -78,7 +77,6 @@ interface = { kind = "dielectric", ior = 1.5 }
 [[layers]]
 interface = { kind = "diffuse", albedo = [0.8, 0.45, 0.2] }
 "#,
-        "auto",
     ),
     (
         "coated-conductor",
@@ -90,7 +88,6 @@ medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
 [[layers]]
 interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
 "#,
-        "auto",
     ),
     (
         "scattering-varnish",
@@ -102,7 +99,6 @@ medium = { thickness = 0.3, sigma_t = 2.0, albedo = [0.9, 0.85, 0.7], phase = { 
 [[layers]]
 interface = { kind = "diffuse", albedo = [0.55, 0.33, 0.15] }
 "#,
-        "auto",
     ),
     (
         "thick-scattering",
@@ -114,7 +110,6 @@ medium = { thickness = 1.0, sigma_t = 10.0, albedo = 0.99, phase = { kind = "hg"
 [[layers]]
 interface = { kind = "diffuse", albedo = 0.5 }
 "#,
-        "auto",
     ),
     (
         "transmissive-slab",
@@ -126,7 +121,6 @@ medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.9, phase = { k
 [[layers]]
 interface = { kind = "dielectric", ior = 1.0, roughness = 0.2 }
 "#,
-        "auto",
     ),
     (
         "three-interfaces",
@@ -141,7 +135,6 @@ medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.8, phase = { kind = "isotr
 [[layers]]
 interface = { kind = "conductor", preset = "Au", roughness = 0.15, distribution = "beckmann" }
 "#,
-        "auto",
     ),
     (
         "near-specular",
@@ -152,7 +145,6 @@ interface = { kind = "dielectric", ior = 1.5, roughness = 0.01 }
 [[layers]]
 interface = { kind = "conductor", preset = "Cu", roughness = 0.02 }
 "#,
-        "bidir-wavefront-mt",
     ),
 ];
 
@@ -222,13 +214,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut jobs: Vec<(String, String, LayerStack, EstimatorKind)> = Vec::new();
     let out = match args.suite.as_deref() {
         Some("docs") => {
-            for (name, what, toml, reference) in DOCS_SUITE {
+            for (name, what, toml) in DOCS_SUITE {
                 let st = LayerStack::from_toml_str(toml)
                     .map_err(|e| format!("built-in stack {name}: {e}"))?;
-                let r = match *reference {
-                    "auto" => converge::reference_for(&st),
-                    other => EstimatorKind::parse(other)?,
-                };
+                let r = converge::reference_for(&st);
                 jobs.push((name.to_string(), what.to_string(), st, r));
             }
             args.out

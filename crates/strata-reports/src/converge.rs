@@ -299,7 +299,8 @@ pub const ESTIMATORS: &[EstimatorKind] = &[
 pub const REFERENCE_ESTIMATOR: EstimatorKind = EstimatorKind::Wavefront { threads: None };
 
 /// The reference estimator for `stack`: the estimator `Estimator::Auto`
-/// runs there (bidirectional on three interfaces or more), on the wavefront
+/// runs there (bidirectional on three interfaces or more and on
+/// near-specular coated conductors), on the wavefront
 /// engine on the current pool.
 pub fn reference_for(stack: &LayerStack) -> EstimatorKind {
     if strata_bsdf::Estimator::bidirectional_pays(stack) {
@@ -328,17 +329,19 @@ impl EstimatorKind {
             EstimatorKind::Bidirectional => Box::new(BidirEstimator {
                 eng: ScalarEngine::new(stack, settings),
             }),
-            EstimatorKind::BidirectionalWavefront { threads } => Box::new(BidirWavefrontEstimator {
-                wf: WavefrontEstimator {
-                    wf: Wavefront::new(stack, settings, Plan::Specialized),
-                    pool: threads.map(|n| {
-                        rayon::ThreadPoolBuilder::new()
-                            .num_threads(n)
-                            .build()
-                            .expect("a thread pool")
-                    }),
-                },
-            }),
+            EstimatorKind::BidirectionalWavefront { threads } => {
+                Box::new(BidirWavefrontEstimator {
+                    wf: WavefrontEstimator {
+                        wf: Wavefront::new(stack, settings, Plan::Specialized),
+                        pool: threads.map(|n| {
+                            rayon::ThreadPoolBuilder::new()
+                                .num_threads(n)
+                                .build()
+                                .expect("a thread pool")
+                        }),
+                    },
+                })
+            }
             EstimatorKind::BruteForce { half_angle_deg } => Box::new(BruteEstimator {
                 bf: BruteForce::new(
                     stack,

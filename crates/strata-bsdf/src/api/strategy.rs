@@ -37,6 +37,13 @@ impl std::str::FromStr for EvalStart {
     }
 }
 
+/// The largest roughness (GGX or Beckmann α) of a near-specular coat and
+/// conductor for which `Estimator::Auto` runs the bidirectional estimator
+/// on a two-interface stack ([`Estimator::bidirectional_pays`]): measured
+/// 22× the unidirectional estimator's efficiency at α 0.01 over 0.02, 1.4×
+/// at 0.05 over 0.1, 0.85× at 0.1 over 0.2 (docs/results.md).
+pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
+
 /// Which estimator answers `eval`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Estimator {
@@ -50,9 +57,9 @@ pub enum Estimator {
     /// (unbiased), where the medium scatters little against what the base
     /// reflects (`SmoothCoatLambertian::control_variate_pays`, the rule under
     /// which it measured lower variance: docs/performance.md); the
-    /// bidirectional estimator on stacks of three interfaces or more
-    /// ([`Estimator::bidirectional_pays`]); the unidirectional estimator
-    /// elsewhere. The default.
+    /// bidirectional estimator on stacks of three interfaces or more and on
+    /// near-specular coated conductors ([`Estimator::bidirectional_pays`]);
+    /// the unidirectional estimator elsewhere. The default.
     #[default]
     Auto,
     /// The unidirectional random-walk estimator, always (method.md §4).
@@ -64,15 +71,36 @@ pub enum Estimator {
 
 impl Estimator {
     /// Whether `Auto` answers `stack`'s eval with the bidirectional
-    /// estimator: on stacks of three interfaces or more, where vertices
-    /// below the exit's layer reach the viewer only through continuations
-    /// in the unidirectional estimator. Measured on the wavefront engine,
-    /// one thread (docs/results.md, *Which estimator wins*): on five stacks
-    /// of three or four interfaces the bidirectional estimator's efficiency
-    /// was 1.6–8.9× the unidirectional one's (median over direction pairs);
-    /// on eleven stacks of two, 0.02–0.27×.
+    /// estimator:
+    /// * on stacks of three interfaces or more, where vertices below the
+    ///   exit's layer reach the viewer only through continuations in the
+    ///   unidirectional estimator;
+    /// * on a near-specular rough coat over a rough conductor (both
+    ///   roughnesses at most [`NEAR_SPECULAR_ALPHA`]), where the
+    ///   unidirectional estimator evaluates one narrow lobe at directions
+    ///   sampled from another and is heavy-tailed (its standard errors
+    ///   then understate its error).
+    ///
+    /// Measured with `strata converge` on the wavefront engine, one thread
+    /// (docs/results.md, *Which estimator wins*). It is decided on the
+    /// BSDF's own stack (parameter sets share its shape, not its
+    /// roughness).
     pub fn bidirectional_pays(stack: &crate::LayerStack) -> bool {
-        stack.len() >= 3
+        use crate::stack::InterfaceKind;
+        if stack.len() >= 3 {
+            return true;
+        }
+        if stack.len() != 2 {
+            return false;
+        }
+        let (top, base) = (stack.interface(0), stack.interface(1));
+        let near = |it: &crate::stack::Interface| {
+            !it.smooth && it.alpha[0].max(it.alpha[1]) <= NEAR_SPECULAR_ALPHA
+        };
+        top.kind == InterfaceKind::Dielectric
+            && base.kind == InterfaceKind::Conductor
+            && near(top)
+            && near(base)
     }
 
     /// Whether this estimator answers `stack`'s eval with the
