@@ -60,7 +60,8 @@ pub struct Args {
     #[arg(long, default_value = "normal")]
     eval_start: strata_bsdf::EvalStart,
     /// The estimator of `--against`: auto (the library's default: a closed
-    /// form where the stack has one) or uni (always the walks).
+    /// form where the stack has one), uni (always the unidirectional walks)
+    /// or bidir (always the bidirectional walks).
     #[arg(long, default_value = "auto")]
     estimator: strata_bsdf::Estimator,
     /// Runs per pair of `--against` (the fastest counts).
