@@ -1112,8 +1112,8 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
 #[test]
 fn eval_estimator_and_start_flags_choose_how_eval_estimates() {
     // A clear coat over Lambertian has a closed form: exact (stderr 0) by
-    // default, walks with --estimator uni; a grazing-light pair runs other
-    // walks with --eval-start wi; both agree within their errors.
+    // default, walks with --estimator uni or bidir; a grazing-light pair
+    // runs other walks with --eval-start wi; all agree within their errors.
     let m = example("clear_coat_lambertian.toml");
     let q = "{\"wi\":[0.9848077,0,0.17364818],\"wo\":[0,0,1]}\n";
     let f = |extra: &[&str]| -> ([f64; 3], [f64; 3]) {
@@ -1133,9 +1133,15 @@ fn eval_estimator_and_start_flags_choose_how_eval_estimates() {
         assert!((walks[c] - exact[c]).abs() <= 4.0 * se[c] + 1e-6 * exact[c]);
         assert!((from_wi[c] - exact[c]).abs() <= 4.0 * se_wi[c] + 1e-6 * exact[c]);
     }
+    // The bidirectional walks agree with the closed form too.
+    let (bidir, se_b) = f(&["--estimator", "bidir"]);
+    for c in 0..3 {
+        assert!(se_b[c] > 0.0);
+        assert!((bidir[c] - exact[c]).abs() <= 4.0 * se_b[c] + 1e-6 * exact[c]);
+    }
     assert_fails_with(
-        &run(&["eval", "--material", &m, "--estimator", "bidir"], q),
-        &["--estimator", "bidir"],
+        &run(&["eval", "--material", &m, "--estimator", "both"], q),
+        &["--estimator", "both"],
     );
     assert_fails_with(
         &run(&["eval", "--material", &m, "--eval-start", "wo"], q),

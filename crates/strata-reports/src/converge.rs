@@ -314,10 +314,12 @@ impl EstimatorKind {
     /// The estimator for `stack`.
     pub fn build(&self, stack: &LayerStack, settings: Settings) -> Box<dyn Estimator> {
         match *self {
-            EstimatorKind::Scalar => Box::new(ScalarEstimator {
+            EstimatorKind::Scalar | EstimatorKind::Bidirectional => Box::new(ScalarEstimator {
                 eng: ScalarEngine::new(stack, settings),
+                bidir: *self == EstimatorKind::Bidirectional,
             }),
-            EstimatorKind::Wavefront { threads } => Box::new(WavefrontEstimator {
+            EstimatorKind::Wavefront { threads }
+            | EstimatorKind::BidirectionalWavefront { threads } => Box::new(WavefrontEstimator {
                 wf: Wavefront::new(stack, settings, Plan::Specialized),
                 pool: threads.map(|n| {
                     rayon::ThreadPoolBuilder::new()
@@ -325,23 +327,8 @@ impl EstimatorKind {
                         .build()
                         .expect("a thread pool")
                 }),
+                bidir: matches!(self, EstimatorKind::BidirectionalWavefront { .. }),
             }),
-            EstimatorKind::Bidirectional => Box::new(BidirEstimator {
-                eng: ScalarEngine::new(stack, settings),
-            }),
-            EstimatorKind::BidirectionalWavefront { threads } => {
-                Box::new(BidirWavefrontEstimator {
-                    wf: WavefrontEstimator {
-                        wf: Wavefront::new(stack, settings, Plan::Specialized),
-                        pool: threads.map(|n| {
-                            rayon::ThreadPoolBuilder::new()
-                                .num_threads(n)
-                                .build()
-                                .expect("a thread pool")
-                        }),
-                    },
-                })
-            }
             EstimatorKind::BruteForce { half_angle_deg } => Box::new(BruteEstimator {
                 bf: BruteForce::new(
                     stack,
@@ -404,27 +391,45 @@ impl EstimatorKind {
 /// queries of the same index.
 const ALBEDO_KEY: u64 = 1 << 40;
 
+/// The estimator of `f` a position-free row runs (`bidir`: the
+/// bidirectional one, whose albedo columns are still `sample()`'s analog
+/// walks: it is an estimator of `f` only), as its description says it:
+/// the kind, and a note to append.
+fn direction_label(bidir: bool) -> (&'static str, &'static str) {
+    if bidir {
+        ("bidirectional", " (albedo: analog walks)")
+    } else {
+        ("unidirectional", "")
+    }
+}
+
 struct ScalarEstimator {
     eng: ScalarEngine<f32>,
+    bidir: bool,
 }
 
 impl Estimator for ScalarEstimator {
     fn name(&self) -> String {
-        "scalar".into()
+        if self.bidir { "bidir" } else { "scalar" }.into()
     }
     fn description(&self) -> String {
-        "position-free, unidirectional, scalar reference".into()
+        let (kind, note) = direction_label(self.bidir);
+        format!("position-free, {kind}, scalar reference{note}")
     }
     fn start_samples(&self) -> u64 {
-        64
+        if self.bidir {
+            16
+        } else {
+            64
+        }
     }
     fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
         let t = Instant::now();
-        let f =
-            qs.f.iter()
-                .enumerate()
-                .map(|(j, q)| self.eng.eval(q.wi, q.wo, samples, seed, j as u64))
-                .collect();
+        let eval = |j: usize, q: &FQuery| match self.bidir {
+            true => self.eng.eval_bidir(q.wi, q.wo, samples, seed, j as u64),
+            false => self.eng.eval(q.wi, q.wo, samples, seed, j as u64),
+        };
+        let f = qs.f.iter().enumerate().map(|(j, q)| eval(j, q)).collect();
         let time_f = t.elapsed().as_secs_f64();
         let t2 = Instant::now();
         let albedo = qs
@@ -448,14 +453,16 @@ impl Estimator for ScalarEstimator {
 struct WavefrontEstimator {
     wf: Wavefront,
     pool: Option<rayon::ThreadPool>,
+    bidir: bool,
 }
 
 impl Estimator for WavefrontEstimator {
     fn name(&self) -> String {
+        let prefix = if self.bidir { "bidir-" } else { "" };
         match &self.pool {
-            Some(p) if p.current_num_threads() == 1 => "wavefront".into(),
-            Some(p) => format!("wavefront-{}t", p.current_num_threads()),
-            None => "wavefront-mt".into(),
+            Some(p) if p.current_num_threads() == 1 => format!("{prefix}wavefront"),
+            Some(p) => format!("{prefix}wavefront-{}t", p.current_num_threads()),
+            None => format!("{prefix}wavefront-mt"),
         }
     }
     fn description(&self) -> String {
@@ -463,17 +470,25 @@ impl Estimator for WavefrontEstimator {
             Some(p) => format!("{} thread(s)", p.current_num_threads()),
             None => "all threads".into(),
         };
-        format!("position-free, unidirectional, SIMD wavefront, {threads}")
+        let (kind, note) = direction_label(self.bidir);
+        format!("position-free, {kind}, SIMD wavefront, {threads}{note}")
     }
     fn start_samples(&self) -> u64 {
-        64
+        if self.bidir {
+            16
+        } else {
+            64
+        }
     }
     fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
         let go = || {
             let t = Instant::now();
             let pairs: Vec<_> = qs.f.iter().map(|q| (q.wi, q.wo)).collect();
             let keys: Vec<u64> = (0..pairs.len() as u64).collect();
-            let f = self.wf.eval_batch(&pairs, samples, seed, &keys).0;
+            let f = match self.bidir {
+                true => self.wf.eval_bidir_batch(&pairs, samples, seed, &keys),
+                false => self.wf.eval_batch(&pairs, samples, seed, &keys).0,
+            };
             let time_f = t.elapsed().as_secs_f64();
             let t2 = Instant::now();
             let keys: Vec<u64> = (0..qs.albedo.len() as u64)
@@ -491,96 +506,6 @@ impl Estimator for WavefrontEstimator {
             }
         };
         match &self.pool {
-            Some(p) => p.install(go),
-            None => go(),
-        }
-    }
-}
-
-/// The albedo of the bidirectional rows: `sample()`'s analog walks, as the
-/// unidirectional rows compute it (the bidirectional estimator is one of
-/// `f`), so that their albedo columns are the unidirectional ones.
-struct BidirEstimator {
-    eng: ScalarEngine<f32>,
-}
-
-impl Estimator for BidirEstimator {
-    fn name(&self) -> String {
-        "bidir".into()
-    }
-    fn description(&self) -> String {
-        "position-free, bidirectional, scalar reference (albedo: analog walks)".into()
-    }
-    fn start_samples(&self) -> u64 {
-        16
-    }
-    fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
-        let t = Instant::now();
-        let f =
-            qs.f.iter()
-                .enumerate()
-                .map(|(j, q)| self.eng.eval_bidir(q.wi, q.wo, samples, seed, j as u64))
-                .collect();
-        let time_f = t.elapsed().as_secs_f64();
-        let t2 = Instant::now();
-        let albedo = qs
-            .albedo
-            .iter()
-            .enumerate()
-            .map(|(j, &wi)| self.eng.albedo(wi, samples, seed, ALBEDO_KEY + j as u64))
-            .collect();
-        Run {
-            samples,
-            f,
-            albedo,
-            time_f,
-            time_albedo: t2.elapsed().as_secs_f64(),
-            time: t.elapsed().as_secs_f64(),
-            lost_weight: 0.0,
-        }
-    }
-}
-
-struct BidirWavefrontEstimator {
-    wf: WavefrontEstimator,
-}
-
-impl Estimator for BidirWavefrontEstimator {
-    fn name(&self) -> String {
-        format!("bidir-{}", self.wf.name())
-    }
-    fn description(&self) -> String {
-        self.wf
-            .description()
-            .replace("unidirectional", "bidirectional")
-            + " (albedo: analog walks)"
-    }
-    fn start_samples(&self) -> u64 {
-        16
-    }
-    fn run(&self, qs: &QuerySet, samples: u64, seed: u64) -> Run {
-        let go = || {
-            let t = Instant::now();
-            let pairs: Vec<_> = qs.f.iter().map(|q| (q.wi, q.wo)).collect();
-            let keys: Vec<u64> = (0..pairs.len() as u64).collect();
-            let f = self.wf.wf.eval_bidir_batch(&pairs, samples, seed, &keys);
-            let time_f = t.elapsed().as_secs_f64();
-            let t2 = Instant::now();
-            let keys: Vec<u64> = (0..qs.albedo.len() as u64)
-                .map(|j| ALBEDO_KEY + j)
-                .collect();
-            let albedo = self.wf.wf.albedo_batch(&qs.albedo, samples, seed, &keys).0;
-            Run {
-                samples,
-                f,
-                albedo,
-                time_f,
-                time_albedo: t2.elapsed().as_secs_f64(),
-                time: t.elapsed().as_secs_f64(),
-                lost_weight: 0.0,
-            }
-        };
-        match &self.wf.pool {
             Some(p) => p.install(go),
             None => go(),
         }

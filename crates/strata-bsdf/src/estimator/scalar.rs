@@ -429,13 +429,7 @@ impl<S: Scalar> ScalarEngine<S> {
     /// The unidirectional estimator (method.md §4): mean of `n` walks plus the
     /// exact first-order term, with its standard error.
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
-        if super::orient(&self.stack, wi, Some(wo)).is_none() {
-            // No walk can contribute: the reduction of n zeros, in constant time.
-            return MeanVar::zeros(n).estimate();
-        }
-        let mut red = BlockReducer::new();
-        let direct = self.eval_walks(wi, wo, n, seed, query, |x| red.push(x));
-        red.finish().estimate_plus(direct)
+        self.estimate(wi, wo, n, |f| self.eval_walks(wi, wo, n, seed, query, f))
     }
 
     /// Each walk's value of the unidirectional estimator, in sample order
@@ -449,9 +443,54 @@ impl<S: Scalar> ScalarEngine<S> {
         seed: u64,
         query: u64,
     ) -> Vec<[f64; 3]> {
-        let mut v = Vec::with_capacity(n as usize);
-        self.eval_walks(wi, wo, n, seed, query, |x| v.push(x));
-        v
+        walk_values(n, |f| self.eval_walks(wi, wo, n, seed, query, f))
+    }
+
+    /// The bidirectional estimator (method.md §4, [`super::bidir`]): mean
+    /// of `n` walks plus the exact first-order term, with its standard
+    /// error.
+    pub fn eval_bidir(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Estimate {
+        self.estimate(wi, wo, n, |f| {
+            self.eval_bidir_walks(wi, wo, n, seed, query, f)
+        })
+    }
+
+    /// Each walk's value of the bidirectional estimator, in sample order
+    /// (without the first-order term): for parity tests.
+    pub fn eval_bidir_walk_values(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Vec<[f64; 3]> {
+        walk_values(n, |f| self.eval_bidir_walks(wi, wo, n, seed, query, f))
+    }
+
+    /// An estimate from `walks`, which hands each of `n` walk values to its
+    /// argument and returns the deterministic terms; the reduction of `n`
+    /// zeros, in constant time, where no walk can contribute.
+    fn estimate(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> [f64; 3],
+    ) -> Estimate {
+        if super::orient(&self.stack, wi, Some(wo)).is_none() {
+            return MeanVar::zeros(n).estimate();
+        }
+        let mut red = BlockReducer::new();
+        let direct = walks(&mut |x| red.push(x));
+        red.finish().estimate_plus(direct)
     }
 
     /// Runs the `n` walks of an eval query, handing each walk's value to
@@ -463,7 +502,7 @@ impl<S: Scalar> ScalarEngine<S> {
         n: u64,
         seed: u64,
         query: u64,
-        mut f: impl FnMut([f64; 3]),
+        f: &mut dyn FnMut([f64; 3]),
     ) -> [f64; 3] {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             (0..n).for_each(|_| f([0.0; 3]));
@@ -504,37 +543,8 @@ impl<S: Scalar> ScalarEngine<S> {
 }
 
 impl<S: Scalar> ScalarEngine<S> {
-    /// The bidirectional estimator (method.md §4, [`super::bidir`]): mean
-    /// of `n` walks plus the exact first-order term, with its standard
-    /// error.
-    pub fn eval_bidir(
-        &self,
-        wi: [f64; 3],
-        wo: [f64; 3],
-        n: u64,
-        seed: u64,
-        query: u64,
-    ) -> Estimate {
-        let mut red = BlockReducer::new();
-        let direct = self.eval_bidir_walks(wi, wo, n, seed, query, |x| red.push(x));
-        red.finish().estimate_plus(direct)
-    }
-
-    /// Each walk's value of the bidirectional estimator, in sample order
-    /// (without the first-order term): for parity tests.
-    pub fn eval_bidir_walk_values(
-        &self,
-        wi: [f64; 3],
-        wo: [f64; 3],
-        n: u64,
-        seed: u64,
-        query: u64,
-    ) -> Vec<[f64; 3]> {
-        let mut v = Vec::with_capacity(n as usize);
-        self.eval_bidir_walks(wi, wo, n, seed, query, |x| v.push(x));
-        v
-    }
-
+    /// Runs the `n` bidirectional walks of an eval query, handing each
+    /// walk's value to `f`; returns the first-order term.
     fn eval_bidir_walks(
         &self,
         wi: [f64; 3],
@@ -542,7 +552,7 @@ impl<S: Scalar> ScalarEngine<S> {
         n: u64,
         seed: u64,
         query: u64,
-        mut f: impl FnMut([f64; 3]),
+        f: &mut dyn FnMut([f64; 3]),
     ) -> [f64; 3] {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             (0..n).for_each(|_| f([0.0; 3]));
@@ -566,6 +576,13 @@ impl<S: Scalar> ScalarEngine<S> {
         let e_out = self.layout.outer(wo.z > S::zero());
         events::deterministic_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo)
     }
+}
+
+/// The `n` walk values `walks` hands to its argument, in order.
+fn walk_values(n: u64, walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> [f64; 3]) -> Vec<[f64; 3]> {
+    let mut v = Vec::with_capacity(n as usize);
+    walks(&mut |x| v.push(x));
+    v
 }
 
 /// A layer or interface index carried as a lane value, as a `usize`.
