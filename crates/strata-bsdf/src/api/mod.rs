@@ -28,7 +28,7 @@ pub use materials::Materials;
 use sets::Per;
 pub use sets::{ParamSets, SetsError};
 pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
-pub use strategy::{Estimator, EvalStart, NEAR_SPECULAR_ALPHA};
+pub use strategy::{Estimator, EvalStart, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA};
 pub use transport::Transport;
 
 use crate::estimator::closed_form::SmoothCoatLambertian;

@@ -44,6 +44,14 @@ impl std::str::FromStr for EvalStart {
 /// at 0.05 over 0.1, 0.85× at 0.1 over 0.2 (docs/results.md).
 pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 
+/// The largest optical depth of a scattering layer for which
+/// `Estimator::Auto` runs the bidirectional estimator
+/// ([`Estimator::bidirectional_pays`]): it won at 0.5 on three interfaces
+/// (docs/results.md), lost 500× at 10 on two, and on three interfaces a
+/// layer of optical depth 8 made its walks 150× the unidirectional ones'
+/// time.
+pub const MAX_OPTICAL_DEPTH: f64 = 1.0;
+
 /// Which estimator answers `eval`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Estimator {
@@ -71,7 +79,8 @@ pub enum Estimator {
 
 impl Estimator {
     /// Whether `Auto` answers `stack`'s eval with the bidirectional
-    /// estimator:
+    /// estimator, on stacks whose scattering layers are all optically thin
+    /// (optical depth at most [`MAX_OPTICAL_DEPTH`] in every channel):
     /// * on stacks of three interfaces or more, where vertices below the
     ///   exit's layer reach the viewer only through continuations in the
     ///   unidirectional estimator;
@@ -87,6 +96,17 @@ impl Estimator {
     /// roughness).
     pub fn bidirectional_pays(stack: &crate::LayerStack) -> bool {
         use crate::stack::InterfaceKind;
+        // A bidirectional walk's cost grows with the cube of its length
+        // (every pair of vertices, each weight O(n)): an optically thick
+        // scattering layer makes it lose whatever the interfaces.
+        let thin = (0..stack.len().saturating_sub(1)).all(|l| {
+            stack.medium(l).is_none_or(|m| {
+                !m.scatters() || m.optical_depth().iter().all(|&t| t <= MAX_OPTICAL_DEPTH)
+            })
+        });
+        if !thin {
+            return false;
+        }
         if stack.len() >= 3 {
             return true;
         }

@@ -45,6 +45,12 @@
 //! → b)`: the η² of refraction and the shading normal's asymmetry included);
 //! collisions need no change, as `σ_s · phase` is reciprocal.
 //!
+//! The estimator always combines its strategies by MIS (`Settings::mis`
+//! concerns the unidirectional one). The optional event cap
+//! (`Settings::max_depth`, a biased option) keeps the paths of at most that
+//! many vertices (interface events and collisions, entrance and exit
+//! included): a cut of its own, not the unidirectional walk's.
+//!
 //! A phase function without a closed form (diffuse SGGX flakes) is
 //! evaluated by its unbiased one-sample estimate, on uniforms of its own;
 //! its weights take the isotropic density instead of its own (any function
@@ -382,7 +388,10 @@ impl<L: Lane> BidirWalk<'_, L> {
             let up = d.z.gt(zero);
             let (l_s, out_s) = self.layout().enter(v.idx, up);
             let layer = L::select(v.surface, l_s, v.idx);
-            alive = alive & !(v.surface & out_s) & d.z.abs().gt(zero);
+            // (A direction exactly parallel to the layer collides in a
+            // scattering layer and ends in an inert one, as in every walk:
+            // `events::free_flight`, `events::cross_inert`.)
+            alive = alive & !(v.surface & out_s);
             alive = events::survive(&mut beta, events, draw(alive), alive, self.settings);
             if !alive.any() {
                 break;
@@ -463,6 +472,15 @@ impl<L: Lane> BidirWalk<'_, L> {
                     Some(k) => (y.order + z.order).le(L::splat(k as f64)),
                     None => L::Mask::splat(true),
                 };
+                // The event cap keeps the paths of at most that many
+                // vertices, whose every strategy the capped subpaths reach.
+                let capped = self
+                    .settings
+                    .max_depth
+                    .map(|c| c.min(events::MAX_CAP) as usize);
+                if capped.is_some_and(|c| jy + jz + 2 > c) {
+                    continue;
+                }
                 let m = y.exists & z.exists & within & share_layer(y, z);
                 if !m.any() {
                     continue;
@@ -675,23 +693,26 @@ impl<L: Lane> Path<'_, L> {
         let mine = if light_draws { c.c_l } else { c.c_e };
         let inv = L::div_or_zero(L::one(), mine, mine.gt(zero));
         // Strategy k's share, `r = R_k / R_s` (see the module docs).
+        // A product that reached 0 stays 0 (no `0 · ∞`), one that overflows
+        // stays at the cap.
+        let times = |r: L, x: L| L::select(r.gt(zero), (r * x).min(cap), zero);
         let term = |k: usize, r: L| {
             let (c_l, c_e) = self.directions(k, c);
-            let l = (r * c_l * inv).min(cap);
-            let e = (r * c_e * inv).min(cap);
+            let l = times(times(r, c_l), inv);
+            let e = times(times(r, c_e), inv);
             L::select(self.delta(k + 1), zero, l * l) + L::select(self.delta(k), zero, e * e)
         };
         let mut sum = term(s, L::one());
         let mut r = L::one();
         for k in s + 1..n {
             let (f, b) = self.densities(k, c);
-            r = (r * L::div_or_zero(f, b, b.gt(zero))).min(cap);
+            r = times(r, L::div_or_zero(f, b, b.gt(zero)));
             sum += term(k, r);
         }
         r = L::one();
         for k in (1..s).rev() {
             let (f, b) = self.densities(k + 1, c);
-            r = (r * L::div_or_zero(b, f, f.gt(zero))).min(cap);
+            r = times(r, L::div_or_zero(b, f, f.gt(zero)));
             sum += term(k, r);
         }
         L::select(
