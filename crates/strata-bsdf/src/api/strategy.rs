@@ -40,8 +40,8 @@ impl std::str::FromStr for EvalStart {
 /// The largest roughness (GGX or Beckmann α) of a near-specular coat and
 /// conductor for which `Estimator::Auto` runs the bidirectional estimator
 /// on a two-interface stack ([`Estimator::bidirectional_pays`]): measured
-/// 22× the unidirectional estimator's efficiency at α 0.01 over 0.02, 1.4×
-/// at 0.05 over 0.1, 0.85× at 0.1 over 0.2 (docs/results.md).
+/// 20× the unidirectional estimator's efficiency at α 0.01 over 0.02, 1.4×
+/// at 0.05 over 0.1, 0.80× at 0.1 over 0.2 (docs/results.md).
 pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 
 /// The largest optical depth of a scattering layer for which
