@@ -646,7 +646,7 @@ impl Bsdf {
     /// `wo`) or "importance" (the adjoint), `pdf_samples` the density walks
     /// per approximate `pdf` (default 4, the library's), `estimator` the
     /// estimator of `eval`: "auto" (a closed form where the stack has one,
-    /// the bidirectional walks on stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the
+    /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), "uni" or "bidir". Raises
     /// `MaterialError` (a ValueError) naming the layer, the field and the
     /// value.

@@ -496,6 +496,14 @@ fn auto_picks_by_the_measured_rule() {
     assert!(Estimator::bidirectional_pays(&coated(A, A)));
     assert!(!Estimator::bidirectional_pays(&coated(0.01, 2.0 * A)));
     assert!(!Estimator::bidirectional_pays(&coated(0.1, 0.2)));
+    assert!(
+        Estimator::bidirectional_pays(&coated(0.1, 0.0)),
+        "over a smooth conductor"
+    );
+    assert!(
+        !Estimator::bidirectional_pays(&coated(0.0, 0.0)),
+        "a smooth coat"
+    );
     // An optically thick scattering layer: the unidirectional estimator,
     // whatever the interfaces.
     let thick = stack(

@@ -70,7 +70,7 @@
 
 /**
  * Estimator of eval: a closed form where the stack has one, the
- * bidirectional estimator on stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the
+ * bidirectional estimator on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
  * unidirectional one elsewhere (the default).
  */
 #define STRATA_ESTIMATOR_AUTO 0
@@ -296,7 +296,7 @@ int32_t strata_bsdf_set_transport(struct StrataBsdf *b, uint32_t mode);
 /**
  * Chooses the estimator of eval: `STRATA_ESTIMATOR_AUTO` (0, the default:
  * a closed form where the stack has one, the bidirectional estimator on
- * stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the unidirectional one elsewhere),
+ * stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the unidirectional one elsewhere),
  * `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
  * (2). Configure a BSDF before sharing it: this call must not run while
  * another thread uses `b`.

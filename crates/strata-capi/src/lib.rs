@@ -67,7 +67,7 @@ pub const STRATA_TRANSPORT_RADIANCE: u32 = 0;
 /// viewer): `eval` is the adjoint `f(wo -> wi)`.
 pub const STRATA_TRANSPORT_IMPORTANCE: u32 = 1;
 /// Estimator of eval: a closed form where the stack has one, the
-/// bidirectional estimator on stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the
+/// bidirectional estimator on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
 /// unidirectional one elsewhere (the default).
 pub const STRATA_ESTIMATOR_AUTO: u32 = 0;
 /// Estimator of eval: the unidirectional walks, always.
@@ -608,7 +608,7 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
 
 /// Chooses the estimator of eval: `STRATA_ESTIMATOR_AUTO` (0, the default:
 /// a closed form where the stack has one, the bidirectional estimator on
-/// stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the unidirectional one elsewhere),
+/// stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the unidirectional one elsewhere),
 /// `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
 /// (2). Configure a BSDF before sharing it: this call must not run while
 /// another thread uses `b`.

@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Estimator: auto (a closed form where the stack has one, the
-    /// bidirectional walks on stacks of three interfaces or more and near-specular coated conductors (without optically thick scattering layers), the
+    /// bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), uni (always the unidirectional
     /// walks) or bidir (always the bidirectional walks).
     #[arg(long, default_value = "auto")]
