@@ -294,6 +294,12 @@ impl LayeredBsdf {
         self.estimator.is_bidirectional_for(self.stack())
     }
 
+    /// Whether query `k`'s eval runs the bidirectional estimator: by its
+    /// own stack.
+    pub(super) fn bidirectional_in(&self, per: Per, k: usize) -> bool {
+        self.estimator.is_bidirectional_for(self.stack_in(per, k))
+    }
+
     /// The estimator of `eval`.
     pub fn estimator_choice(&self) -> Estimator {
         self.estimator
@@ -631,20 +637,51 @@ impl LayeredBsdf {
             let s = self.swaps(a[2], b[2]);
             (if s { (b, a) } else { (a, b) }, key)
         };
-        let finish = |k: usize, e: Estimate| {
+        let mut finish = |k: usize, e: Estimate| {
             let ((a, b), _) = query(k);
             let swapped = self.swaps(a[2], b[2]);
             out(k, self.scaled(self.stack_in(per, k), e, a, b, swapped));
         };
         let serial = self.serial();
-        let (sets, seed) = (per.sets(), self.seed);
-        self.install(n, samples, || {
-            if self.bidirectional() {
-                (self.wave).eval_bidir_each(sets, n, walked, samples, seed, serial, finish)
-            } else {
-                (self.wave).eval_each(sets, n, walked, samples, seed, serial, finish);
-            }
-        });
+        let seed = self.seed;
+        // Each query's estimator is its own stack's (parameter sets answer
+        // what their material files answer); a batch whose sets straddle
+        // `Auto`'s rule runs as two, merged back in query order.
+        let bidir = |k: usize| self.bidirectional_in(per, k);
+        let first = n > 0 && bidir(0);
+        if (1..n).all(|k| bidir(k) == first) {
+            let sets = per.sets();
+            self.install(n, samples, || {
+                if first {
+                    (self.wave).eval_bidir_each(sets, n, walked, samples, seed, serial, finish)
+                } else {
+                    (self.wave).eval_each(sets, n, walked, samples, seed, serial, finish);
+                }
+            });
+            return;
+        }
+        let mut done: Vec<Option<Estimate>> = vec![None; n];
+        for b in [false, true] {
+            let ks: Vec<usize> = (0..n).filter(|&k| bidir(k) == b).collect();
+            let set: Vec<u32> = ks.iter().map(|&k| per.set(k) as u32).collect();
+            let sub = per.with_set(&set);
+            let (sets, m) = (sub.sets(), ks.len());
+            let q = |j: usize| walked(ks[j]);
+            let put = |j: usize, e: Estimate| done[ks[j]] = Some(e);
+            self.install(m, samples, || {
+                if b {
+                    (self.wave).eval_bidir_each(sets, m, q, samples, seed, serial, put)
+                } else {
+                    (self.wave).eval_each(sets, m, q, samples, seed, serial, put);
+                }
+            });
+        }
+        for (k, e) in done.into_iter().enumerate() {
+            finish(
+                k,
+                e.unwrap_or_else(|| crate::estimator::MeanVar::zeros(samples).estimate()),
+            );
+        }
     }
 
     /// Whether an eval call of `n` queries runs query by query: by the
@@ -663,7 +700,7 @@ impl LayeredBsdf {
         let s = self.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
         let eng = self.scalar_in(per, k);
-        let e = if self.bidirectional() {
+        let e = if self.bidirectional_in(per, k) {
             eng.eval_bidir(x, y, samples, self.seed, key)
         } else {
             eng.eval(x, y, samples, self.seed, key)

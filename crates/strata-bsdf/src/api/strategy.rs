@@ -98,9 +98,10 @@ impl Estimator {
     ///   (docs/performance.md, *Against pbrt-v4*).
     ///
     /// Measured with `strata converge` on the wavefront engine, one thread
-    /// (docs/results.md, *Which estimator wins*). It is decided on the
-    /// BSDF's own stack (parameter sets share its shape, not its
-    /// roughness).
+    /// (docs/results.md, *Which estimator wins*). It is decided query by
+    /// query, on the query's own stack (a parameter set's, so that a set
+    /// answers what its material file answers); a batch whose sets fall on
+    /// both sides of the rule runs as two batches.
     pub fn bidirectional_pays(stack: &crate::LayerStack) -> bool {
         use crate::stack::InterfaceKind;
         // A bidirectional walk's cost grows with the cube of its length
