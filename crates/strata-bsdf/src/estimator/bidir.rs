@@ -10,7 +10,7 @@
 //! evaluates the other vertex, with the transmittance between their depths;
 //! each pair is connected twice, once from each side. Every contribution is
 //! weighted by the power heuristic over all the strategies that could have
-//! made its path ([`Strategies`]), so that the weights of a path sum to one.
+//! made its path (`Path::weight`), so that the weights of a path sum to one.
 //!
 //! **The path measure.** A path `v_1 … v_n` (entrance `v_1`, exit `v_n`)
 //! with directions `d_1 … d_{n−1}` has the value `Π f(v_i) · Π G(d_i)`: an
