@@ -500,6 +500,23 @@ fn auto_picks_by_the_measured_rule() {
         Estimator::bidirectional_pays(&coated(0.1, 0.0)),
         "over a smooth conductor"
     );
+    // At the specular peak of a coated conductor (tan θh ≤ α) Auto keeps
+    // the unidirectional walks; off it, and under Bidirectional, not.
+    let smooth_cu = coated(0.1, 0.0);
+    let (mirror, off) = (
+        (dir(30.0, 0.0), dir(30.0, 180.0)),
+        (dir(30.0, 0.0), dir(30.0, 90.0)),
+    );
+    let just_off = (dir(30.0, 0.0), dir(45.0, 180.0)); // θh 7.5°: tan 0.13 > 0.1
+    assert!(!Estimator::Auto.is_bidirectional_at(&smooth_cu, mirror.0, mirror.1));
+    assert!(Estimator::Auto.is_bidirectional_at(&smooth_cu, off.0, off.1));
+    assert!(Estimator::Auto.is_bidirectional_at(&smooth_cu, just_off.0, just_off.1));
+    assert!(Estimator::Bidirectional.is_bidirectional_at(&smooth_cu, mirror.0, mirror.1));
+    let three = stack(STACKS[7].1);
+    assert!(
+        Estimator::Auto.is_bidirectional_at(&three, mirror.0, mirror.1),
+        "three interfaces"
+    );
     assert!(
         !Estimator::bidirectional_pays(&coated(0.0, 0.0)),
         "a smooth coat"

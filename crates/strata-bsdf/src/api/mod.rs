@@ -294,10 +294,11 @@ impl LayeredBsdf {
         self.estimator.is_bidirectional_for(self.stack())
     }
 
-    /// Whether query `k`'s eval runs the bidirectional estimator: by its
-    /// own stack.
-    pub(super) fn bidirectional_in(&self, per: Per, k: usize) -> bool {
-        self.estimator.is_bidirectional_for(self.stack_in(per, k))
+    /// Whether query `k`'s eval, from `a` to `b`, runs the bidirectional
+    /// estimator: by its own stack and directions.
+    pub(super) fn bidirectional_in(&self, per: Per, k: usize, a: Pt, b: Pt) -> bool {
+        self.estimator
+            .is_bidirectional_at(self.stack_in(per, k), a, b)
     }
 
     /// The estimator of `eval`.
@@ -647,7 +648,10 @@ impl LayeredBsdf {
         // Each query's estimator is its own stack's (parameter sets answer
         // what their material files answer); a batch whose sets straddle
         // `Auto`'s rule runs as two, merged back in query order.
-        let bidir = |k: usize| self.bidirectional_in(per, k);
+        let bidir = |k: usize| {
+            let ((a, b), _) = query(k);
+            self.bidirectional_in(per, k, a, b)
+        };
         let first = n > 0 && bidir(0);
         if (1..n).all(|k| bidir(k) == first) {
             let sets = per.sets();
@@ -700,7 +704,7 @@ impl LayeredBsdf {
         let s = self.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
         let eng = self.scalar_in(per, k);
-        let e = if self.bidirectional_in(per, k) {
+        let e = if self.bidirectional_in(per, k, a, b) {
             eng.eval_bidir(x, y, samples, self.seed, key)
         } else {
             eng.eval(x, y, samples, self.seed, key)

@@ -95,7 +95,9 @@ impl Estimator {
     ///   viewer's side. Over a smooth conductor under pbrt-v4's rough coat
     ///   (α 0.1), over pbrt-v4's 21 direction pairs, its efficiency was a
     ///   median 97× pbrt-v4's against the unidirectional one's 5.4×
-    ///   (docs/performance.md, *Against pbrt-v4*).
+    ///   (docs/performance.md, *Against pbrt-v4*); at the specular peak
+    ///   the unidirectional walks still win, and `Auto` keeps them there
+    ///   ([`Estimator::is_bidirectional_at`]).
     ///
     /// Measured with `strata converge` on the wavefront engine, one thread
     /// (docs/results.md, *Which estimator wins*). It is decided query by
@@ -132,13 +134,35 @@ impl Estimator {
     }
 
     /// Whether this estimator answers `stack`'s eval with the
-    /// bidirectional estimator.
+    /// bidirectional estimator (for `Auto`, at some direction pairs: see
+    /// [`Estimator::is_bidirectional_at`]).
     pub fn is_bidirectional_for(self, stack: &crate::LayerStack) -> bool {
         match self {
             Estimator::Bidirectional => true,
             Estimator::Auto => Self::bidirectional_pays(stack),
             Estimator::Unidirectional => false,
         }
+    }
+
+    /// Whether this estimator answers `stack`'s eval at `(wi, wo)` with the
+    /// bidirectional estimator: as [`Estimator::is_bidirectional_for`],
+    /// except that `Auto` keeps the unidirectional walks at the specular
+    /// peak of a coated conductor (the half vector of a reflected pair
+    /// within `tan θh ≤ α` of the normal, α the coat's roughness), where
+    /// the walks' continuation meets the coat's lobe head on and their
+    /// cost per walk wins (against pbrt-v4 over a smooth conductor: 2.4–6.5×
+    /// its efficiency at the specular pairs, against 0.25–3.2× for the
+    /// bidirectional walks; docs/performance.md).
+    pub fn is_bidirectional_at(
+        self,
+        stack: &crate::LayerStack,
+        wi: [f64; 3],
+        wo: [f64; 3],
+    ) -> bool {
+        if !self.is_bidirectional_for(stack) {
+            return false;
+        }
+        self != Estimator::Auto || stack.len() >= 3 || !specular_peak(stack, wi, wo)
     }
 
     /// The name `FromStr` takes: `auto`, `uni` or `bidir`.
@@ -163,4 +187,17 @@ impl std::str::FromStr for Estimator {
             )),
         }
     }
+}
+
+/// `(wi, wo)` is a reflected pair whose half vector lies within the top
+/// interface's roughness of the normal: `tan θh ≤ α` (the larger α of an
+/// anisotropic coat).
+fn specular_peak(stack: &crate::LayerStack, wi: [f64; 3], wo: [f64; 3]) -> bool {
+    if wi[2] * wo[2] <= 0.0 {
+        return false;
+    }
+    let h = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
+    let top = stack.interface(0);
+    let alpha = top.alpha[0].max(top.alpha[1]);
+    (h[0] * h[0] + h[1] * h[1]).sqrt() <= alpha * h[2].abs()
 }
