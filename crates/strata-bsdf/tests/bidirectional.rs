@@ -368,6 +368,12 @@ fn efficiency_ratios() {
                     vu / vb.max(1e-300)
                 })
                 .collect();
+            // What the measurement rests on: both estimators reported a
+            // positive, finite error at every pair.
+            assert!(
+                ratios.iter().all(|r| r.is_finite() && *r > 0.0),
+                "{name}: {ratios:?}"
+            );
             let shown: Vec<String> = ratios.iter().map(|r| format!("{r:.2}")).collect();
             ratios.sort_by(f64::total_cmp);
             eprintln!(

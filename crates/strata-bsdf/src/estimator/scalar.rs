@@ -540,9 +540,7 @@ impl<S: Scalar> ScalarEngine<S> {
         let entrance = &self.ifaces[e_in];
         events::deterministic_terms(entrance, e_in == e_out, self.cv.as_ref(), wi, wo)
     }
-}
 
-impl<S: Scalar> ScalarEngine<S> {
     /// Runs the `n` bidirectional walks of an eval query, handing each
     /// walk's value to `f`; returns the first-order term.
     fn eval_bidir_walks(

@@ -9,7 +9,7 @@
 use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
 use crate::estimator::bidir::{BidirWalk, Buffers};
-use crate::estimator::{events, Estimate};
+use crate::estimator::Estimate;
 use crate::lane::{Wide, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use rayon::prelude::*;
@@ -103,20 +103,11 @@ impl<W: Wide> Wavefront<W> {
                 c.red[u.query as usize].push_block(b);
             }
             for k in 0..m {
-                let e = if q.valid[k] {
-                    let wi = V3::new(q.wi[0][k], q.wi[1][k], q.wi[2][k]);
-                    let wo = V3::new(q.wo[0][k], q.wo[1][k], q.wo[2][k]);
-                    let e_in = q.e_in[k] as usize;
-                    let entrance = match q.varying {
-                        false => &self.table[e_in],
-                        true => q.table.iface(q.set[k] as usize, e_in),
-                    };
-                    let same = e_in == q.e_out[k] as usize;
-                    let direct = events::deterministic_terms(entrance, same, None, wi, wo);
-                    c.red[k].finish().estimate_plus(direct)
-                } else {
-                    zero_sum(samples).estimate()
+                let sum = match q.valid[k] {
+                    true => c.red[k].finish(),
+                    false => zero_sum(samples),
                 };
+                let e = self.estimate_with_terms(q, k, sum, false);
                 out(k, e);
             }
         })

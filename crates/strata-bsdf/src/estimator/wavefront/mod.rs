@@ -809,19 +809,26 @@ impl<W: Wide> Wavefront<W> {
     /// term (the entrance alone, when it is also the exit) and the control
     /// variate's exact part.
     fn eval_estimate(&self, queries: &Queries, q: usize, sum: MeanVar) -> Estimate {
+        self.estimate_with_terms(queries, q, sum, true)
+    }
+
+    /// [`Wavefront::eval_estimate`], with the control variate's exact part
+    /// only where `cv` (the bidirectional walks score every path).
+    fn estimate_with_terms(&self, queries: &Queries, q: usize, sum: MeanVar, cv: bool) -> Estimate {
         if !queries.valid[q] {
             return sum.estimate();
         }
         let wi = V3::new(queries.wi[0][q], queries.wi[1][q], queries.wi[2][q]);
         let wo = V3::new(queries.wo[0][q], queries.wo[1][q], queries.wo[2][q]);
         let e_in = queries.e_in[q] as usize;
-        let (entrance, cv) = match queries.varying {
+        let (entrance, exact) = match queries.varying {
             false => (&self.table[e_in], self.cv.as_ref()),
             true => {
                 let s = queries.set[q] as usize;
                 (queries.table.iface(s, e_in), queries.table.cv(s))
             }
         };
+        let cv = exact.filter(|_| cv);
         let same = e_in == queries.e_out[q] as usize;
         sum.estimate_plus(events::deterministic_terms(entrance, same, cv, wi, wo))
     }
