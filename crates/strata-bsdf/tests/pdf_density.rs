@@ -8,11 +8,15 @@
 //!   peak of the lobe and off it.
 //! * The two engines run the same density walk: the wavefront's pdfs are the
 //!   scalar engine's bit for bit.
+//!
+//! These are the walks' pdfs (`Estimator::Unidirectional`); where a stack
+//! has a closed form, `Auto` samples it without a walk and its pdf is exact
+//! (`tests/closed_form_sampler.rs`).
 
 mod common;
 use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
-use strata_bsdf::{LayerStack, LayeredBsdf, Transport};
+use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, Transport};
 
 const STACKS: [(&str, &str); 9] = [
     (
@@ -121,8 +125,13 @@ fn dir(theta_deg: f64, phi_deg: f64) -> [f32; 3] {
     ]
 }
 
+/// The walks' sampler and pdf, on every stack: `Auto` samples the first two
+/// stacks without a walk, with an exact pdf (`tests/closed_form_sampler.rs`).
 fn bsdf(toml: &str) -> LayeredBsdf {
-    LayeredBsdf::new(LayerStack::from_toml_str(toml).unwrap()).seed(7)
+    let stack = LayerStack::from_toml_str(toml).unwrap();
+    LayeredBsdf::new(stack)
+        .seed(7)
+        .estimator(Estimator::Unidirectional)
 }
 
 const WI_DEG: f64 = 25.0;

@@ -312,6 +312,22 @@ impl LayeredBsdf {
         self.estimator == Estimator::Auto && self.exact.is_some()
     }
 
+    /// Whether `sample` and `pdf` are answered by the closed form's sampler
+    /// (the same condition as [`LayeredBsdf::eval_is_exact`]): a direction
+    /// drawn without a walk, with bounded weights and an exact pdf, which
+    /// [`LayeredBsdf::pdf_unbiased`] then also returns (standard error 0).
+    pub fn sample_is_exact(&self) -> bool {
+        self.eval_is_exact()
+    }
+
+    /// Query `k`'s closed-form sampler, where `sample` and `pdf` use it.
+    fn exact_sampler<'a>(&'a self, per: Per<'a>, k: usize) -> Option<&'a SmoothCoatLambertian> {
+        match self.estimator {
+            Estimator::Auto => self.exact_in(per, k),
+            _ => None,
+        }
+    }
+
     /// The transport mode.
     pub fn transport_mode(&self) -> Transport {
         self.transport
@@ -769,7 +785,7 @@ impl LayeredBsdf {
         query: impl Fn(usize) -> (Pt, u64, u64) + Sync,
         mut out: impl FnMut(usize, Option<Sample>),
     ) {
-        if self.engine.resolve(n, 1) == Engine::Scalar {
+        if self.engine.resolve(n, 1) == Engine::Scalar || self.sample_is_exact() {
             for k in 0..n {
                 let (a, key, index) = query(k);
                 out(k, self.sample_one(per, k, a, key, index));
@@ -829,9 +845,13 @@ impl LayeredBsdf {
     /// Query `k`'s sample on the scalar engine, with its pdf; allocates nothing.
     fn sample_one(&self, per: Per, k: usize, a: Pt, key: u64, index: u64) -> Option<Sample> {
         let mut rng = WalkRng::new(self.seed, key, index, Stream::Walk);
-        let w = self.scalar_in(per, k).sample(a, &mut rng)?;
+        let stack = self.stack_in(per, k);
+        let w = match self.exact_sampler(per, k) {
+            Some(exact) => exact.sample_query(stack, a, &mut rng)?,
+            None => self.scalar_in(per, k).sample(a, &mut rng)?,
+        };
         let pdf = Direction::new("wo", w.wo).map_or(0.0, |b| self.pdf_one(per, k, a, b.get()));
-        Some(self.finish_sample(self.stack_in(per, k), w, a, pdf))
+        Some(self.finish_sample(stack, w, a, pdf))
     }
 
     /// A walk's sample from `a` with its pdf, in the transport mode.
@@ -858,10 +878,19 @@ impl LayeredBsdf {
         self.engine.resolve(queries, 2 * self.pdf_samples as u64)
     }
 
+    /// Whether a pdf call of `queries` queries runs query by query: by the
+    /// closed form's sampler, or on the scalar engine.
+    pub(super) fn pdf_by_query(&self, queries: usize) -> bool {
+        self.sample_is_exact() || self.pdf_engine(queries) == Engine::Scalar
+    }
+
     /// Query `k`'s approximate pdf, keyed by the directions, on the engine
     /// [`LayeredBsdf::pdf_engine`] picks; allocates nothing once the thread
     /// is warm.
     fn pdf_one(&self, per: Per, k: usize, a: Pt, b: Pt) -> f32 {
+        if let Some(exact) = self.exact_sampler(per, k) {
+            return exact.pdf_query(self.stack_in(per, k), a, b) as f32;
+        }
         let key = pdf_key(a, b);
         if self.pdf_engine(1) == Engine::Scalar {
             return (self.scalar_in(per, k)).pdf(a, b, self.pdf_samples, self.seed, key) as f32;
@@ -884,7 +913,7 @@ impl LayeredBsdf {
 
     /// The approximate pdf of validated pairs, keyed by the directions.
     fn pdf_validated(&self, per: Per, dirs: &[Pair]) -> Vec<f32> {
-        if self.pdf_engine(dirs.len()) == Engine::Scalar {
+        if self.pdf_by_query(dirs.len()) {
             let pdf = |(k, &(a, b)): (usize, &Pair)| self.pdf_one(per, k, a, b);
             return dirs.iter().enumerate().map(pdf).collect();
         }
@@ -911,11 +940,18 @@ impl LayeredBsdf {
         samples: u64,
     ) -> Vec<PdfEstimate> {
         let kind = PdfKind::Unbiased;
-        if self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
+        if self.sample_is_exact() || self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
             return dirs
                 .iter()
                 .enumerate()
                 .map(|(k, &(a, b))| {
+                    if let Some(exact) = self.exact_sampler(per, k) {
+                        return PdfEstimate {
+                            value: exact.pdf_query(self.stack_in(per, k), a, b),
+                            stderr: 0.0,
+                            samples,
+                        };
+                    }
                     let key = pdf_key(a, b);
                     self.scalar_in(per, k)
                         .pdf_estimate(a, b, samples, self.seed, key, kind)

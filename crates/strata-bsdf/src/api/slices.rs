@@ -16,8 +16,8 @@
 
 use super::sets::Per;
 use super::{
-    check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Engine,
-    Estimate, LayeredBsdf, Materials, Pair, Sample,
+    check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Estimate,
+    LayeredBsdf, Materials, Pair, Sample,
 };
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::wavefront::{Sets, PDF_CHUNK};
@@ -355,7 +355,7 @@ impl LayeredBsdf {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         check_pairs(&wi, &wo)?;
-        if self.pdf_engine(n) == Engine::Scalar {
+        if self.pdf_by_query(n) {
             for (k, p) in pdf.iter_mut().enumerate() {
                 let (a, b) = pair_at(&wi, &wo, k);
                 *p = self.pdf_one(Per::OWN, k, a, b);

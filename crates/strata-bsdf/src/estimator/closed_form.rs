@@ -20,13 +20,19 @@
 //! against it, and against the test suite's own formula), so
 //! [`crate::Estimator::Auto`] answers such stacks' `eval` with it.
 //!
+//! Knowing `f`, `Auto` also samples these stacks without a walk
+//! ([`SmoothCoatLambertian::sample`]): the coat's mirror reflection, or a
+//! cosine-distributed direction weighted by `f cos θo / p`. Its pdf is
+//! exact, where a walk's would be an estimate ([`super::pdf`]).
+//!
 //! With a *scattering* layer the same formula, at the layer's `σt`, is the
 //! sum over the paths that never collide in it
 //! ([`SmoothCoatLambertian::unscattered`]): the exact part of `Auto`'s
 //! control variate, whose walks then score only the paths with a collision.
 
-use super::Settings;
+use super::{Settings, WalkSample};
 use crate::fresnel;
+use crate::rng::WalkRng;
 use crate::stack::{InterfaceKind, LayerStack};
 use std::f64::consts::PI;
 
@@ -142,6 +148,92 @@ impl SmoothCoatLambertian {
         })
     }
 
+    /// `sample()`'s exact form for these stacks, in the stack's oriented
+    /// frame (`wi` above the coat), from three uniforms: the coat's mirror
+    /// reflection with probability `F(θi)`, its own Fresnel reflectance
+    /// (weight 1), otherwise a cosine-distributed direction in the cone the
+    /// coat lets light out through (the whole hemisphere unless the exterior
+    /// is the denser side), weight `f cos θo / p`. Its density
+    /// ([`SmoothCoatLambertian::pdf`]) is known in closed form, so the pdf
+    /// it returns is the density of its directions, and its weights are
+    /// bounded (`f cos θo / p ∝ T(θo) e^(−τ/μi′) e^(−τ/μo′) ρ / (1 − ρ R̄)`):
+    /// no walk, no noise in the pdf. `None` where no light enters.
+    pub fn sample(&self, wi: [f64; 3], u: [f64; 3]) -> Option<ExactSample> {
+        if wi[2] <= 0.0 {
+            return None;
+        }
+        let ti = self.enter(wi[2]).0;
+        if u[0] >= ti {
+            return Some(ExactSample {
+                wo: [-wi[0], -wi[1], wi[2]],
+                weight: [1.0; 3],
+                specular: true,
+            });
+        }
+        // Cosine-distributed: sin² θ uniform on [0, sin² θc).
+        let s2 = u[1] * self.cone();
+        let (r, phi) = (s2.sqrt(), 2.0 * PI * u[2]);
+        let wo = [r * phi.cos(), r * phi.sin(), (1.0 - s2).max(0.0).sqrt()];
+        let p = self.pdf(wi, wo);
+        if p == 0.0 {
+            return None;
+        }
+        let f = self.eval(wi, wo);
+        Some(ExactSample {
+            wo,
+            weight: f.map(|v| v * wo[2] / p),
+            specular: false,
+        })
+    }
+
+    /// The density (solid angle) of [`SmoothCoatLambertian::sample`]'s
+    /// non-delta directions: `(1 − F(θi)) cos θo / (π sin² θc)` inside the
+    /// cone the coat lets light out through, 0 elsewhere. Oriented frame,
+    /// as `sample`.
+    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> f64 {
+        let s2 = 1.0 - wo[2] * wo[2];
+        if wi[2] <= 0.0 || wo[2] <= 0.0 || s2 >= self.cone() || self.enter(wo[2]).0 == 0.0 {
+            return 0.0;
+        }
+        self.enter(wi[2]).0 * wo[2] / (PI * self.cone())
+    }
+
+    /// `sin² θc` of the cone of directions outside that refract into the
+    /// coat: 1, or `η²` where the exterior is denser (`η < 1`).
+    fn cone(&self) -> f64 {
+        (self.eta * self.eta).min(1.0)
+    }
+
+    /// [`SmoothCoatLambertian::sample`] for a query on `stack` (any
+    /// orientation: a two-sided stack lit from below is turned over),
+    /// drawing its uniforms from `rng`, as a walk's sample.
+    pub fn sample_query(
+        &self,
+        stack: &LayerStack,
+        wi: [f64; 3],
+        rng: &mut WalkRng,
+    ) -> Option<WalkSample> {
+        let o = super::orient(stack, wi, None)?;
+        let u = [(); 3].map(|_| rng.uniform() as f64);
+        let s = self.sample(o.wi, u)?;
+        let wo = o.apply(s.wo).map(|x| x as f32);
+        Some(WalkSample {
+            wo: glam::Vec3::from(wo),
+            weight: s.weight.map(|x| x as f32),
+            reflection: true,
+            specular: s.specular,
+        })
+    }
+
+    /// [`SmoothCoatLambertian::pdf`] for a query on `stack` (0 where `wo`
+    /// leaves on a side light cannot leave by).
+    pub fn pdf_query(&self, stack: &LayerStack, wi: [f64; 3], wo: [f64; 3]) -> f64 {
+        match super::orient(stack, wi, Some(wo)) {
+            Some(o) => self.pdf(o.wi, o.apply(wo)),
+            None => 0.0,
+        }
+    }
+
     /// The coat's transmittance from outside at incidence cosine `c`, and the
     /// cosine of the refracted direction.
     fn enter(&self, c: f64) -> (f64, f64) {
@@ -149,6 +241,18 @@ impl SmoothCoatLambertian {
         let s2 = (1.0 - c * c) / (self.eta * self.eta);
         (t, (1.0 - s2).max(0.0).sqrt())
     }
+}
+
+/// A direction of [`SmoothCoatLambertian::sample`] (oriented frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExactSample {
+    /// The outgoing direction (unit, above the coat).
+    pub wo: [f64; 3],
+    /// `f(wi, wo) cos θo / p(wo)` per channel (1 for the mirror reflection,
+    /// whose weight is the discrete `F / F`).
+    pub weight: [f64; 3],
+    /// The coat's mirror reflection.
+    pub specular: bool,
 }
 
 /// `R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ` for a coat of relative IOR `eta`,
