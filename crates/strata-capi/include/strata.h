@@ -200,7 +200,8 @@ typedef struct StrataSample {
   /**
    * The density of `wo` per solid angle: exactly what `strata_pdf_batch`
    * gives for `(wi, wo)`, so MIS sees the same number from either
-   * strategy. Approximate, so the weight is not `f cos / pdf`.
+   * strategy. Approximate (exact on stacks with a closed form, which are
+   * sampled without a walk), so the weight is not `f cos / pdf` in general.
    */
   float pdf;
   /**

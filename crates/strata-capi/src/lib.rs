@@ -120,7 +120,8 @@ pub struct StrataSample {
     pub weight: [f32; 3],
     /// The density of `wo` per solid angle: exactly what `strata_pdf_batch`
     /// gives for `(wi, wo)`, so MIS sees the same number from either
-    /// strategy. Approximate, so the weight is not `f cos / pdf`.
+    /// strategy. Approximate (exact on stacks with a closed form, which are
+    /// sampled without a walk), so the weight is not `f cos / pdf` in general.
     pub pdf: f32,
     /// `STRATA_SAMPLE_*` bits: REFLECTION or TRANSMISSION, and DELTA; 0 if
     /// absorbed.

@@ -106,10 +106,10 @@ impl SmoothCoatLambertian {
     /// `a`, base albedo `ρ`). Where scattering is a larger share of `f`, a
     /// collided path scores about what the uncollided one it replaces would
     /// have, the two parts are negatively correlated and leaving out the
-    /// uncollided part in full can add variance (per-walk variance ratios of
-    /// plain over control variate from 5 to 17 inside the rule, 0.5 to 1
-    /// outside it on the stacks of `tests/layered_control_variate.rs`;
-    /// docs/performance.md).
+    /// uncollided part in full can add variance, at some pairs of some
+    /// stacks even with the first collision boosted
+    /// ([`super::events::FIRST_COLLISION_BOOST`]; the stacks of
+    /// `tests/layered_control_variate.rs`, measured in docs/performance.md).
     pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
         let Some(cv) = Self::unscattered(stack, settings) else {
             return false;
@@ -157,7 +157,8 @@ impl SmoothCoatLambertian {
     /// ([`SmoothCoatLambertian::pdf`]) is known in closed form, so the pdf
     /// it returns is the density of its directions, and its weights are
     /// bounded (`f cos θo / p ∝ T(θo) e^(−τ/μi′) e^(−τ/μo′) ρ / (1 − ρ R̄)`):
-    /// no walk, no noise in the pdf. `None` where no light enters.
+    /// no walk, no noise in the pdf. `None` for `wi` below the coat (a coat
+    /// that lets no light in gives the mirror, weight 1).
     pub fn sample(&self, wi: [f64; 3], u: [f64; 3]) -> Option<ExactSample> {
         if wi[2] <= 0.0 {
             return None;
