@@ -5,7 +5,7 @@
 //! Its functions are `#[inline(always)]` (docs/architecture.md, *Code
 //! generation is part of the design*).
 
-use crate::lane::{Lane, Rgb};
+use crate::lane::{Lane, LaneMask, Rgb};
 
 /// Transmittance `exp(-σt · Δz / |d.z|)` per channel over a depth `dz >= 0`
 /// along a direction with `|d.z| = mu > 0`.
@@ -115,6 +115,60 @@ pub fn free_flight_grey<L: Lane>(
     }
 }
 
+/// The largest collision probability a boosted free flight gives a crossing
+/// ([`free_flight_grey_boosted`]), so that the weight of passing stays below
+/// 2.
+pub const MAX_BOOSTED: f64 = 0.5;
+
+/// [`free_flight_grey`] with the collision made `boost` times as likely
+/// (lanes with `boost > 1`; others are [`free_flight_grey`] exactly): the
+/// flight collides before `max_dist` with probability
+/// `q = max(P, min(boost · P, MAX_BOOSTED))`, `P = 1 − e^(−σt max_dist)`
+/// its physical probability, at a distance drawn from the exponential truncated to
+/// `max_dist`, and the weights `P / q` (collision, times the albedo) and
+/// `(1 − P) / (1 − q)` (passing) keep every estimate unbiased. For rare
+/// collisions that count (the control variate's walks score only paths that
+/// collide: `events::FIRST_COLLISION_BOOST`).
+#[inline(always)]
+pub fn free_flight_grey_boosted<L: Lane>(
+    sigma_t: L,
+    albedo: Rgb<L>,
+    max_dist: L,
+    u_dist: L,
+    ratios: Rgb<L>,
+    boost: L,
+) -> FreeFlight<L> {
+    let plain = free_flight_grey(sigma_t, albedo, max_dist, u_dist, ratios);
+    let boosted = boost.gt(L::one());
+    if !boosted.any() {
+        return plain;
+    }
+    let one = L::one();
+    let has = sigma_t.gt(L::zero());
+    let p = L::select(has, -(-(sigma_t * max_dist)).exp_m1(), L::zero());
+    // Never above MAX_BOOSTED (passing must stay possible: a path that
+    // passes may collide later), never below the physical p.
+    let q = (boost * p).min(L::splat(MAX_BOOSTED)).max(p);
+    let collide = has & u_dist.lt(q);
+    // Given a collision, u / q is uniform: the truncated exponential's inverse.
+    let u = L::div_or_zero(u_dist, q, collide) * p;
+    let t = L::div_or_zero(-(one - u).ln(), sigma_t, collide).min(max_dist);
+    let w_col = L::div_or_zero(p, q, collide);
+    let w_pass = L::div_or_zero(one - p, one - q, !collide);
+    let flight = FreeFlight {
+        collide,
+        distance: L::select(collide, t, max_dist),
+        weight: Rgb::select(collide, albedo.scale(w_col), Rgb::splat(w_pass)),
+        ratios,
+    };
+    FreeFlight {
+        collide: (boosted & flight.collide) | (!boosted & plain.collide),
+        distance: L::select(boosted, flight.distance, plain.distance),
+        weight: Rgb::select(boosted, flight.weight, plain.weight),
+        ratios,
+    }
+}
+
 /// Free flight with the variant the medium needs: [`free_flight_grey`] when
 /// `grey` (the same `sigma_t` in every channel), [`free_flight`] otherwise.
 #[inline(always)]
@@ -177,6 +231,55 @@ pub fn collision_density<L: Lane>(sigma_t: Rgb<L>, t: L, mu: L) -> L {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Over the uniform (a midpoint rule of 10⁶ points), a boosted flight's
+    /// weighted outcomes are the physical ones: collision probability ×
+    /// albedo, the mean collision distance, the probability of passing;
+    /// and boost 1 is the plain flight exactly.
+    #[test]
+    fn boosted_flights_keep_every_expectation() {
+        let al = Rgb::<f64>::splat(0.7);
+        let one = Rgb::one();
+        for (sigma, dist) in [(1.0, 0.01), (2.0, 0.3), (0.5, 4.0), (3.0, 50.0)] {
+            let p: f64 = 1.0 - (-sigma * dist).exp();
+            // ∫₀^L t σ e^(−σt) dt.
+            let mean_t = (1.0 - (1.0 + sigma * dist) * (-sigma * dist).exp()) / sigma;
+            for boost in [1.0, 8.0, 64.0] {
+                let n = 1_000_000;
+                let (mut col, mut t, mut pass) = (0.0, 0.0, 0.0);
+                for k in 0..n {
+                    let u = (k as f64 + 0.5) / n as f64;
+                    let ff = free_flight_grey_boosted(sigma, al, dist, u, one, boost);
+                    if ff.collide {
+                        assert!(ff.distance <= dist);
+                        col += ff.weight.r;
+                        t += ff.weight.r * ff.distance;
+                    } else {
+                        assert_eq!(ff.distance, dist);
+                        pass += ff.weight.r;
+                    }
+                    if boost == 1.0 {
+                        let plain = free_flight_grey(sigma, al, dist, u, one);
+                        assert_eq!((ff.collide, ff.distance), (plain.collide, plain.distance));
+                        assert_eq!(ff.weight.r, plain.weight.r);
+                    }
+                }
+                let (col, t, pass) = (col / n as f64, t / n as f64, pass / n as f64);
+                let what = format!("σ {sigma} L {dist} boost {boost}");
+                assert!((col - 0.7 * p).abs() < 1e-5, "{what}: {col} vs {}", 0.7 * p);
+                assert!(
+                    (t - 0.7 * mean_t).abs() < 1e-5,
+                    "{what}: {t} vs {}",
+                    0.7 * mean_t
+                );
+                assert!(
+                    (pass - (1.0 - p)).abs() < 1e-5,
+                    "{what}: {pass} vs {}",
+                    1.0 - p
+                );
+            }
+        }
+    }
 
     #[test]
     fn free_flight_grey_weights_are_albedo_and_one() {

@@ -4,12 +4,12 @@
 //! stack with the medium as a pure absorber, and walks that score only the
 //! paths with a collision.
 //!
-//! * Unbiased: on ten stacks of that shape (coat IOR 1.3–2.2, optical depth
+//! * Unbiased: on eleven stacks of that shape (coat IOR 1.3–2.2, optical depth
 //!   0.01–2, albedo 0.2–1, HG g −0.5..0.8, grey and coloured bases, grey and
 //!   chromatic σt, a denser and a lighter exterior, two-sided), at five
 //!   direction pairs each (grazing ones included), the control-variate
 //!   estimate agrees with the plain walks' within 4 combined standard errors
-//!   per channel (independent seeds). 150 comparisons: a false alarm has
+//!   per channel (independent seeds). 165 comparisons: a false alarm has
 //!   probability about 1 % for a random seed (seeds fixed). Each plain
 //!   estimate must be precise (relative standard error < 3 %), so that a
 //!   missing or doubled `f₀` (most of `f` on thin layers) is far outside.
@@ -39,6 +39,16 @@ pub const STACKS: &[(&str, &str)] = &[
         medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
         [[layers]]
         interface = { kind = "diffuse", albedo = 0.8 }
+        "#,
+    ),
+    (
+        "white base, τ 0.03 (inside the rule; unbounded boosts diverge here)",
+        r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5 }
+        medium = { thickness = 0.03, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.3 } }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 1.0 }
         "#,
     ),
     (
@@ -359,4 +369,48 @@ fn auto_uses_the_control_variate_only_where_it_pays() {
             "{name}: the control variate changes the walks"
         );
     }
+}
+
+/// The control variate's efficiency over the plain walks' on every stack
+/// above, `1 / (variance × time)` per channel and pair (median and worst),
+/// one thread, for docs/performance.md: `cargo test --release -p
+/// strata-bsdf --test layered_control_variate -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn control_variate_efficiency() {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        for (name, toml) in STACKS {
+            let st = stack(toml);
+            let plain = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
+            let cv = plain.clone().with_control_variate(true);
+            let pairs: Vec<([f64; 3], [f64; 3])> = PAIRS
+                .iter()
+                .map(|&(ti, pi, to, po)| (dir(ti, pi), dir(to, po)))
+                .collect();
+            let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+            let timed = |w: &Wavefront<F32x8>| {
+                let t = std::time::Instant::now();
+                let (e, _) = w.eval_batch(&pairs, N, 3, &keys);
+                (e, t.elapsed().as_secs_f64())
+            };
+            let ((a, ta), (b, tb)) = (timed(&plain), timed(&cv));
+            let mut r: Vec<f64> = (a.iter().zip(&b))
+                .flat_map(|(a, b)| (0..3).map(move |c| (a.stderr[c] / b.stderr[c]).powi(2)))
+                .filter(|x| x.is_finite())
+                .map(|v| v * ta / tb)
+                .collect();
+            assert!(!r.is_empty(), "{name}");
+            r.sort_by(f64::total_cmp);
+            println!(
+                "{name}: time x{:.2}, efficiency x{:.2} median, x{:.2} worst",
+                tb / ta,
+                r[r.len() / 2],
+                r[0]
+            );
+        }
+    });
 }

@@ -62,7 +62,9 @@ pub enum Estimator {
     /// paths that never collide in the medium (the closed form of the same
     /// stack with the medium as a pure absorber) exactly, plus the walks of
     /// the unidirectional estimator scoring only the paths with a collision
-    /// (unbiased), where the medium scatters little against what the base
+    /// (unbiased; in a grey medium they make their first collision more
+    /// likely and weight it down: `estimator::events::FIRST_COLLISION_BOOST`),
+    /// where the medium scatters little against what the base
     /// reflects (`SmoothCoatLambertian::control_variate_pays`, the rule under
     /// which it measured lower variance: docs/performance.md); the
     /// bidirectional estimator on stacks of three interfaces or more, on

@@ -112,6 +112,29 @@ pub struct Buffers<L: Lane> {
     eye: Vec<Vertex<L>>,
 }
 
+thread_local! {
+    /// This thread's buffers, one per lane type, kept between calls so that
+    /// a warm thread's bidirectional walks allocate nothing.
+    static KEPT: std::cell::RefCell<Vec<Box<dyn std::any::Any>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl<L: Lane + 'static> Buffers<L> {
+    /// Runs `f` with this thread's kept buffers of this lane type (new ones
+    /// the first time), and keeps them again, grown as `f` needed.
+    pub fn with_kept<R>(f: impl FnOnce(&mut Self) -> R) -> R {
+        let kept = KEPT.with(|k| {
+            let mut k = k.borrow_mut();
+            let i = k.iter().position(|b| b.is::<Self>())?;
+            k.swap_remove(i).downcast::<Self>().ok()
+        });
+        let mut b = kept.unwrap_or_default();
+        let r = f(&mut b);
+        KEPT.with(|k| k.borrow_mut().push(b));
+        r
+    }
+}
+
 /// A connection's own values at one end: the vertex's term (value) in the
 /// light's sense, and the densities with which it samples the connecting
 /// direction (`own`) and, given it, its own arrival (`other`).
@@ -416,7 +439,8 @@ impl<L: Lane> BidirWalk<'_, L> {
                         order: &mut order,
                     };
                     let cap = self.settings.max_scatter_order;
-                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), m, cap);
+                    let (hit, pass) =
+                        events::free_flight(med, fl, d, hero, draw(m), L::one(), m, cap);
                     alive = alive & !(m & !hit & !pass);
                     col = col | hit;
                 }

@@ -447,6 +447,47 @@ impl<L: Lane> WalkStart<L> {
     }
 }
 
+/// How much more likely the control variate's walks make their first
+/// collision in a grey medium ([`medium::free_flight_grey_boosted`]): they
+/// score only paths that collide, which at small optical depth are a few
+/// walks in a hundred; with the boost several times as many score, each with
+/// a weight that much smaller. A power of two, so that scaling a throughput
+/// by it and back is exact.
+pub const FIRST_COLLISION_BOOST: f64 = 8.0;
+
+/// The largest throughput at which a walk still boosts its first collision
+/// ([`collision_boost`]).
+pub const BOOST_CEILING: f64 = 2.0;
+
+/// The boost of a free flight of the lanes `m` and the scale of their
+/// Russian roulette, where `boosting` (the control variate's walks in a
+/// grey medium):
+///
+/// * before the first collision, while the throughput is at most
+///   [`BOOST_CEILING`], [`FIRST_COLLISION_BOOST`] (1 elsewhere). A flight
+///   that passes gains a weight of up to 2 ([`medium::MAX_BOOSTED`]);
+///   boosting whatever the throughput would multiply those weights over the
+///   bounces between base and coat, whose second moment can then grow
+///   without bound (over a bright base under a coat that reflects much of
+///   its light back). With the ceiling the throughput before the first
+///   collision stays below twice it (interface events multiply it by at
+///   most 1). The rule reads only the walk's past, so the estimate stays
+///   unbiased.
+/// * after it, [`FIRST_COLLISION_BOOST`] as the roulette's scale
+///   ([`survive_boosted`]), so that the roulette does not end the walks the
+///   boost made light (where the boost was clamped it keeps them a little
+///   longer than needed: cost, not bias).
+#[inline(always)]
+pub fn collision_boost<L: Lane>(boosting: L::Mask, order: L, beta: Rgb<L>) -> (L, L) {
+    let b = L::splat(FIRST_COLLISION_BOOST);
+    let first = order.eq(L::zero());
+    let light = beta.max_channel().le(L::splat(BOOST_CEILING));
+    (
+        L::select(boosting & first & light, b, L::one()),
+        L::select(boosting & !first, b, L::one()),
+    )
+}
+
 /// The lanes of `active` whose contributions to `eval` count: with the
 /// control variate (`cv`), a walk scores nothing before its first collision
 /// (`order` 0), whose paths the exact part holds (their segment to the exit
@@ -487,6 +528,27 @@ pub fn interface_scatter<L: Lane>(
 #[inline(always)]
 pub fn survive<L: Lane>(beta: &mut Rgb<L>, events: L, u: L, m: L::Mask, s: &Settings) -> L::Mask {
     let (b, alive) = walk_roulette(*beta, events, u, s);
+    *beta = Rgb::select(m, b, *beta);
+    m & alive
+}
+
+/// [`survive`] deciding on the throughput times `scale` (≥ 1): a walk
+/// whose throughput a boosted collision divided by the boost survives about
+/// as the unboosted walk would ([`FIRST_COLLISION_BOOST`]). Any survival
+/// probability keeps the estimate unbiased; this one keeps the walks the
+/// boost made light.
+#[inline(always)]
+pub fn survive_boosted<L: Lane>(
+    beta: &mut Rgb<L>,
+    events: L,
+    u: L,
+    m: L::Mask,
+    s: &Settings,
+    scale: L,
+) -> L::Mask {
+    let scaled = beta.scale(scale);
+    let (b, alive) = walk_roulette(scaled, events, u, s);
+    let b = b.scale(L::div_or_zero(L::one(), scale, scale.gt(L::zero())));
     *beta = Rgb::select(m, b, *beta);
     m & alive
 }
@@ -548,13 +610,19 @@ pub struct Flight<'a, L: Lane> {
 /// optional scatter-order cap ends instead) and those that pass to the
 /// layer's boundary. A direction exactly parallel to the layer collides (see
 /// [`flight_limit`]); if it does not, it is in neither: its walk ends.
+/// Lanes with `boost > 1` in a grey medium collide that many times as
+/// often, with weights that compensate
+/// ([`medium::free_flight_grey_boosted`]); `boost` is ignored in a chromatic
+/// one (pass 1).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn free_flight<L: Lane>(
     med: &MediumLanes<L>,
     st: Flight<'_, L>,
     d: V3<L>,
     hero: L,
     u: L,
+    boost: L,
     active: L::Mask,
     max_order: Option<u32>,
 ) -> (L::Mask, L::Mask) {
@@ -562,15 +630,13 @@ pub fn free_flight<L: Lane>(
     let mu = d.z.abs();
     let flat = active & mu.le(L::zero());
     let dz = depth_to_boundary(*st.z, h, d.z.gt(L::zero()));
-    let ff = medium::sample_free_flight(
-        med.sigma_along(d),
-        med.albedo,
-        med.grey,
-        flight_limit(dz, mu),
-        hero,
-        u,
-        *st.ratios,
-    );
+    let sigma = med.sigma_along(d);
+    let limit = flight_limit(dz, mu);
+    let ff = if med.grey {
+        medium::free_flight_grey_boosted(sigma.r, med.albedo, limit, u, *st.ratios, boost)
+    } else {
+        medium::sample_free_flight(sigma, med.albedo, false, limit, hero, u, *st.ratios)
+    };
     *st.beta = Rgb::select(active, *st.beta * ff.weight, *st.beta);
     *st.ratios = Rgb::select(active, ff.ratios, *st.ratios);
     let pass = active & !ff.collide & !flat;

@@ -191,8 +191,20 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// Russian roulette; always draws one uniform. False if the walk ends.
-    fn survive(&self, beta: &mut Rgb<S>, events: S, rng: &mut WalkRng) -> bool {
-        events::survive(beta, events, Self::u(rng), true, &self.settings)
+    /// `scale`: [`events::survive_boosted`]'s (1: plain roulette).
+    fn survive(&self, beta: &mut Rgb<S>, events: S, scale: S, rng: &mut WalkRng) -> bool {
+        let u = Self::u(rng);
+        if scale.gt(S::one()) {
+            return events::survive_boosted(beta, events, u, true, &self.settings, scale);
+        }
+        events::survive(beta, events, u, true, &self.settings)
+    }
+
+    /// Whether walks that leave out the control variate's paths (`cv`)
+    /// boost their first collision ([`events::FIRST_COLLISION_BOOST`]): in
+    /// a grey medium.
+    fn boosting(&self, cv: bool) -> bool {
+        cv && self.media.first().is_some_and(|m| m.grey)
     }
 
     /// One walk from `wi`. With `connect` it is a walk of the unidirectional
@@ -210,6 +222,7 @@ impl<S: Scalar> ScalarEngine<S> {
         let mis = self.settings.mis;
         let start = events::WalkStart::<S>::new(Self::u(rng));
         let cv = connect.as_ref().is_some_and(|c| c.collided_only);
+        let boosting = self.boosting(cv);
         let hero = start.hero;
         let (mut beta, mut ratios) = (start.beta, start.ratios);
         let (mut events, mut order) = (start.events, start.order);
@@ -262,7 +275,8 @@ impl<S: Scalar> ScalarEngine<S> {
             if out {
                 return Some(Exit { d, beta, specular });
             }
-            if !self.survive(&mut beta, events, rng) {
+            let (_, rr) = events::collision_boost::<S>(boosting, order, beta);
+            if !self.survive(&mut beta, events, rr, rng) {
                 return None;
             }
             // Cross layer l until the walk reaches one of its interfaces.
@@ -282,8 +296,10 @@ impl<S: Scalar> ScalarEngine<S> {
                         order: &mut order,
                     };
                     let max_order = self.settings.max_scatter_order;
+                    let (boost, _) = events::collision_boost::<S>(boosting, *st.order, *st.beta);
+                    let u = Self::u(rng);
                     let (col, pass) =
-                        events::free_flight(m, st, d, hero, Self::u(rng), true, max_order);
+                        events::free_flight(m, st, d, hero, u, boost, true, max_order);
                     if !col {
                         if pass {
                             break;
@@ -315,7 +331,8 @@ impl<S: Scalar> ScalarEngine<S> {
                     }
                     events::after_collision(&mut d, &mut events, dn, true);
                     length.0 = events.lane(0) as u32;
-                    if !self.survive(&mut beta, events, rng) {
+                    let (_, rr) = events::collision_boost::<S>(boosting, order, beta);
+                    if !self.survive(&mut beta, events, rr, rng) {
                         return None;
                     }
                 }
@@ -564,12 +581,13 @@ impl<S: Scalar> ScalarEngine<S> {
             settings: &self.settings,
         };
         let prefix = query_prefix(seed, query);
-        let mut buf = super::bidir::Buffers::default();
-        for k in 0..n {
-            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Bidir);
-            let draw = |m: bool| if m { Self::u(&mut rng) } else { S::zero() };
-            f(rgb_f64(walk.run(wi, wo, &mut buf, draw)));
-        }
+        super::bidir::Buffers::with_kept(|buf| {
+            for k in 0..n {
+                let mut rng = WalkRng::from_prefix(prefix, k, Stream::Bidir);
+                let draw = |m: bool| if m { Self::u(&mut rng) } else { S::zero() };
+                f(rgb_f64(walk.run(wi, wo, buf, draw)));
+            }
+        });
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
         events::deterministic_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo)

@@ -157,6 +157,29 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
+    /// The lanes whose walks boost their first collision
+    /// ([`events::FIRST_COLLISION_BOOST`]): eval walks with the control
+    /// variate, in a grey medium (scalar: `ScalarEngine::boosting`).
+    #[inline(always)]
+    fn boosting(&self, eval: bool, sets: &Option<LaneSets>) -> W::Mask {
+        if eval && self.media.first().is_some_and(|m| m.grey) {
+            self.cv_in(sets)
+        } else {
+            W::Mask::splat(false)
+        }
+    }
+
+    /// Russian roulette of the lanes `m` ([`events::survive`], and
+    /// [`events::survive_boosted`] after a boosted collision).
+    #[inline(always)]
+    fn survive(&self, c: &mut Chunk<W>, u: W, m: W::Mask, boosting: W::Mask) -> W::Mask {
+        let (_, rr) = events::collision_boost(boosting, c.order, c.beta);
+        if (m & boosting).any() {
+            return events::survive_boosted(&mut c.beta, c.events, u, m, &self.settings, rr);
+        }
+        events::survive(&mut c.beta, c.events, u, m, &self.settings)
+    }
+
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
     /// task order. The task's queues and deferred rows live in `tb`, kept by
     /// the caller between tasks so that a warm thread allocates nothing.
@@ -640,7 +663,7 @@ impl<W: Wide> Wavefront<W> {
         // Russian roulette.
         let cont = alive & !exited;
         let u = c.rng.uniform(cont);
-        let cont = events::survive(&mut c.beta, c.events, u, cont, &self.settings);
+        let cont = self.survive(c, u, cont, self.boosting(eval, &sets));
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
         let mut keys = [FREE; 2]; // [up, down]
@@ -697,7 +720,9 @@ impl<W: Wide> Wavefront<W> {
             order: &mut c.order,
         };
         let max_order = self.settings.max_scatter_order;
-        let (col, pass) = events::free_flight(med, st, d, c.hero, ud, active, max_order);
+        let boosting = self.boosting(eval, &sets);
+        let (boost, _) = events::collision_boost(boosting, *st.order, *st.beta);
+        let (col, pass) = events::free_flight(med, st, d, c.hero, ud, boost, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
         let e = events::estimate_uniforms(med, || c.rng.uniform(col));
@@ -736,13 +761,7 @@ impl<W: Wide> Wavefront<W> {
         }
         events::after_collision(&mut c.d, &mut c.events, dn, col);
         let u = c.rng.uniform(col);
-        let scattered = W::bitmask(events::survive(
-            &mut c.beta,
-            c.events,
-            u,
-            col,
-            &self.settings,
-        ));
+        let scattered = W::bitmask(self.survive(c, u, col, boosting));
         let n = self.layout.n;
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
