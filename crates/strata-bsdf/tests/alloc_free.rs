@@ -43,6 +43,8 @@ fn slice_calls_allocate_nothing() {
     let coated = include_str!("../materials/coated_copper.toml");
     let slab = include_str!("../materials/scattering_slab.toml");
     let clear = include_str!("../materials/clear_coat_lambertian.toml");
+    // Three interfaces: `Auto` answers eval with the bidirectional estimator.
+    let three = include_str!("../materials/three_interfaces.toml");
     let wi = [[0.3f32, 0.0, 0.95], [0.1, -0.4, 0.9], [0.2, 0.2, -0.9]];
     let wo = [[-0.3f32, 0.1, 0.95], [0.5, 0.0, 0.8], [0.0, 0.3, 0.9]];
     // The global pool's worker threads allocate as they start, on their
@@ -63,7 +65,7 @@ fn slice_calls_allocate_nothing() {
         ];
         b.eval_batch(&pairs).unwrap();
     }
-    for toml in [coated, slab, clear] {
+    for toml in [coated, slab, clear, three] {
         for transport in [Transport::Radiance, Transport::Importance] {
             let stack = strata_bsdf::LayerStack::from_toml_str(toml).unwrap();
             let b = LayeredBsdf::new(stack)
@@ -108,7 +110,9 @@ fn slice_calls_allocate_nothing() {
             run(); // sets up the thread's chain buffer
             assert_eq!(allocations(&mut run), 0, "{toml}");
             assert!(f.iter().flatten().any(|&x| x > 0.0));
-            assert!(s.iter().any(|r| r.flags != 0));
+            // (The three walks of the sampler on three interfaces are
+            // absorbed: there the eval, bidirectional, is the point.)
+            assert!(s.iter().any(|r| r.flags != 0) || toml == three, "{toml}");
         }
     }
     // A single sample and a single pdf on Auto (the scalar engine's walk,
@@ -151,7 +155,7 @@ fn slice_calls_allocate_nothing() {
     let (mut sp, mut sf) = (vec![0.0f32; n], vec![0u32; n]);
     let mut a = vec![AlbedoRecord::default(); n];
     let mut pd = vec![0.0f32; n];
-    for toml in [coated, slab, clear] {
+    for toml in [coated, slab, clear, three] {
         for transport in [Transport::Radiance, Transport::Importance] {
             let stack = strata_bsdf::LayerStack::from_toml_str(toml).unwrap();
             let b = LayeredBsdf::new(stack)

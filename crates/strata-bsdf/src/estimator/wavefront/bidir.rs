@@ -89,18 +89,21 @@ impl<W: Wide> Wavefront<W> {
             let run = |u: usize| {
                 let u = unit(u);
                 let mut b = MeanVar::new();
-                self.bidir_values(q, u, &mut Buffers::default(), |x| b.push(x));
+                Buffers::with_kept(|buf| self.bidir_values(q, u, buf, |x| b.push(x)));
                 (u, b)
-            };
-            let blocks: Vec<(Unit, MeanVar)> = if serial || count <= 1 {
-                (0..count).map(run).collect()
-            } else {
-                (0..count).into_par_iter().map(run).collect()
             };
             c.red.clear();
             c.red.resize(m, BlockReducer::new());
-            for (u, b) in &blocks {
-                c.red[u.query as usize].push_block(b);
+            if serial || count <= 1 {
+                // Block by block into the reducers: nothing to collect.
+                for (u, b) in (0..count).map(run) {
+                    c.red[u.query as usize].push_block(&b);
+                }
+            } else {
+                let blocks: Vec<(Unit, MeanVar)> = (0..count).into_par_iter().map(run).collect();
+                for (u, b) in &blocks {
+                    c.red[u.query as usize].push_block(b);
+                }
             }
             for k in 0..m {
                 let sum = match q.valid[k] {
