@@ -386,3 +386,26 @@ def test_material_errors_name_layer_and_field(tmp_path):
     p = tmp_path / "m.json"
     p.write_text(json.dumps({"layers": [{"interface": {"kind": "diffuse", "albedo": 0.5}}]}))
     assert Bsdf.from_path(p).interfaces == 1
+
+
+@pytest.mark.parametrize("estimator", ["auto", "uni"])
+def test_closed_form_stacks_sample_with_an_exact_pdf(materials, estimator):
+    bsdf = Bsdf.from_path(materials / "clear_coat_lambertian.toml", seed=5, estimator=estimator)
+    assert bsdf.exact_sampling == (estimator == "auto")
+    rng = np.random.default_rng(8)
+    wi = fixed_directions(16, rng)
+    wo, weight, pdf, flags = bsdf.sample(wi)
+    # Absorbed walks (flags 0, the walks' sampler only) have no direction.
+    ok = flags != 0
+    assert np.all(ok) or estimator == "uni"
+    wi, wo, weight, pdf = wi[ok], wo[ok], weight[ok], pdf[ok]
+    np.testing.assert_array_equal(pdf, bsdf.pdf(wi, wo))
+    p, se = bsdf.pdf_unbiased(wi, wo, 64)
+    if estimator == "auto":
+        # The density itself: no walks, no standard error.
+        np.testing.assert_array_equal(p, pdf)
+        assert np.all(se == 0)
+    else:
+        assert np.any(se > 0)
+    assert np.all(np.isfinite(weight)) and np.all(weight >= 0)
+
