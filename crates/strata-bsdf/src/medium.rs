@@ -128,8 +128,9 @@ pub const MAX_BOOSTED: f64 = 0.5;
 /// `max_dist`, and the weights `P / q` (collision, times the albedo) and
 /// `(1 − P) / (1 − q)` (passing) keep every estimate unbiased. For rare
 /// collisions that count (the control variate's walks score only paths that
-/// collide: `events::FIRST_COLLISION_BOOST`).
-#[inline(always)]
+/// collide: `events::FIRST_COLLISION_BOOST`). Out of line: only their walks
+/// run it.
+#[inline(never)]
 pub fn free_flight_grey_boosted<L: Lane>(
     sigma_t: L,
     albedo: Rgb<L>,
@@ -266,17 +267,12 @@ mod tests {
                 }
                 let (col, t, pass) = (col / n as f64, t / n as f64, pass / n as f64);
                 let what = format!("σ {sigma} L {dist} boost {boost}");
-                assert!((col - 0.7 * p).abs() < 1e-5, "{what}: {col} vs {}", 0.7 * p);
-                assert!(
-                    (t - 0.7 * mean_t).abs() < 1e-5,
-                    "{what}: {t} vs {}",
-                    0.7 * mean_t
-                );
-                assert!(
-                    (pass - (1.0 - p)).abs() < 1e-5,
-                    "{what}: {pass} vs {}",
-                    1.0 - p
-                );
+                // Relative 1e-3 (a midpoint rule on 10⁶ points resolves a
+                // probability p to about 1e-6 / p), and never looser than 1e-5.
+                let close = |x: f64, r: f64| (x - r).abs() <= (1e-3 * r).min(1e-5);
+                assert!(close(col, 0.7 * p), "{what}: {col} vs {}", 0.7 * p);
+                assert!(close(t, 0.7 * mean_t), "{what}: {t} vs {}", 0.7 * mean_t);
+                assert!(close(pass, 1.0 - p), "{what}: {pass} vs {}", 1.0 - p);
             }
         }
     }

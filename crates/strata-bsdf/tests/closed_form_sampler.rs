@@ -19,24 +19,10 @@ use std::f64::consts::{PI, TAU};
 use strata_bsdf::{Estimator, LayerStack, LayeredBsdf};
 
 const STACKS: [(&str, &str); 4] = [
-    (
-        "smooth coat / white Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 1.0 }
-        "#,
-    ),
+    ("smooth coat / white Lambertian", common::SMOOTH_COAT_WHITE),
     (
         "2.2 coat, coloured absorber / Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 2.2 }
-        medium = { thickness = 0.2, sigma_t = [0.1, 0.3, 0.8], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.7 }
-        "#,
+        common::DENSE_COAT_ABSORBER,
     ),
     (
         "coat less dense than the exterior / Lambertian",

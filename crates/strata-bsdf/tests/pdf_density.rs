@@ -19,25 +19,8 @@ use std::f64::consts::{PI, TAU};
 use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, Transport};
 
 const STACKS: [(&str, &str); 9] = [
-    (
-        "smooth coat / white Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 1.0 }
-        "#,
-    ),
-    (
-        "2.2 coat / Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 2.2 }
-        medium = { thickness = 0.2, sigma_t = [0.1, 0.3, 0.8], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.7 }
-        "#,
-    ),
+    ("smooth coat / white Lambertian", common::SMOOTH_COAT_WHITE),
+    ("2.2 coat / Lambertian", common::DENSE_COAT_ABSORBER),
     (
         "rough varnish / scattering layer",
         r#"

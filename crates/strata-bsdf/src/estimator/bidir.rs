@@ -439,8 +439,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                         order: &mut order,
                     };
                     let cap = self.settings.max_scatter_order;
-                    let (hit, pass) =
-                        events::free_flight(med, fl, d, hero, draw(m), L::one(), m, cap);
+                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), None, m, cap);
                     alive = alive & !(m & !hit & !pass);
                     col = col | hit;
                 }

@@ -359,7 +359,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                         let max_order = self.settings.max_scatter_order;
                         let u = draw(here);
                         let (hit, pass) =
-                            events::free_flight(med, fl, d, st.hero, u, L::one(), here, max_order);
+                            events::free_flight(med, fl, d, st.hero, u, None, here, max_order);
                         // Flat lanes that pass, and lanes past the cap, end.
                         alive = alive & !(here & !hit & !pass);
                         flying = flying & !(here & !hit);

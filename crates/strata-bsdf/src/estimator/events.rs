@@ -459,6 +459,13 @@ pub const FIRST_COLLISION_BOOST: f64 = 8.0;
 /// ([`collision_boost`]).
 pub const BOOST_CEILING: f64 = 2.0;
 
+/// Whether the control variate's walks on a stack with these media boost
+/// their first collision: its one medium is grey (a chromatic one samples
+/// its flights by a hero channel, which the boost does not cover).
+pub fn boosts_first_collision<L: Lane>(media: &[MediumLanes<L>]) -> bool {
+    media.first().is_some_and(|m| m.grey)
+}
+
 /// The boost of a free flight of the lanes `m` and the scale of their
 /// Russian roulette, where `boosting` (the control variate's walks in a
 /// grey medium):
@@ -536,8 +543,8 @@ pub fn survive<L: Lane>(beta: &mut Rgb<L>, events: L, u: L, m: L::Mask, s: &Sett
 /// whose throughput a boosted collision divided by the boost survives about
 /// as the unboosted walk would ([`FIRST_COLLISION_BOOST`]). Any survival
 /// probability keeps the estimate unbiased; this one keeps the walks the
-/// boost made light.
-#[inline(always)]
+/// boost made light. Out of line: only the control variate's walks run it.
+#[inline(never)]
 pub fn survive_boosted<L: Lane>(
     beta: &mut Rgb<L>,
     events: L,
@@ -610,10 +617,10 @@ pub struct Flight<'a, L: Lane> {
 /// optional scatter-order cap ends instead) and those that pass to the
 /// layer's boundary. A direction exactly parallel to the layer collides (see
 /// [`flight_limit`]); if it does not, it is in neither: its walk ends.
-/// Lanes with `boost > 1` in a grey medium collide that many times as
-/// often, with weights that compensate
-/// ([`medium::free_flight_grey_boosted`]); `boost` is ignored in a chromatic
-/// one (pass 1).
+/// With `boost`, lanes whose boost is above 1 in a grey medium collide that
+/// many times as often, with weights that compensate
+/// ([`medium::free_flight_grey_boosted`]; ignored in a chromatic one);
+/// `None` is the plain flight, with no work for the boost.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn free_flight<L: Lane>(
@@ -622,7 +629,7 @@ pub fn free_flight<L: Lane>(
     d: V3<L>,
     hero: L,
     u: L,
-    boost: L,
+    boost: Option<L>,
     active: L::Mask,
     max_order: Option<u32>,
 ) -> (L::Mask, L::Mask) {
@@ -632,10 +639,11 @@ pub fn free_flight<L: Lane>(
     let dz = depth_to_boundary(*st.z, h, d.z.gt(L::zero()));
     let sigma = med.sigma_along(d);
     let limit = flight_limit(dz, mu);
-    let ff = if med.grey {
-        medium::free_flight_grey_boosted(sigma.r, med.albedo, limit, u, *st.ratios, boost)
-    } else {
-        medium::sample_free_flight(sigma, med.albedo, false, limit, hero, u, *st.ratios)
+    let ff = match boost {
+        Some(b) if med.grey => {
+            medium::free_flight_grey_boosted(sigma.r, med.albedo, limit, u, *st.ratios, b)
+        }
+        _ => medium::sample_free_flight(sigma, med.albedo, med.grey, limit, hero, u, *st.ratios),
     };
     *st.beta = Rgb::select(active, *st.beta * ff.weight, *st.beta);
     *st.ratios = Rgb::select(active, ff.ratios, *st.ratios);

@@ -204,7 +204,7 @@ impl<S: Scalar> ScalarEngine<S> {
     /// boost their first collision ([`events::FIRST_COLLISION_BOOST`]): in
     /// a grey medium.
     fn boosting(&self, cv: bool) -> bool {
-        cv && self.media.first().is_some_and(|m| m.grey)
+        cv && events::boosts_first_collision(&self.media)
     }
 
     /// One walk from `wi`. With `connect` it is a walk of the unidirectional
@@ -296,7 +296,8 @@ impl<S: Scalar> ScalarEngine<S> {
                         order: &mut order,
                     };
                     let max_order = self.settings.max_scatter_order;
-                    let (boost, _) = events::collision_boost::<S>(boosting, *st.order, *st.beta);
+                    let boost =
+                        boosting.then(|| events::collision_boost::<S>(true, *st.order, *st.beta).0);
                     let u = Self::u(rng);
                     let (col, pass) =
                         events::free_flight(m, st, d, hero, u, boost, true, max_order);

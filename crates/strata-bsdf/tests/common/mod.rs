@@ -4,6 +4,25 @@
 
 use strata_bsdf::LayerStack;
 
+/// A smooth coat over a white Lambertian base: a closed-form stack
+/// (`estimator::closed_form`), lossless.
+pub const SMOOTH_COAT_WHITE: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 1.0 }
+"#;
+
+/// A 2.2 coat over a coloured absorber over a Lambertian base: a
+/// closed-form stack.
+pub const DENSE_COAT_ABSORBER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 2.2 }
+medium = { thickness = 0.2, sigma_t = [0.1, 0.3, 0.8], albedo = 0.0 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.7 }
+"#;
+
 /// A stack from TOML text (panics with the error: test inputs are valid).
 pub fn stack(toml: &str) -> LayerStack {
     LayerStack::from_toml_str(toml).unwrap_or_else(|e| panic!("test material: {e}"))

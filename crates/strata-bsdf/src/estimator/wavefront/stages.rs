@@ -162,7 +162,7 @@ impl<W: Wide> Wavefront<W> {
     /// variate, in a grey medium (scalar: `ScalarEngine::boosting`).
     #[inline(always)]
     fn boosting(&self, eval: bool, sets: &Option<LaneSets>) -> W::Mask {
-        if eval && self.media.first().is_some_and(|m| m.grey) {
+        if eval && events::boosts_first_collision(&self.media) {
             self.cv_in(sets)
         } else {
             W::Mask::splat(false)
@@ -172,12 +172,21 @@ impl<W: Wide> Wavefront<W> {
     /// Russian roulette of the lanes `m` ([`events::survive`], and
     /// [`events::survive_boosted`] after a boosted collision).
     #[inline(always)]
-    fn survive(&self, c: &mut Chunk<W>, u: W, m: W::Mask, boosting: W::Mask) -> W::Mask {
-        let (_, rr) = events::collision_boost(boosting, c.order, c.beta);
+    #[allow(clippy::too_many_arguments)]
+    fn survive(
+        &self,
+        beta: &mut Rgb<W>,
+        events: W,
+        order: W,
+        u: W,
+        m: W::Mask,
+        boosting: W::Mask,
+    ) -> W::Mask {
         if (m & boosting).any() {
-            return events::survive_boosted(&mut c.beta, c.events, u, m, &self.settings, rr);
+            let (_, rr) = events::collision_boost(boosting, order, *beta);
+            return events::survive_boosted(beta, events, u, m, &self.settings, rr);
         }
-        events::survive(&mut c.beta, c.events, u, m, &self.settings)
+        events::survive(beta, events, u, m, &self.settings)
     }
 
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
@@ -663,7 +672,8 @@ impl<W: Wide> Wavefront<W> {
         // Russian roulette.
         let cont = alive & !exited;
         let u = c.rng.uniform(cont);
-        let cont = self.survive(c, u, cont, self.boosting(eval, &sets));
+        let boosting = self.boosting(eval, &sets);
+        let cont = self.survive(&mut c.beta, c.events, c.order, u, cont, boosting);
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
         let mut keys = [FREE; 2]; // [up, down]
@@ -721,7 +731,9 @@ impl<W: Wide> Wavefront<W> {
         };
         let max_order = self.settings.max_scatter_order;
         let boosting = self.boosting(eval, &sets);
-        let (boost, _) = events::collision_boost(boosting, *st.order, *st.beta);
+        let boost = (active & boosting)
+            .any()
+            .then(|| events::collision_boost(boosting, *st.order, *st.beta).0);
         let (col, pass) = events::free_flight(med, st, d, c.hero, ud, boost, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
@@ -761,7 +773,8 @@ impl<W: Wide> Wavefront<W> {
         }
         events::after_collision(&mut c.d, &mut c.events, dn, col);
         let u = c.rng.uniform(col);
-        let scattered = W::bitmask(self.survive(c, u, col, boosting));
+        let scattered = self.survive(&mut c.beta, c.events, c.order, u, col, boosting);
+        let scattered = W::bitmask(scattered);
         let n = self.layout.n;
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
