@@ -337,6 +337,19 @@ int32_t strata_bsdf_set_threads(struct StrataBsdf *b,
 int32_t strata_bsdf_info(const struct StrataBsdf *b, struct StrataStackInfo *out);
 
 /**
+ * Writes to `*out` whether the BSDF answers eval, sample and pdf with its
+ * stack's closed form (1) or with walks (0): under `STRATA_ESTIMATOR_AUTO`,
+ * a smooth coat over a clear or absorbing layer over a Lambertian base.
+ * Then eval has standard error 0, sample draws without a walk with bounded
+ * weights, and `strata_pdf_batch` returns the exact density of sample's
+ * directions (elsewhere an approximation).
+ *
+ * # Safety
+ * `b` is NULL or live; `out` is NULL or points to a writable `uint32_t`.
+ */
+int32_t strata_bsdf_is_exact(const struct StrataBsdf *b, uint32_t *out);
+
+/**
  * Frees a BSDF. NULL is a no-op.
  *
  * # Safety

@@ -698,6 +698,29 @@ pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut Strata
     })
 }
 
+/// Writes to `*out` whether the BSDF answers eval, sample and pdf with its
+/// stack's closed form (1) or with walks (0): under `STRATA_ESTIMATOR_AUTO`,
+/// a smooth coat over a clear or absorbing layer over a Lambertian base.
+/// Then eval has standard error 0, sample draws without a walk with bounded
+/// weights, and `strata_pdf_batch` returns the exact density of sample's
+/// directions (elsewhere an approximation).
+///
+/// # Safety
+/// `b` is NULL or live; `out` is NULL or points to a writable `uint32_t`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_is_exact(b: *const StrataBsdf, out: *mut u32) -> i32 {
+    guard("strata_bsdf_is_exact", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let exact = unsafe { bsdf_ref(b)? }.sample_is_exact();
+        if out.is_null() {
+            return Err(Failure::new(STRATA_ERR_NULL, "out is NULL"));
+        }
+        // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
+        unsafe { out.write(exact as u32) };
+        Ok(())
+    })
+}
+
 /// Frees a BSDF. NULL is a no-op.
 ///
 /// # Safety

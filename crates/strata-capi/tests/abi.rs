@@ -830,6 +830,34 @@ fn info_describes_the_stack() {
     }
 }
 
+/// `strata_bsdf_is_exact` is the Rust API's `sample_is_exact`: the closed
+/// form under `Auto` on a smooth coat over a Lambertian base, walks under
+/// the unidirectional estimator and on other stacks; NULLs are errors.
+#[test]
+fn exactness_is_the_rust_apis() {
+    let clear = include_str!("../../../examples/materials/clear_coat_lambertian.toml");
+    let mut exact = 7u32;
+    // SAFETY: live BSDFs used by this thread only, and a writable word.
+    unsafe {
+        let c = Capi::toml(clear, 16, 0);
+        assert!(rust(clear, 16, 0).sample_is_exact());
+        assert_eq!(strata_bsdf_is_exact(c.0, &mut exact), STRATA_OK);
+        assert_eq!(exact, 1);
+        let code = STRATA_ESTIMATOR_UNIDIRECTIONAL;
+        assert_eq!(strata_bsdf_set_estimator(c.0, code), STRATA_OK);
+        assert_eq!(strata_bsdf_is_exact(c.0, &mut exact), STRATA_OK);
+        assert_eq!(exact, 0);
+        let copper = Capi::toml(COATED_COPPER, 16, 0);
+        assert!(!rust(COATED_COPPER, 16, 0).sample_is_exact());
+        exact = 7;
+        assert_eq!(strata_bsdf_is_exact(copper.0, &mut exact), STRATA_OK);
+        assert_eq!(exact, 0);
+        assert_eq!(strata_bsdf_is_exact(copper.0, null_mut()), STRATA_ERR_NULL);
+        assert_eq!(last_error(), "strata_bsdf_is_exact: out is NULL");
+        assert_eq!(strata_bsdf_is_exact(null(), &mut exact), STRATA_ERR_NULL);
+    }
+}
+
 #[test]
 fn the_estimator_is_the_rust_apis() {
     // Three interfaces: `Auto` runs the bidirectional estimator there.

@@ -75,6 +75,11 @@ int main(void) {
     StrataStackInfo info;
     expect("info, NULL b", strata_bsdf_info(NULL, &info), STRATA_ERR_NULL, "b is NULL", NULL);
     expect("info, NULL out", strata_bsdf_info(b, NULL), STRATA_ERR_NULL, "out is NULL", NULL);
+    uint32_t exact;
+    expect("exact, NULL b", strata_bsdf_is_exact(NULL, &exact), STRATA_ERR_NULL, "b is NULL",
+           NULL);
+    expect("exact, NULL out", strata_bsdf_is_exact(b, NULL), STRATA_ERR_NULL, "out is NULL",
+           NULL);
     expect("too many threads", strata_bsdf_set_threads(b, 5000), STRATA_ERR_INVALID_ARGUMENT,
            "threads = 5000", NULL);
     strata_bsdf_free(NULL); /* a no-op */
