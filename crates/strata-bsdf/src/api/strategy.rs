@@ -64,13 +64,13 @@ pub enum Estimator {
     /// the unidirectional estimator scoring only the paths with a collision
     /// (unbiased; in a grey medium they make their first collision more
     /// likely and weight it down: `estimator::events::FIRST_COLLISION_BOOST`),
-    /// where the medium scatters little against what the base
-    /// reflects (`SmoothCoatLambertian::control_variate_pays`, the rule under
-    /// which it measured lower variance: docs/performance.md); the
-    /// bidirectional estimator on stacks of three interfaces or more, on
+    /// where the medium is grey and not deep or it scatters little against
+    /// what the base reflects (`SmoothCoatLambertian::control_variate_pays`,
+    /// the rule under which it measured lower variance: docs/performance.md);
+    /// the bidirectional estimator on stacks of three interfaces or more, on
     /// rough coats over smooth conductors and on near-specular coated
-    /// conductors ([`Estimator::bidirectional_pays`]);
-    /// the unidirectional estimator elsewhere. The default.
+    /// conductors ([`Estimator::bidirectional_pays`]); the unidirectional
+    /// estimator elsewhere. The default.
     #[default]
     Auto,
     /// The unidirectional random-walk estimator, always (method.md §4).

@@ -33,8 +33,14 @@
 use super::{Settings, WalkSample};
 use crate::fresnel;
 use crate::rng::WalkRng;
-use crate::stack::{InterfaceKind, LayerStack};
+use crate::stack::{InterfaceKind, LayerStack, PhaseKind};
 use std::f64::consts::PI;
+
+/// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
+/// boosted control variate ([`SmoothCoatLambertian::control_variate_pays`]):
+/// the thickest measured gain with every measured loss beyond it or off
+/// its other conditions.
+pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 
 /// The closed form of a smooth coat over an absorbing layer over a
 /// Lambertian base.
@@ -100,16 +106,24 @@ impl SmoothCoatLambertian {
     }
 
     /// Whether [`crate::Estimator::Auto`] uses the control variate on
-    /// `stack`: it has the shape ([`SmoothCoatLambertian::unscattered`]) and
-    /// its medium scatters little against what the base reflects, `max_c(τ_c
-    /// a_c) <= 0.1 min_c ρ_c` (optical depth `τ`, single-scattering albedo
-    /// `a`, base albedo `ρ`). Where scattering is a larger share of `f`, a
+    /// `stack`: it has the shape ([`SmoothCoatLambertian::unscattered`]),
+    /// its medium scatters, and either
+    ///
+    /// * the medium is grey (one extinction and one albedo for the three
+    ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
+    ///   Henyey–Greenstein phase function: its walks then boost their first
+    ///   collision ([`super::events::FIRST_COLLISION_BOOST`]), and every such
+    ///   stack measured a gain; or
+    /// * the medium scatters little against what the base reflects,
+    ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
+    ///   single-scattering albedo `a`, base albedo `ρ`).
+    ///
+    /// Elsewhere (a chromatic albedo, a mixture of lobes, a thick medium,
+    /// or chromatic extinction, which the boost does not cover) the control
+    /// variate measured more variance per unit of time at some pairs: a
     /// collided path scores about what the uncollided one it replaces would
-    /// have, the two parts are negatively correlated and leaving out the
-    /// uncollided part in full can add variance, at some pairs of some
-    /// stacks even with the first collision boosted
-    /// ([`super::events::FIRST_COLLISION_BOOST`]; the stacks of
-    /// `tests/layered_control_variate.rs`, measured in docs/performance.md).
+    /// have, and the boosted walks' longer roulette costs time
+    /// (`tests/layered_control_variate.rs`, measured in docs/performance.md).
     pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
         let Some(cv) = Self::unscattered(stack, settings) else {
             return false;
@@ -119,7 +133,10 @@ impl SmoothCoatLambertian {
         };
         let scatter = (0..3).map(|c| cv.tau[c] * m.albedo[c]).fold(0.0, f64::max);
         let base = cv.rho.iter().copied().fold(f64::INFINITY, f64::min);
-        scatter <= 0.1 * base
+        let grey = m.grey() && m.albedo.iter().all(|&a| a == m.albedo[0]);
+        let boosted_pays =
+            grey && cv.tau[0] <= BOOSTED_CV_MAX_DEPTH && m.phase_kind() == PhaseKind::Hg;
+        boosted_pays || scatter <= 0.1 * base
     }
 
     /// `f(wi, wo)` per channel for directions in the stack's oriented frame
