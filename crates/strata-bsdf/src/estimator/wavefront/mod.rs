@@ -202,7 +202,9 @@ impl Queries {
     }
 
     /// The sets of the lanes whose queries are `lq` (`None`: every query
-    /// has the engine's own parameters).
+    /// has the engine's own parameters). Inline: every event asks, and most
+    /// calls have no sets.
+    #[inline(always)]
     pub(crate) fn lane_sets(
         &self,
         lanes: usize,

@@ -159,14 +159,14 @@ impl<W: Wide> Wavefront<W> {
 
     /// The lanes whose walks boost their first collision
     /// ([`events::FIRST_COLLISION_BOOST`]): eval walks with the control
-    /// variate, in a grey medium (scalar: `ScalarEngine::boosting`).
+    /// variate, in a grey medium (scalar: `ScalarEngine::boosting`). `None`
+    /// where no lane can, decided without looking at the lanes, so that the
+    /// plain walks run the plain events' code alone.
     #[inline(always)]
-    fn boosting(&self, eval: bool, sets: &Option<LaneSets>) -> W::Mask {
-        if eval && events::boosts_first_collision(&self.media) {
-            self.cv_in(sets)
-        } else {
-            W::Mask::splat(false)
-        }
+    fn boosting(&self, eval: bool, sets: &Option<LaneSets>) -> Option<W::Mask> {
+        let cv_possible = self.cv.is_some() || sets.is_some();
+        (eval && cv_possible && events::boosts_first_collision(&self.media))
+            .then(|| self.cv_in(sets))
     }
 
     /// Russian roulette of the lanes `m` ([`events::survive`], and
@@ -180,10 +180,10 @@ impl<W: Wide> Wavefront<W> {
         order: W,
         u: W,
         m: W::Mask,
-        boosting: W::Mask,
+        boosting: Option<W::Mask>,
     ) -> W::Mask {
-        if (m & boosting).any() {
-            let (_, rr) = events::collision_boost(boosting, order, *beta);
+        if let Some(b) = boosting.filter(|b| (m & *b).any()) {
+            let (_, rr) = events::collision_boost(b, order, *beta);
             return events::survive_boosted(beta, events, u, m, &self.settings, rr);
         }
         events::survive(beta, events, u, m, &self.settings)
@@ -731,9 +731,9 @@ impl<W: Wide> Wavefront<W> {
         };
         let max_order = self.settings.max_scatter_order;
         let boosting = self.boosting(eval, &sets);
-        let boost = (active & boosting)
-            .any()
-            .then(|| events::collision_boost(boosting, *st.order, *st.beta).0);
+        let boost = boosting
+            .filter(|b| (active & *b).any())
+            .map(|b| events::collision_boost(b, *st.order, *st.beta).0);
         let (col, pass) = events::free_flight(med, st, d, c.hero, ud, boost, active, max_order);
         let (wo, e_out) = (c.wo, c.e_out);
         // Next-event estimation from the collision.
