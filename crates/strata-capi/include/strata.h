@@ -339,7 +339,9 @@ int32_t strata_bsdf_info(const struct StrataBsdf *b, struct StrataStackInfo *out
 /**
  * Writes to `*out` whether the BSDF answers eval, sample and pdf with its
  * stack's closed form (1) or with walks (0): under `STRATA_ESTIMATOR_AUTO`,
- * a smooth coat over a clear or absorbing layer over a Lambertian base.
+ * a smooth coat over a clear or absorbing layer over a Lambertian base
+ * (untilted normals, an absorber whose extinction does not depend on the
+ * direction, no depth cap).
  * Then eval has standard error 0, sample draws without a walk with bounded
  * weights, and `strata_pdf_batch` returns the exact density of sample's
  * directions (elsewhere an approximation).

@@ -64,7 +64,8 @@ pub enum Estimator {
     /// the unidirectional estimator scoring only the paths with a collision
     /// (unbiased; in a grey medium they make their first collision more
     /// likely and weight it down: `estimator::events::FIRST_COLLISION_BOOST`),
-    /// where the medium is grey and not deep or it scatters little against
+    /// where the medium is grey (extinction and albedo), of optical depth at
+    /// most 2, with a Henyey–Greenstein phase, or scatters little against
     /// what the base reflects (`SmoothCoatLambertian::control_variate_pays`,
     /// the rule under which it measured lower variance: docs/performance.md);
     /// the bidirectional estimator on stacks of three interfaces or more, on

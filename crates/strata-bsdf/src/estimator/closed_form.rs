@@ -37,9 +37,10 @@ use crate::stack::{InterfaceKind, LayerStack, PhaseKind};
 use std::f64::consts::PI;
 
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
-/// boosted control variate ([`SmoothCoatLambertian::control_variate_pays`]):
-/// the thickest measured gain with every measured loss beyond it or off
-/// its other conditions.
+/// boosted control variate ([`SmoothCoatLambertian::control_variate_pays`]).
+/// A conservative choice: the deepest measured stack inside the rule is at
+/// τ 2; a grey τ 8 one measured a small gain, and the deep example `jade`
+/// (which the other conditions leave out too) a loss.
 pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 
 /// The closed form of a smooth coat over an absorbing layer over a
@@ -113,17 +114,19 @@ impl SmoothCoatLambertian {
     ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
     ///   Henyey–Greenstein phase function: its walks then boost their first
     ///   collision ([`super::events::FIRST_COLLISION_BOOST`]), and every such
-    ///   stack measured a gain; or
+    ///   stack measured a gain at the median (and at every pair but one); or
     /// * the medium scatters little against what the base reflects,
     ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
     ///   single-scattering albedo `a`, base albedo `ρ`).
     ///
-    /// Elsewhere (a chromatic albedo, a mixture of lobes, a thick medium,
-    /// or chromatic extinction, which the boost does not cover) the control
-    /// variate measured more variance per unit of time at some pairs: a
-    /// collided path scores about what the uncollided one it replaces would
-    /// have, and the boosted walks' longer roulette costs time
+    /// Elsewhere (a chromatic albedo, a mixture of lobes, or chromatic
+    /// extinction, which the boost does not cover) the control variate
+    /// measured more variance per unit of time at some pairs: a collided
+    /// path scores about what the uncollided one it replaces would have, and
+    /// the boosted walks' longer roulette costs time; deeper grey media are
+    /// left out by choice ([`BOOSTED_CV_MAX_DEPTH`])
     /// (`tests/layered_control_variate.rs`, measured in docs/performance.md).
+    /// A mixture of a single lobe counts as a mixture here.
     pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
         let Some(cv) = Self::unscattered(stack, settings) else {
             return false;
