@@ -39,8 +39,8 @@ use std::f64::consts::PI;
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
 /// boosted control variate ([`SmoothCoatLambertian::control_variate_pays`]).
 /// A conservative choice: the deepest measured stack inside the rule is at
-/// τ 2; a grey τ 8 one measured a small gain, and the deep example `jade`
-/// (which the other conditions leave out too) a loss.
+/// τ 2; a grey τ 8 one about broke even at its worst pair, and the deep
+/// example `jade` (which the other conditions leave out too) lost by half.
 pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 
 /// The closed form of a smooth coat over an absorbing layer over a

@@ -172,21 +172,12 @@ impl<W: Wide> Wavefront<W> {
     /// Russian roulette of the lanes `m` ([`events::survive`], and
     /// [`events::survive_boosted`] after a boosted collision).
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn survive(
-        &self,
-        beta: &mut Rgb<W>,
-        events: W,
-        order: W,
-        u: W,
-        m: W::Mask,
-        boosting: Option<W::Mask>,
-    ) -> W::Mask {
+    fn survive(&self, c: &mut Chunk<W>, u: W, m: W::Mask, boosting: Option<W::Mask>) -> W::Mask {
         if let Some(b) = boosting.filter(|b| (m & *b).any()) {
-            let (_, rr) = events::collision_boost(b, order, *beta);
-            return events::survive_boosted(beta, events, u, m, &self.settings, rr);
+            let (_, rr) = events::collision_boost(b, c.order, c.beta);
+            return events::survive_boosted(&mut c.beta, c.events, u, m, &self.settings, rr);
         }
-        events::survive(beta, events, u, m, &self.settings)
+        events::survive(&mut c.beta, c.events, u, m, &self.settings)
     }
 
     /// Runs every walk of `task` in the wave `ws`; outputs go to `out` in
@@ -673,7 +664,7 @@ impl<W: Wide> Wavefront<W> {
         let cont = alive & !exited;
         let u = c.rng.uniform(cont);
         let boosting = self.boosting(eval, &sets);
-        let cont = self.survive(&mut c.beta, c.events, c.order, u, cont, boosting);
+        let cont = self.survive(c, u, cont, boosting);
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
         let mut keys = [FREE; 2]; // [up, down]
@@ -773,8 +764,7 @@ impl<W: Wide> Wavefront<W> {
         }
         events::after_collision(&mut c.d, &mut c.events, dn, col);
         let u = c.rng.uniform(col);
-        let scattered = self.survive(&mut c.beta, c.events, c.order, u, col, boosting);
-        let scattered = W::bitmask(scattered);
+        let scattered = W::bitmask(self.survive(c, u, col, boosting));
         let n = self.layout.n;
         let up = W::bitmask(up);
         // Stay in the layer after a collision, or reach its top or bottom interface.
