@@ -24,6 +24,9 @@ pub enum Stream {
     /// The bidirectional estimator's walks (both subpaths and their
     /// connections).
     Bidir = 4,
+    /// The factorized estimator of a rough coat over a Lambertian base
+    /// (`estimator::rough_coat`): its samples of the coat's transmission.
+    Coat = 5,
 }
 
 /// SplitMix64's output function: a bijective 64-bit mixer.

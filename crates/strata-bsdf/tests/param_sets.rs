@@ -8,6 +8,7 @@
 
 mod common;
 use common::*;
+use strata_bsdf::estimator::coat_lambertian::CoatLambertian;
 use strata_bsdf::estimator::params::SetTable;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Wavefront};
@@ -103,6 +104,49 @@ fn families() -> Vec<Family> {
                     r(1, 0.05, 1.0),
                     r(2, 0.05, 1.0),
                     r(3, 0.05, 0.9),
+                    r(4, -0.5, 0.9),
+                    r(5, 0.3, 0.95),
+                )
+            },
+        },
+        // The rough coat's factorization (Auto answers without walks), each
+        // set with its own coat and layer, so its own integral R̄.
+        Family {
+            name: "rough coat / absorber / Lambertian",
+            toml: |r| {
+                format!(
+                    "[[layers]]\n\
+                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {} }}\n\
+                     medium = {{ thickness = {}, sigma_t = [{}, {}, {}], albedo = 0 }}\n\
+                     [[layers]]\n\
+                     interface = {{ kind = \"diffuse\", albedo = [{}, {}, {}] }}\n",
+                    r(0, 1.3, 2.0),
+                    r(1, 0.05, 0.6),
+                    r(2, 0.1, 1.0),
+                    r(3, 0.1, 0.5),
+                    r(4, 0.6, 1.0),
+                    r(5, 1.1, 2.0),
+                    r(6, 0.2, 0.9),
+                    r(7, 0.2, 0.9),
+                    r(8, 0.2, 0.9),
+                )
+            },
+        },
+        // The rough coat's control variate: some sets in the rule (a weak
+        // scatterer over a bright base), some not.
+        Family {
+            name: "rough coat / weak grey scatterer / Lambertian",
+            toml: |r| {
+                format!(
+                    "[[layers]]\n\
+                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {} }}\n\
+                     medium = {{ thickness = {}, sigma_t = 1.0, albedo = {}, phase = {{ kind = \"hg\", g = {} }} }}\n\
+                     [[layers]]\n\
+                     interface = {{ kind = \"diffuse\", albedo = {} }}\n",
+                    r(0, 1.3, 1.8),
+                    r(1, 0.05, 0.5),
+                    r(2, 0.005, 0.1),
+                    r(3, 0.3, 0.95),
                     r(4, -0.5, 0.9),
                     r(5, 0.3, 0.95),
                 )
@@ -304,7 +348,10 @@ fn engines_agree_walk_by_walk_with_per_query_sets() {
         let stacks: Vec<LayerStack> = (0..SETS).map(|v| variant(&f, v)).collect();
         let mut table = SetTable::new(stacks[0].len());
         for (s, st) in stacks.iter().enumerate() {
-            table.push(st, &settings, s % 2 == 1);
+            let cv = (s % 2 == 1)
+                .then(|| CoatLambertian::unscattered(st, &settings))
+                .flatten();
+            table.push(st, cv);
         }
         let (pairs, set) = queries(17);
         let dirs: Vec<_> = (pairs.iter())
@@ -469,5 +516,63 @@ fn a_mixed_batch_answers_what_each_material_answers() {
         p2[13].1 = glam::Vec3::new(f32::NAN, 0.0, 1.0);
         let e = mats.eval_batch(&material, &p2).unwrap_err();
         assert_eq!(e.index, Some(13), "{e}");
+    }
+}
+
+/// Per-query columns over a rough coat over a Lambertian base: a column of
+/// the base's albedo keeps the coat and the layer of the first query's
+/// material, whose integral `R̄` every query shares, and each query answers
+/// bit for bit what its material file answers (without walks); a column
+/// of the roughness would need an integral per query, so those queries are
+/// answered by the plain walks: bit for bit what their material file
+/// answers under `Estimator::Unidirectional`.
+#[test]
+fn per_query_columns_share_the_rough_coats_integral_or_walk() {
+    use strata_bsdf::Column;
+    let base = stack(
+        "[[layers]]\n\
+         interface = { kind = \"dielectric\", ior = 1.5, roughness = 0.2 }\n\
+         medium = { thickness = 0.1, sigma_t = 1.0, albedo = 0.0 }\n\
+         [[layers]]\n\
+         interface = { kind = \"diffuse\", albedo = 0.8 }\n",
+    );
+    let template = LayeredBsdf::new(base.clone()).samples(32).seed(3);
+    let n = 6;
+    let (pairs, _) = queries(n);
+    let keys: Vec<u64> = (0..n as u64).collect();
+    for (path, values, walked) in [
+        (
+            "layers[1].interface.albedo",
+            [0.2, 0.4, 0.5, 0.6, 0.8, 0.9],
+            false,
+        ),
+        (
+            "layers[0].interface.roughness",
+            [0.2, 0.1, 0.3, 0.4, 0.5, 0.6],
+            true,
+        ),
+    ] {
+        let p = path.parse().unwrap();
+        let column = Column {
+            path: &p,
+            width: 1,
+            values: &values.map(|x| x as f32),
+        };
+        let m = Materials::per_query(&template, n, &[column]).unwrap();
+        let got = m
+            .eval_batch_keyed(&Materials::identity(n), &pairs, 32, &keys)
+            .unwrap();
+        for k in 0..n {
+            let st = base.with_set(&[(p.clone(), (values[k] as f32 as f64).into())]);
+            let own = LayeredBsdf::new(st.unwrap()).samples(32).seed(3);
+            // The first query's material keeps its own integral.
+            let own = if walked && k > 0 {
+                own.estimator(Estimator::Unidirectional)
+            } else {
+                own
+            };
+            let want = own.eval_batch_keyed(&pairs[k..k + 1], 32, &keys[k..k + 1]);
+            assert_eq!(got[k], want.unwrap()[0], "{path}, query {k}");
+        }
     }
 }

@@ -540,12 +540,13 @@ fn general_walk_agrees_with_specialized() {
     }
 }
 
-/// The control variate of `Estimator::Auto` (a smooth coat over a
+/// The control variate of `Estimator::Auto` (a smooth or rough coat over a
 /// scattering layer over a Lambertian base: walks leave out the paths
-/// without a collision, and the estimate adds them exactly): every walk on
-/// every width and setting is the scalar engine's, and so are the
-/// estimates with the exact part. On the thin layer most walks never
-/// collide and score 0; the thicker ones keep most walks contributing.
+/// without a collision, and the estimate adds them, exactly or from the
+/// rough coat's factorized samples): every walk on every width and setting
+/// is the scalar engine's, and so are the estimates with that part. On the
+/// thin layers most walks never collide and score 0; the thicker ones keep
+/// most walks contributing.
 #[test]
 fn eval_walk_by_walk_with_the_control_variate() {
     let stacks = [
@@ -580,6 +581,29 @@ fn eval_walk_by_walk_with_the_control_variate() {
             medium = { thickness = 2.0, sigma_t = 1.0, albedo = 0.95, phase = { kind = "hg", g = -0.5 } }
             [[layers]]
             interface = { kind = "diffuse", albedo = 0.6 }
+            "#,
+            20,
+        ),
+        (
+            "rough coat, thin (τ 0.01)",
+            r#"
+            [[layers]]
+            interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
+            medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+            [[layers]]
+            interface = { kind = "diffuse", albedo = 0.8 }
+            "#,
+            100,
+        ),
+        (
+            "rough Beckmann coat, chromatic, two-sided",
+            r#"
+            two_sided = true
+            [[layers]]
+            interface = { kind = "dielectric", ior = 1.7, roughness = 0.3, distribution = "beckmann" }
+            medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = [0.2, 0.6, 1.0], phase = { kind = "hg", g = 0.3 } }
+            [[layers]]
+            interface = { kind = "diffuse", albedo = [0.9, 0.5, 0.2] }
             "#,
             20,
         ),

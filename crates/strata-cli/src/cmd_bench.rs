@@ -247,7 +247,7 @@ fn bench_stack(
     let sc = ScalarEngine::<f32>::new(stack, Settings::default());
     let mut table = SetTable::new(stack.len());
     for k in 0..pairs.len() as u64 {
-        table.push(&varied(stack, k), &Settings::default(), false);
+        table.push(&varied(stack, k), None);
     }
     let set: Vec<u32> = (0..pairs.len() as u32).collect();
     let mut ms = vec![

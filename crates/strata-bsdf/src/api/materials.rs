@@ -31,6 +31,17 @@ impl Materials {
     /// with `template`'s configuration: its walk settings, samples, seed,
     /// estimator, engine, transport mode, start side and threads.
     pub fn new(template: &LayeredBsdf, stacks: impl IntoIterator<Item = LayerStack>) -> Self {
+        Self::building(template, stacks, true)
+    }
+
+    /// [`Materials::new`]; `own_returns` as [`LayeredBsdf::build_sets`]
+    /// takes it (per-query columns share the integral of their group's
+    /// first material, or are walked).
+    pub(super) fn building(
+        template: &LayeredBsdf,
+        stacks: impl IntoIterator<Item = LayerStack>,
+        own_returns: bool,
+    ) -> Self {
         let mut members: Vec<(LayeredBsdf, Vec<LayerStack>)> = Vec::new();
         let mut of = Vec::new();
         for st in stacks {
@@ -48,7 +59,7 @@ impl Materials {
         let groups = (members.into_iter())
             .map(|(b, stacks)| {
                 let sets = b
-                    .param_sets(stacks)
+                    .build_sets(stacks, own_returns)
                     .expect("a group's stacks share its shape");
                 (b, sets)
             })

@@ -32,6 +32,7 @@ pub use strategy::{Estimator, EvalStart, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA}
 pub use transport::Transport;
 
 use crate::estimator::closed_form::SmoothCoatLambertian;
+use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{
@@ -160,7 +161,11 @@ pub struct LayeredBsdf {
     transport: Transport,
     eval_start: EvalStart,
     estimator: Estimator,
-    exact: Option<SmoothCoatLambertian>,
+    /// A coat over a layer over a Lambertian base: its paths without a
+    /// collision in the layer ([`CoatLambertian::unscattered`]), the whole
+    /// BSDF where the layer does not scatter. One object, so that a rough
+    /// coat's integral is computed once for the engines and the API.
+    coat: Option<CoatLambertian>,
     threads: Threads,
     /// The stack's shape, which parameter sets must have.
     shape: Shape,
@@ -192,11 +197,13 @@ impl LayeredBsdf {
     /// A BSDF with explicit walk settings.
     pub fn with_settings(stack: LayerStack, settings: Settings) -> Self {
         // The default estimator, `Auto`, uses the control variate where it
-        // pays (`SmoothCoatLambertian::control_variate_pays`).
+        // pays (`CoatLambertian::control_variate_pays`).
+        let coat = CoatLambertian::unscattered(&stack, &settings);
         let auto = control_variate_for(Estimator::default(), &stack, &settings);
+        let cv = coat.clone().filter(|_| auto);
         LayeredBsdf {
-            scalar: ScalarEngine::new(&stack, settings).with_control_variate(auto),
-            wave: Wavefront::new(&stack, settings, Plan::Specialized).with_control_variate(auto),
+            scalar: ScalarEngine::new(&stack, settings).with_cv(cv.clone()),
+            wave: Wavefront::new(&stack, settings, Plan::Specialized).with_cv(cv),
             settings,
             engine: Engine::default(),
             samples: Self::DEFAULT_SAMPLES,
@@ -205,7 +212,7 @@ impl LayeredBsdf {
             transport: Transport::default(),
             eval_start: EvalStart::default(),
             estimator: Estimator::default(),
-            exact: SmoothCoatLambertian::of(&stack, &settings),
+            coat,
             threads: Threads::Current,
             shape: stack.shape(),
         }
@@ -276,9 +283,10 @@ impl LayeredBsdf {
         self.estimator = estimator;
         // The engines' walks leave out what the control variate holds only
         // for `Auto`; `Unidirectional` keeps the plain walks.
-        let cv = self.control_variate_for(self.stack());
-        self.scalar.set_control_variate(cv);
-        self.wave.set_control_variate(cv);
+        let on = self.control_variate_for(self.stack());
+        let cv = self.coat.clone().filter(|_| on);
+        self.scalar.set_cv(cv.clone());
+        self.wave.set_cv(cv);
         self
     }
 
@@ -309,7 +317,27 @@ impl LayeredBsdf {
     /// Whether `eval` is answered by a closed form (the stack has one and the
     /// estimator is [`Estimator::Auto`]): exact values, standard error 0.
     pub fn eval_is_exact(&self) -> bool {
-        self.estimator == Estimator::Auto && self.exact.is_some()
+        self.without_walks().is_some_and(|c| c.smooth().is_some())
+    }
+
+    /// Whether `eval` is answered without walks: by a closed form
+    /// ([`LayeredBsdf::eval_is_exact`]) or, for a rough coat over a clear or
+    /// absorbing layer over a Lambertian base, by its factorization
+    /// (`estimator::rough_coat`: two sampled transmissions and a constant
+    /// of the stack, integrated on first use), under
+    /// [`Estimator::Auto`].
+    pub fn eval_without_walks(&self) -> bool {
+        self.without_walks().is_some()
+    }
+
+    /// What answers `eval` without walks, under `Auto`: the coat over a
+    /// Lambertian base, where its layer does not scatter.
+    pub(super) fn without_walks(&self) -> Option<&CoatLambertian> {
+        let stack = self.stack();
+        let scatters = stack.medium(0).is_some_and(|m| m.scatters());
+        (self.estimator == Estimator::Auto && !scatters)
+            .then_some(self.coat.as_ref())
+            .flatten()
     }
 
     /// Whether `sample` and `pdf` are answered by the closed form's sampler
@@ -322,10 +350,8 @@ impl LayeredBsdf {
 
     /// Query `k`'s closed-form sampler, where `sample` and `pdf` use it.
     fn exact_sampler<'a>(&'a self, per: Per<'a>, k: usize) -> Option<&'a SmoothCoatLambertian> {
-        match self.estimator {
-            Estimator::Auto => self.exact_in(per, k),
-            _ => None,
-        }
+        self.without_walks_in(per, k)
+            .and_then(CoatLambertian::smooth)
     }
 
     /// The transport mode.
@@ -641,11 +667,36 @@ impl LayeredBsdf {
         query: impl Fn(usize) -> (Pair, u64) + Sync,
         mut out: impl FnMut(usize, Estimate) + Send,
     ) {
-        if self.eval_by_query(n, samples) {
-            for k in 0..n {
-                let ((a, b), key) = query(k);
-                out(k, self.eval_one(per, k, a, b, samples, key));
+        // Each query's estimator is its own stack's (parameter sets answer
+        // what their material files answer): without walks, or walks of one
+        // of the two estimators. A batch whose queries differ runs as one
+        // batch per kind, merged back in query order.
+        let route = |k: usize| {
+            let ((a, b), _) = query(k);
+            if self.without_walks_in(per, k).is_some() {
+                Route::WithoutWalks
+            } else if self.bidirectional_in(per, k, a, b) {
+                Route::Bidirectional
+            } else {
+                Route::Unidirectional
             }
+        };
+        let one = |k: usize| {
+            let ((a, b), key) = query(k);
+            self.eval_one(per, k, a, b, samples, key)
+        };
+        let without_walks = (0..n).all(|k| route(k) == Route::WithoutWalks);
+        let large = (n as u64).saturating_mul(samples) > SERIAL_WALKS;
+        if without_walks && large && !self.serial() {
+            // Query by query, over the pool's threads.
+            use rayon::prelude::*;
+            let est: Vec<Estimate> =
+                self.install(n, samples, || (0..n).into_par_iter().map(one).collect());
+            est.into_iter().enumerate().for_each(|(k, e)| out(k, e));
+            return;
+        }
+        if without_walks || self.engine.resolve(n, samples) == Engine::Scalar {
+            (0..n).for_each(|k| out(k, one(k)));
             return;
         }
         // Each query's walks start from the side `eval_start` chooses.
@@ -654,25 +705,24 @@ impl LayeredBsdf {
             let s = self.swaps(a[2], b[2]);
             (if s { (b, a) } else { (a, b) }, key)
         };
-        let mut finish = |k: usize, e: Estimate| {
+        // The walks' estimate of query `k` in the transport mode.
+        let scaled = |k: usize, e: Estimate| {
             let ((a, b), _) = query(k);
             let swapped = self.swaps(a[2], b[2]);
-            out(k, self.scaled(self.stack_in(per, k), e, a, b, swapped));
+            self.scaled(self.stack_in(per, k), e, a, b, swapped)
         };
         let serial = self.serial();
         let seed = self.seed;
-        // Each query's estimator is its own stack's (parameter sets answer
-        // what their material files answer); a batch whose sets straddle
-        // `Auto`'s rule runs as two, merged back in query order.
-        let bidir = |k: usize| {
-            let ((a, b), _) = query(k);
-            self.bidirectional_in(per, k, a, b)
+        let first = if n > 0 {
+            route(0)
+        } else {
+            Route::Unidirectional
         };
-        let first = n > 0 && bidir(0);
-        if (1..n).all(|k| bidir(k) == first) {
+        if (1..n).all(|k| route(k) == first) {
             let sets = per.sets();
+            let finish = |k: usize, e: Estimate| out(k, scaled(k, e));
             self.install(n, samples, || {
-                if first {
+                if first == Route::Bidirectional {
                     (self.wave).eval_bidir_each(sets, n, walked, samples, seed, serial, finish)
                 } else {
                     (self.wave).eval_each(sets, n, walked, samples, seed, serial, finish);
@@ -681,15 +731,15 @@ impl LayeredBsdf {
             return;
         }
         let mut done: Vec<Option<Estimate>> = vec![None; n];
-        for b in [false, true] {
-            let ks: Vec<usize> = (0..n).filter(|&k| bidir(k) == b).collect();
+        for r in [Route::Unidirectional, Route::Bidirectional] {
+            let ks: Vec<usize> = (0..n).filter(|&k| route(k) == r).collect();
             let set: Vec<u32> = ks.iter().map(|&k| per.set(k) as u32).collect();
             let sub = per.with_set(&set);
             let (sets, m) = (sub.sets(), ks.len());
             let q = |j: usize| walked(ks[j]);
             let put = |j: usize, e: Estimate| done[ks[j]] = Some(e);
             self.install(m, samples, || {
-                if b {
+                if r == Route::Bidirectional {
                     (self.wave).eval_bidir_each(sets, m, q, samples, seed, serial, put)
                 } else {
                     (self.wave).eval_each(sets, m, q, samples, seed, serial, put);
@@ -697,25 +747,35 @@ impl LayeredBsdf {
             });
         }
         for (k, e) in done.into_iter().enumerate() {
-            finish(
+            let ((a, b), key) = query(k);
+            out(
                 k,
-                e.unwrap_or_else(|| crate::estimator::MeanVar::zeros(samples).estimate()),
+                match route(k) {
+                    Route::WithoutWalks => self.eval_one(per, k, a, b, samples, key),
+                    _ => scaled(
+                        k,
+                        e.unwrap_or_else(|| crate::estimator::MeanVar::zeros(samples).estimate()),
+                    ),
+                },
             );
         }
     }
 
-    /// Whether an eval call of `n` queries runs query by query: by the
-    /// closed form, or on the scalar engine.
-    fn eval_by_query(&self, n: usize, samples: u64) -> bool {
-        self.eval_is_exact() || self.engine.resolve(n, samples) == Engine::Scalar
-    }
-
-    /// Query `k`'s eval by the closed form or on the scalar engine, from the
+    /// Query `k`'s eval without walks or on the scalar engine, from the
     /// side `eval_start` chooses, in the transport mode; allocates nothing.
     fn eval_one(&self, per: Per, k: usize, a: Pt, b: Pt, samples: u64, key: u64) -> Estimate {
         let stack = self.stack_in(per, k);
-        if let (Estimator::Auto, Some(exact)) = (self.estimator, self.exact_in(per, k)) {
-            return self.exact_eval(stack, exact, a, b, samples);
+        match self.without_walks_in(per, k) {
+            Some(CoatLambertian::Smooth(exact)) => {
+                return self.exact_eval(stack, exact, a, b, samples)
+            }
+            // Reflection only (the stack is opaque): both transport modes
+            // and both starting sides agree.
+            Some(coat) => {
+                let eng = self.scalar_in(per, k);
+                return eng.eval_without_walks(coat, a, b, samples, self.seed, key);
+            }
+            None => {}
         }
         let s = self.swaps(a[2], b[2]);
         let (x, y) = if s { (b, a) } else { (a, b) };
@@ -1058,14 +1118,25 @@ fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
 type Pt = [f64; 3];
 
 /// `Estimator::Auto` uses the control variate where it pays
-/// (`SmoothCoatLambertian::control_variate_pays`); `Unidirectional` keeps
-/// the plain walks.
+/// (`CoatLambertian::control_variate_pays`); `Unidirectional` keeps the
+/// plain walks.
 fn control_variate_for(estimator: Estimator, stack: &LayerStack, settings: &Settings) -> bool {
-    estimator == Estimator::Auto && SmoothCoatLambertian::control_variate_pays(stack, settings)
+    estimator == Estimator::Auto && CoatLambertian::control_variate_pays(stack, settings)
 }
 
 /// A validated `(wi, wo)` pair.
 type Pair = ([f64; 3], [f64; 3]);
+
+/// How a query's eval is answered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Route {
+    /// By what `CoatLambertian` knows, query by query.
+    WithoutWalks,
+    /// By the unidirectional walks.
+    Unidirectional,
+    /// By the bidirectional walks.
+    Bidirectional,
+}
 
 fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchError> {
     pairs

@@ -9,7 +9,7 @@
 //! with the same settings, seed and key (`tests/param_sets.rs`).
 
 use super::{directions2, one_each, BatchError, Estimator, LayeredBsdf, QueryError, Sample};
-use crate::estimator::closed_form::SmoothCoatLambertian;
+use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::pdf::PdfEstimate;
 use crate::estimator::scalar::ScalarEngine;
@@ -36,8 +36,10 @@ pub struct ParamSets {
     /// Per set, the scalar engine's form of its numbers (the scalar engine
     /// holds nothing but them).
     scalar: Vec<ScalarEngine<f32>>,
-    /// Per set, the closed form of eval (where the shape has one).
-    exact: Vec<Option<SmoothCoatLambertian>>,
+    /// Per set, what is known of it without walks (where the shape is a
+    /// coat over a layer over a Lambertian base, and the set's integral is
+    /// available: see [`LayeredBsdf::param_sets`]).
+    coat: Vec<Option<CoatLambertian>>,
 }
 
 impl ParamSets {
@@ -129,10 +131,26 @@ impl LayeredBsdf {
     /// its shape ([`LayerStack::shape`]; error otherwise, naming the set).
     /// They hold this BSDF's settings and estimator choices (the control
     /// variate where it pays, the closed form where the shape has one), so
-    /// a BSDF configured otherwise refuses them.
+    /// a BSDF configured otherwise refuses them. Under a rough coat over a
+    /// Lambertian base, a set whose coat or layer differs from this BSDF's
+    /// integrates its own constant `R̄` (`estimator::coat_return`, 5–15 ms)
+    /// the first time `eval` needs it.
     pub fn param_sets(
         &self,
         stacks: impl IntoIterator<Item = LayerStack>,
+    ) -> Result<ParamSets, SetsError> {
+        self.build_sets(stacks, true)
+    }
+
+    /// [`LayeredBsdf::param_sets`]; without `own_returns`, a set that would
+    /// need an integral `R̄` of its own (a rough coat or a layer other than
+    /// this BSDF's, over a Lambertian base) is answered by the walks
+    /// instead, without the control variate: for per-query columns, where
+    /// an integral per texel would cost far more than the walks.
+    pub(super) fn build_sets(
+        &self,
+        stacks: impl IntoIterator<Item = LayerStack>,
+        own_returns: bool,
     ) -> Result<ParamSets, SetsError> {
         let shape = self.shape.clone();
         let stacks: Vec<LayerStack> = stacks.into_iter().collect();
@@ -144,17 +162,25 @@ impl LayeredBsdf {
         let settings = self.settings;
         let mut table = SetTable::new(shape.interfaces.len());
         let mut scalar = Vec::with_capacity(stacks.len());
+        let mut coats = Vec::with_capacity(stacks.len());
         for st in &stacks {
-            let cv = self.control_variate_for(st);
-            table.push(st, &settings, cv);
-            let mut eng = ScalarEngine::new(st, settings).with_control_variate(cv);
+            let coat = CoatLambertian::unscattered(st, &settings).and_then(|c| {
+                let own = self.coat.as_ref();
+                let shared = match (own.and_then(CoatLambertian::rough), c.rough()) {
+                    (_, None) => true,
+                    (Some(o), Some(r)) => o.same_return(r),
+                    (None, Some(_)) => false,
+                };
+                (own_returns || shared).then(|| own.map_or(c.clone(), |o| o.sharing_return(c)))
+            });
+            let cv = coat.clone().filter(|_| self.control_variate_for(st));
+            table.push(st, cv.clone());
+            let mut eng = ScalarEngine::new(st, settings).with_cv(cv);
             eng.set_adjoint(self.adjoint());
             scalar.push(eng);
+            coats.push(coat);
         }
         table.set_adjoint(self.adjoint());
-        let exact = (stacks.iter())
-            .map(|st| SmoothCoatLambertian::of(st, &settings))
-            .collect();
         Ok(ParamSets {
             shape,
             settings,
@@ -163,7 +189,7 @@ impl LayeredBsdf {
             stacks,
             table,
             scalar,
-            exact,
+            coat: coats,
         })
     }
 
@@ -215,15 +241,17 @@ impl LayeredBsdf {
         }
     }
 
-    /// Query `k`'s closed form of eval, if it has one.
-    pub(super) fn exact_in<'a>(
+    /// What answers query `k`'s eval without walks, if anything
+    /// ([`LayeredBsdf::eval_without_walks`], per set).
+    pub(super) fn without_walks_in<'a>(
         &'a self,
         per: Per<'a>,
         k: usize,
-    ) -> Option<&'a SmoothCoatLambertian> {
+    ) -> Option<&'a CoatLambertian> {
+        let own = self.without_walks()?;
         match per.0 {
-            None => self.exact.as_ref(),
-            Some((p, s)) => p.exact[s[k] as usize].as_ref(),
+            None => Some(own),
+            Some((p, s)) => p.coat[s[k] as usize].as_ref(),
         }
     }
 

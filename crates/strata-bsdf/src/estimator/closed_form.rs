@@ -28,20 +28,16 @@
 //! With a *scattering* layer the same formula, at the layer's `σt`, is the
 //! sum over the paths that never collide in it
 //! ([`SmoothCoatLambertian::unscattered`]): the exact part of `Auto`'s
-//! control variate, whose walks then score only the paths with a collision.
+//! control variate, whose walks then score only the paths with a collision
+//! ([`super::coat_lambertian`]). A rough coat's BSDF factorizes the same
+//! way, with integrals in place of the Fresnel terms
+//! ([`super::rough_coat`]).
 
-use super::{Settings, WalkSample};
+use super::{coat_return, Settings, WalkSample};
 use crate::fresnel;
 use crate::rng::WalkRng;
-use crate::stack::{InterfaceKind, LayerStack, PhaseKind};
+use crate::stack::{InterfaceKind, LayerStack};
 use std::f64::consts::PI;
-
-/// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
-/// boosted control variate ([`SmoothCoatLambertian::control_variate_pays`]).
-/// A conservative choice: the deepest measured stack inside the rule is at
-/// τ 2; a grey τ 8 one about broke even at its worst pair, and the deep
-/// example `jade` (which the other conditions leave out too) lost by half.
-pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 
 /// The closed form of a smooth coat over an absorbing layer over a
 /// Lambertian base.
@@ -97,49 +93,13 @@ impl SmoothCoatLambertian {
         }
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
-        let r_bar = tau.map(|t| internal_reflectance(eta, t));
+        let r_bar = tau.map(|t| coat_return::smooth(eta, t));
         Some(SmoothCoatLambertian {
             eta,
             tau,
             rho: base.albedo,
             r_bar,
         })
-    }
-
-    /// Whether [`crate::Estimator::Auto`] uses the control variate on
-    /// `stack`: it has the shape ([`SmoothCoatLambertian::unscattered`]),
-    /// its medium scatters, and either
-    ///
-    /// * the medium is grey (one extinction and one albedo for the three
-    ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
-    ///   Henyey–Greenstein phase function: its walks then boost their first
-    ///   collision ([`super::events::FIRST_COLLISION_BOOST`]), and every such
-    ///   stack measured a gain at the median (and at every pair but one); or
-    /// * the medium scatters little against what the base reflects,
-    ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
-    ///   single-scattering albedo `a`, base albedo `ρ`).
-    ///
-    /// Elsewhere (a chromatic albedo, a mixture of lobes, or chromatic
-    /// extinction, which the boost does not cover) the control variate
-    /// measured more variance per unit of time at some pairs: a collided
-    /// path scores about what the uncollided one it replaces would have, and
-    /// the boosted walks' longer roulette costs time; deeper grey media are
-    /// left out by choice ([`BOOSTED_CV_MAX_DEPTH`])
-    /// (`tests/layered_control_variate.rs`, measured in docs/performance.md).
-    /// A mixture of a single lobe counts as a mixture here.
-    pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
-        let Some(cv) = Self::unscattered(stack, settings) else {
-            return false;
-        };
-        let Some(m) = stack.medium(0).filter(|m| m.scatters()) else {
-            return false;
-        };
-        let scatter = (0..3).map(|c| cv.tau[c] * m.albedo[c]).fold(0.0, f64::max);
-        let base = cv.rho.iter().copied().fold(f64::INFINITY, f64::min);
-        let grey = m.grey() && m.albedo.iter().all(|&a| a == m.albedo[0]);
-        let boosted_pays =
-            grey && cv.tau[0] <= BOOSTED_CV_MAX_DEPTH && m.phase_kind() == PhaseKind::Hg;
-        boosted_pays || scatter <= 0.1 * base
     }
 
     /// `f(wi, wo)` per channel for directions in the stack's oriented frame
@@ -274,87 +234,4 @@ pub struct ExactSample {
     pub weight: [f64; 3],
     /// The coat's mirror reflection.
     pub specular: bool,
-}
-
-/// `R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ` for a coat of relative IOR `eta`,
-/// by Gauss–Legendre quadrature. Beyond the critical cosine `μc`, `F_in`
-/// falls like `1 − c √(μ − μc)`: the substitution `μ = μc + t²` makes the
-/// integrand smooth there, and the quadrature converges to f64 rounding.
-fn internal_reflectance(eta: f64, tau: f64) -> f64 {
-    // From inside, the cosine is negative in `fresnel`'s convention.
-    let f = |mu: f64| -> f64 {
-        let r = fresnel::dielectric_rt(-mu, eta).0;
-        let att = if tau > 0.0 {
-            (-2.0 * tau / mu).exp()
-        } else {
-            1.0
-        };
-        2.0 * r * att * mu
-    };
-    let critical = if eta > 1.0 {
-        (1.0 - 1.0 / (eta * eta)).sqrt()
-    } else {
-        0.0
-    };
-    let below = gauss_legendre(&f, 0.0, critical, 64);
-    let above = gauss_legendre(
-        &|t: f64| f(critical + t * t) * 2.0 * t,
-        0.0,
-        (1.0 - critical).sqrt(),
-        64,
-    );
-    below + above
-}
-
-/// `∫ₐᵇ f` by 8-point Gauss–Legendre on `panels` equal panels.
-fn gauss_legendre(f: &impl Fn(f64) -> f64, a: f64, b: f64, panels: usize) -> f64 {
-    const X: [f64; 4] = [
-        0.183_434_642_495_649_8,
-        0.525_532_409_916_329,
-        0.796_666_477_413_626_7,
-        0.960_289_856_497_536_3,
-    ];
-    const W: [f64; 4] = [
-        0.362_683_783_378_362,
-        0.313_706_645_877_887_3,
-        0.222_381_034_453_374_5,
-        0.101_228_536_290_376_3,
-    ];
-    let h = (b - a) / panels as f64;
-    (0..panels)
-        .map(|p| {
-            let (m, r) = (a + (p as f64 + 0.5) * h, 0.5 * h);
-            X.iter()
-                .zip(W)
-                .map(|(&x, w)| w * r * (f(m - r * x) + f(m + r * x)))
-                .sum::<f64>()
-        })
-        .sum()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn quadrature_is_exact_where_it_can_be_checked() {
-        // ∫₀¹ 2μ dμ = 1, and a smooth integrand converges: against the
-        // midpoint rule on a fine grid.
-        assert!((gauss_legendre(&|m| 2.0 * m, 0.0, 1.0, 4) - 1.0).abs() < 1e-15);
-        let n = 2_000_000;
-        for (eta, tau) in [(1.5, 0.0), (1.5, 0.3), (2.2, 0.01), (1.0 / 1.3, 0.5)] {
-            let mid: f64 = (0..n)
-                .map(|k| {
-                    let mu = (k as f64 + 0.5) / n as f64;
-                    let r = fresnel::dielectric_rt(-mu, eta).0;
-                    2.0 * r * (-2.0 * tau / mu).exp() * mu / n as f64
-                })
-                .sum();
-            let gl = internal_reflectance(eta, tau);
-            assert!(
-                (gl - mid).abs() < 1e-7,
-                "eta {eta} tau {tau}: {gl} vs {mid}"
-            );
-        }
-    }
 }

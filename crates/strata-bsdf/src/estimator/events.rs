@@ -18,9 +18,9 @@
 //! already holds the exit interface's value, the cosine of `u` and the
 //! inverse density of `u` (next-event estimation "from the other side").
 
-use super::closed_form::SmoothCoatLambertian;
+use super::coat_lambertian::CoatLambertian;
 use super::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes};
-use super::Settings;
+use super::{Settings, Terms};
 use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
@@ -783,19 +783,25 @@ pub fn chain_roulette<L: Lane>(
     (Connection { v, ..c }, alive)
 }
 
-/// The deterministic terms of an eval, in f64: the first-order term (the
+/// What an eval adds to its walks, in f64: the first-order term (the
 /// entrance alone, when it is also the exit: `same`), plus, with the control
-/// variate `cv`, its exact part at the walks' directions (taken from the
-/// engine's precision, so that both engines add the same number). A smooth
-/// coat's first-order term is a delta, 0 here, and not a path of `f₀` (which
-/// enters the coat), so nothing is counted twice.
-pub fn deterministic_terms<S: Lane>(
+/// variate `cv`, the part of `f` its walks leave out at the walks' directions
+/// (taken from the engine's precision, so that both engines add the same
+/// numbers): a smooth coat's closed form exactly, a rough coat's
+/// factorized part as the mean of `n` samples from the query's streams
+/// (`prefix`). A smooth coat's first-order term is a delta, 0 here, and not
+/// a path of `f₀` (which enters the coat); a rough coat's is the coat
+/// reflection of `f₀`, which `cv` leaves to this term: nothing is counted
+/// twice.
+pub fn eval_terms<S: Lane>(
     entrance: &InterfaceLanes<S>,
     same: bool,
-    cv: Option<&SmoothCoatLambertian>,
+    cv: Option<&CoatLambertian>,
     wi: V3<S>,
     wo: V3<S>,
-) -> [f64; 3] {
+    n: u64,
+    prefix: u64,
+) -> Terms {
     let lane0 = |c: Rgb<S>| [c.r.lane(0), c.g.lane(0), c.b.lane(0)];
     let direct = if same {
         lane0(entrance.eval(wi, wo))
@@ -803,9 +809,15 @@ pub fn deterministic_terms<S: Lane>(
         [0.0; 3]
     };
     let Some(cv) = cv else {
-        return direct;
+        return Terms {
+            exact: direct,
+            sampled: None,
+        };
     };
     let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
-    let f0 = cv.eval(dir(wi), dir(wo));
-    std::array::from_fn(|c| direct[c] + f0[c])
+    let f0 = cv.exact(dir(wi), dir(wo));
+    Terms {
+        exact: std::array::from_fn(|c| direct[c] + f0[c]),
+        sampled: cv.sampled(dir(wi), dir(wo), n, prefix),
+    }
 }

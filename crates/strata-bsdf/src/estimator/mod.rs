@@ -7,7 +7,10 @@
 //! * [`bidir`]: the bidirectional estimator of `eval`.
 //! * [`density`]: the density walk, the density of `sample` at a direction.
 //! * [`pdf`]: the approximate and unbiased pdfs of `sample` from it.
-//! * [`closed_form`]: the stacks whose BSDF has one.
+//! * [`coat_lambertian`]: a coat over a layer over a Lambertian base, which
+//!   `Auto` answers without walks ([`closed_form`] under a smooth coat,
+//!   [`rough_coat`] under a rough one; [`coat_return`], the integral both
+//!   need), or with walks of collided paths only.
 //!
 //! Both follow `docs/method.md`; the differences from the paper and from the
 //! authors' code are listed in `docs/architecture.md`.
@@ -15,12 +18,15 @@
 mod accumulate;
 pub mod bidir;
 pub mod closed_form;
+pub mod coat_lambertian;
+pub mod coat_return;
 pub mod density;
 pub mod events;
 pub mod layout;
 mod orient;
 pub mod params;
 pub mod pdf;
+pub mod rough_coat;
 pub mod scalar;
 pub mod wavefront;
 
@@ -68,6 +74,34 @@ pub struct Estimate {
     pub stderr: [f64; 3],
     /// Number of independent walks.
     pub samples: u64,
+}
+
+/// What an eval adds to the mean of its walks: deterministic terms (the
+/// first-order term, a smooth coat's closed form) and, for a rough coat over
+/// a Lambertian base, the mean of independent samples of its factorized part
+/// (`rough_coat`), whose variance adds to the walks'.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Terms {
+    /// Added exactly.
+    pub exact: [f64; 3],
+    /// Added with its standard error.
+    pub sampled: Option<MeanVar>,
+}
+
+impl MeanVar {
+    /// The estimate of the walks plus `terms`: the means add, and the
+    /// variances of the means of independent samples add.
+    pub fn estimate_with(&self, terms: &Terms) -> Estimate {
+        let mut e = self.estimate_plus(terms.exact);
+        if let Some(s) = terms.sampled {
+            let x = s.estimate();
+            for c in 0..3 {
+                e.value[c] += x.value[c];
+                e.stderr[c] = e.stderr[c].hypot(x.stderr[c]);
+            }
+        }
+        e
+    }
 }
 
 /// Directional albedo: reflected and transmitted fractions.

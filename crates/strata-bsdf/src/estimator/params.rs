@@ -10,10 +10,9 @@
 //! layer's class, grey) come from the engine's own lanes: they are the
 //! shape's, the same in every set.
 
-use super::closed_form::SmoothCoatLambertian;
+use super::coat_lambertian::CoatLambertian;
 use super::layout::MediumLanes;
 use super::wavefront::walks::load16;
-use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::microfacet::Microfacet;
@@ -31,7 +30,7 @@ pub struct SetTable {
     media: Vec<MediumLanes<f32>>,
     /// Per set: the exact part of eval that the walks leave out, when the
     /// control variate is on for it.
-    cv: Vec<Option<SmoothCoatLambertian>>,
+    cv: Vec<Option<CoatLambertian>>,
     /// The numbers of `ifaces` as rows, which a chunk loads with two 8×8
     /// transposes ([`IFACE_ROW`]).
     iface_rows: Vec<[f32; 16]>,
@@ -95,10 +94,10 @@ impl SetTable {
         }
     }
 
-    /// Adds `stack` (of the table's shape) as the next set; with
-    /// `control_variate`, eval walks of its queries leave out what
-    /// [`SmoothCoatLambertian::unscattered`] holds (where the stack has it).
-    pub fn push(&mut self, stack: &LayerStack, settings: &Settings, control_variate: bool) {
+    /// Adds `stack` (of the table's shape) as the next set; with `cv`
+    /// (what [`CoatLambertian::unscattered`] gives for it, or `None`), eval
+    /// walks of its queries leave out what `cv` holds.
+    pub fn push(&mut self, stack: &LayerStack, cv: Option<CoatLambertian>) {
         debug_assert_eq!(stack.len(), self.n);
         let n = self.n;
         let first = (self.ifaces.len(), self.media.len());
@@ -112,11 +111,7 @@ impl SetTable {
         self.medium_rows.extend(rows);
         let rows = self.media[first.1..].iter().map(|m| m.phase.p);
         self.phase_rows.extend(rows);
-        self.cv.push(
-            control_variate
-                .then(|| SmoothCoatLambertian::unscattered(stack, settings))
-                .flatten(),
-        );
+        self.cv.push(cv);
     }
 
     /// Empties it for stacks of `n` interfaces, keeping its memory.
@@ -172,7 +167,7 @@ impl SetTable {
     }
 
     /// Set `s`'s exact part of eval, if its walks leave it out.
-    pub fn cv(&self, s: usize) -> Option<&SmoothCoatLambertian> {
+    pub fn cv(&self, s: usize) -> Option<&CoatLambertian> {
         self.cv[s].as_ref()
     }
 }

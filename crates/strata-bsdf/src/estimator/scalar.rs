@@ -26,10 +26,10 @@
 //! per query, from the stream of the query's first walk.
 
 use super::accumulate::{BlockReducer, MeanVar};
-use super::closed_form::SmoothCoatLambertian;
+use super::coat_lambertian::CoatLambertian;
 use super::events::{self, ChainLink, ChainStack, Flight};
 use super::layout::{toward_exit, LayerKind, Layout, MediumLanes};
-use super::{Albedo, Estimate, Settings, WalkSample};
+use super::{Albedo, Estimate, Settings, Terms, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::rng::{query_prefix, Stream, WalkRng};
@@ -93,7 +93,7 @@ pub struct ScalarEngine<S: Scalar> {
     pub(super) settings: Settings,
     /// With the control variate: the exact part of `f` carried by paths
     /// without a medium collision, which the walks then leave out.
-    pub(super) cv: Option<SmoothCoatLambertian>,
+    pub(super) cv: Option<CoatLambertian>,
 }
 
 /// What `eval` adds to a walk: the connections to the viewer (method.md §4).
@@ -133,10 +133,11 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// Turns the control variate of `eval` on or off (off by default; it is
-    /// what [`crate::Estimator::Auto`] uses). For a smooth coat over a
-    /// scattering (or any) layer over a Lambertian base
-    /// ([`SmoothCoatLambertian::unscattered`]), `f = f₀ + f₊`: `f₀`, the paths
-    /// that never collide in the medium, is added exactly, and the walks
+    /// what [`crate::Estimator::Auto`] uses). For a coat over a scattering
+    /// (or any) layer over a Lambertian base
+    /// ([`CoatLambertian::unscattered`]), `f = f₀ + f₊`: `f₀`, the paths
+    /// that never collide in the medium, is added exactly (a smooth coat) or
+    /// from its factorization's independent samples (a rough coat), and the walks
     /// estimate only `f₊` by leaving out every contribution of a path
     /// without a collision (next-event estimation and continuations from
     /// surface vertices before the walk's first collision: their segment to
@@ -151,8 +152,47 @@ impl<S: Scalar> ScalarEngine<S> {
     /// [`ScalarEngine::with_control_variate`] in place.
     pub fn set_control_variate(&mut self, on: bool) {
         self.cv = on
-            .then(|| SmoothCoatLambertian::unscattered(&self.stack, &self.settings))
+            .then(|| CoatLambertian::unscattered(&self.stack, &self.settings))
             .flatten();
+    }
+
+    /// The control variate with a given `f₀` (what
+    /// [`CoatLambertian::unscattered`] gives for this engine's stack, shared
+    /// with other engines so that a rough coat's integral is computed once),
+    /// or off.
+    pub fn set_cv(&mut self, cv: Option<CoatLambertian>) {
+        self.cv = cv;
+    }
+
+    /// [`ScalarEngine::set_cv`], by value.
+    pub fn with_cv(mut self, cv: Option<CoatLambertian>) -> Self {
+        self.set_cv(cv);
+        self
+    }
+
+    /// `f` from what `coat` knows without walks, for a stack that is its
+    /// whole BSDF ([`CoatLambertian::of`]): at the directions, precision and
+    /// query streams of this engine's walks (as the control variate's part
+    /// is added), with `n` samples of a rough coat's factorized part.
+    pub fn eval_without_walks(
+        &self,
+        coat: &CoatLambertian,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Estimate {
+        let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
+            return MeanVar::zeros(n).estimate();
+        };
+        let (wi, wo) = (v3::<S>(o.wi), v3::<S>(o.apply(wo)));
+        let prefix = query_prefix(seed, query);
+        let terms = events::eval_terms(&self.ifaces[0], true, Some(coat), wi, wo, n, prefix);
+        Estimate {
+            samples: n,
+            ..MeanVar::new().estimate_with(&terms)
+        }
     }
 
     /// Makes the walks follow the adjoint of the tilted interfaces (the
@@ -494,25 +534,26 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// An estimate from `walks`, which hands each of `n` walk values to its
-    /// argument and returns the deterministic terms; the reduction of `n`
+    /// argument and returns the terms added to their mean; the reduction of `n`
     /// zeros, in constant time, where no walk can contribute.
     fn estimate(
         &self,
         wi: [f64; 3],
         wo: [f64; 3],
         n: u64,
-        walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> [f64; 3],
+        walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> Terms,
     ) -> Estimate {
         if super::orient(&self.stack, wi, Some(wo)).is_none() {
             return MeanVar::zeros(n).estimate();
         }
         let mut red = BlockReducer::new();
-        let direct = walks(&mut |x| red.push(x));
-        red.finish().estimate_plus(direct)
+        let terms = walks(&mut |x| red.push(x));
+        red.finish().estimate_with(&terms)
     }
 
     /// Runs the `n` walks of an eval query, handing each walk's value to
-    /// `f`; returns the deterministic terms (first order, control variate).
+    /// `f`; returns the terms added to their mean (first order, control
+    /// variate).
     fn eval_walks(
         &self,
         wi: [f64; 3],
@@ -521,10 +562,10 @@ impl<S: Scalar> ScalarEngine<S> {
         seed: u64,
         query: u64,
         f: &mut dyn FnMut([f64; 3]),
-    ) -> [f64; 3] {
+    ) -> Terms {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             (0..n).for_each(|_| f([0.0; 3]));
-            return [0.0; 3];
+            return Terms::default();
         };
         let wi = v3::<S>(o.wi);
         let wo = v3::<S>(o.apply(wo));
@@ -556,7 +597,8 @@ impl<S: Scalar> ScalarEngine<S> {
         });
         // First-order term: the entrance alone, when it is also the exit.
         let entrance = &self.ifaces[e_in];
-        events::deterministic_terms(entrance, e_in == e_out, self.cv.as_ref(), wi, wo)
+        let cv = self.cv.as_ref();
+        events::eval_terms(entrance, e_in == e_out, cv, wi, wo, n, prefix)
     }
 
     /// Runs the `n` bidirectional walks of an eval query, handing each
@@ -569,10 +611,10 @@ impl<S: Scalar> ScalarEngine<S> {
         seed: u64,
         query: u64,
         f: &mut dyn FnMut([f64; 3]),
-    ) -> [f64; 3] {
+    ) -> Terms {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             (0..n).for_each(|_| f([0.0; 3]));
-            return [0.0; 3];
+            return Terms::default();
         };
         let wi = v3::<S>(o.wi);
         let wo = v3::<S>(o.apply(wo));
@@ -591,12 +633,12 @@ impl<S: Scalar> ScalarEngine<S> {
         });
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
-        events::deterministic_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo)
+        events::eval_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo, n, prefix)
     }
 }
 
 /// The `n` walk values `walks` hands to its argument, in order.
-fn walk_values(n: u64, walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> [f64; 3]) -> Vec<[f64; 3]> {
+fn walk_values(n: u64, walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> Terms) -> Vec<[f64; 3]> {
     let mut v = Vec::with_capacity(n as usize);
     walks(&mut |x| v.push(x));
     v

@@ -48,7 +48,7 @@ mod stages;
 pub mod walks;
 
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
-use super::closed_form::SmoothCoatLambertian;
+use super::coat_lambertian::CoatLambertian;
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::params::{LaneSets, SetTable};
@@ -382,7 +382,7 @@ pub struct Wavefront<W: Wide = DefaultWide> {
     /// With the control variate: the exact part of `f` carried by paths
     /// without a medium collision, which the walks then leave out
     /// ([`Wavefront::with_control_variate`]).
-    cv: Option<SmoothCoatLambertian>,
+    cv: Option<CoatLambertian>,
     slots: usize,
 }
 
@@ -480,11 +480,25 @@ impl<W: Wide> Wavefront<W> {
     /// [`Wavefront::with_control_variate`] in place.
     pub fn set_control_variate(&mut self, on: bool) {
         self.cv = on
-            .then(|| SmoothCoatLambertian::unscattered(&self.stack, &self.settings))
+            .then(|| CoatLambertian::unscattered(&self.stack, &self.settings))
             .flatten();
         if let Some(t) = self.tail.as_mut() {
             t.set_control_variate(on);
         }
+    }
+
+    /// The control variate with a given `f₀`, as `ScalarEngine::set_cv`.
+    pub fn set_cv(&mut self, cv: Option<CoatLambertian>) {
+        if let Some(t) = self.tail.as_mut() {
+            t.set_cv(cv.clone());
+        }
+        self.cv = cv;
+    }
+
+    /// [`Wavefront::set_cv`], by value.
+    pub fn with_cv(mut self, cv: Option<CoatLambertian>) -> Self {
+        self.set_cv(cv);
+        self
     }
 
     /// Whether eval uses the control variate (it is on and the stack has the
@@ -832,7 +846,8 @@ impl<W: Wide> Wavefront<W> {
         };
         let cv = exact.filter(|_| cv);
         let same = e_in == queries.e_out[q] as usize;
-        sum.estimate_plus(events::deterministic_terms(entrance, same, cv, wi, wo))
+        let (n, prefix) = (sum.count(), queries.prefix[q]);
+        sum.estimate_with(&events::eval_terms(entrance, same, cv, wi, wo, n, prefix))
     }
 
     /// Each walk's value of the unidirectional estimator (without the

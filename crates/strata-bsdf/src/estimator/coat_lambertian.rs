@@ -1,0 +1,155 @@
+//! A dielectric coat over a layer over a Lambertian base: what
+//! [`crate::Estimator::Auto`] knows of it without a walk.
+//!
+//! Over a clear or absorbing layer the whole BSDF is known: in closed form
+//! under a smooth coat ([`SmoothCoatLambertian`]), factorized into two
+//! sampled transmissions and a constant under a rough one
+//! ([`RoughCoatLambertian`]). Over a *scattering* layer the same
+//! expressions at the layer's `σt` give the paths that never collide in it,
+//! `f₀`: `Auto`'s control variate adds `f₀` and lets the walks score only
+//! the paths with a collision, where that pays
+//! ([`CoatLambertian::control_variate_pays`]).
+
+use super::closed_form::SmoothCoatLambertian;
+use super::rough_coat::RoughCoatLambertian;
+use super::{MeanVar, Settings};
+use crate::stack::{LayerStack, PhaseKind};
+
+/// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
+/// boosted control variate ([`CoatLambertian::control_variate_pays`]).
+/// A conservative choice: the deepest measured stack inside the rule is at
+/// τ 2; a grey τ 8 one about broke even at its worst pair, and the deep
+/// example `jade` (which the other conditions leave out too) lost by half.
+pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
+
+/// The darkest base (smallest albedo of a channel) over which
+/// [`crate::Estimator::Auto`] uses the control variate under a *rough* coat
+/// ([`CoatLambertian::control_variate_pays`]). Over a darker one the series
+/// of bounces that the control variate takes out of the walks is short, and
+/// sampling `f₀` costs about what it saves (a base of 0.3: 1.02× at the
+/// median, 0.91× at a pair).
+pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
+
+/// A coat over a layer over a Lambertian base, smooth or rough.
+#[derive(Clone, Debug)]
+pub enum CoatLambertian {
+    /// A smooth coat: the closed form.
+    Smooth(SmoothCoatLambertian),
+    /// A rough coat: the factorization (its lanes make it large).
+    Rough(Box<RoughCoatLambertian>),
+}
+
+impl CoatLambertian {
+    /// The whole BSDF of `stack` (a coat over a clear or absorbing layer
+    /// over a Lambertian base), where `settings` allow it.
+    pub fn of(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        SmoothCoatLambertian::of(stack, settings)
+            .map(CoatLambertian::Smooth)
+            .or_else(|| RoughCoatLambertian::of(stack, settings).map(|r| Self::Rough(Box::new(r))))
+    }
+
+    /// The part of `stack`'s BSDF carried by the paths without a collision
+    /// in its layer (any layer), where `settings` allow it.
+    pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        SmoothCoatLambertian::unscattered(stack, settings)
+            .map(CoatLambertian::Smooth)
+            .or_else(|| {
+                RoughCoatLambertian::unscattered(stack, settings).map(|r| Self::Rough(Box::new(r)))
+            })
+    }
+
+    /// The closed form, for a smooth coat.
+    pub fn smooth(&self) -> Option<&SmoothCoatLambertian> {
+        match self {
+            CoatLambertian::Smooth(s) => Some(s),
+            CoatLambertian::Rough(_) => None,
+        }
+    }
+
+    /// The factorization, for a rough coat.
+    pub fn rough(&self) -> Option<&RoughCoatLambertian> {
+        match self {
+            CoatLambertian::Smooth(_) => None,
+            CoatLambertian::Rough(r) => Some(r),
+        }
+    }
+
+    /// What it knows exactly at `(wi, wo)` (oriented frame): a smooth coat's
+    /// closed form; nothing for a rough coat, whose coat reflection the
+    /// engines' first-order term carries and whose rest is sampled
+    /// ([`CoatLambertian::sampled`]).
+    pub fn exact(&self, wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
+        match self {
+            CoatLambertian::Smooth(s) => s.eval(wi, wo),
+            CoatLambertian::Rough(_) => [0.0; 3],
+        }
+    }
+
+    /// What it samples at `(wi, wo)` (oriented frame): `n` samples of a rough
+    /// coat's factorized part from the query's streams (`prefix`); `None`
+    /// for a smooth coat.
+    pub fn sampled(&self, wi: [f64; 3], wo: [f64; 3], n: u64, prefix: u64) -> Option<MeanVar> {
+        self.rough().map(|r| r.sample_mean(wi, wo, n, prefix))
+    }
+
+    /// `other`, sharing this one's integral `R̄` where both are rough with
+    /// the same coat and layer (see [`RoughCoatLambertian::sharing_return`]).
+    pub fn sharing_return(&self, other: CoatLambertian) -> CoatLambertian {
+        match (self, other) {
+            (CoatLambertian::Rough(a), CoatLambertian::Rough(b)) => {
+                CoatLambertian::Rough(Box::new(a.sharing_return(*b)))
+            }
+            (_, other) => other,
+        }
+    }
+
+    /// Whether [`crate::Estimator::Auto`] uses the control variate on
+    /// `stack`: it has the shape ([`CoatLambertian::unscattered`]), its
+    /// medium scatters, and, under a **smooth** coat, either
+    ///
+    /// * the medium is grey (one extinction and one albedo for the three
+    ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
+    ///   Henyey–Greenstein phase function: its walks then boost their first
+    ///   collision ([`super::events::FIRST_COLLISION_BOOST`]), and every such
+    ///   stack measured a gain at the median (and at every pair but one); or
+    /// * the medium scatters little against what the base reflects,
+    ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
+    ///   single-scattering albedo `a`, base albedo `ρ`).
+    ///
+    /// Elsewhere (a chromatic albedo, a mixture of lobes, or chromatic
+    /// extinction, which the boost does not cover) the control variate
+    /// measured more variance per unit of time at some pairs: a collided
+    /// path scores about what the uncollided one it replaces would have, and
+    /// the boosted walks' longer roulette costs time; deeper grey media are
+    /// left out by choice ([`BOOSTED_CV_MAX_DEPTH`]). A mixture of a single
+    /// lobe counts as a mixture here.
+    ///
+    /// Under a **rough** coat, whose `f₀` is sampled, only where the medium
+    /// scatters little against what the base reflects (as above) over a
+    /// base no darker than [`ROUGH_CV_MIN_BASE`]: the grey media of the
+    /// first rule lost at some pair under rough coats (0.73–0.84×), one
+    /// gained little (1.55× at the median).
+    ///
+    /// Measured in `tests/layered_control_variate.rs`
+    /// (`control_variate_efficiency`; docs/performance.md).
+    pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
+        if Self::unscattered(stack, settings).is_none() {
+            return false;
+        }
+        let Some(m) = stack.medium(0).filter(|m| m.scatters()) else {
+            return false;
+        };
+        let tau = m.optical_depth();
+        let rho = stack.interface(1).albedo;
+        let scatter = (0..3).map(|c| tau[c] * m.albedo[c]).fold(0.0, f64::max);
+        let base = rho.iter().copied().fold(f64::INFINITY, f64::min);
+        let little = scatter <= 0.1 * base;
+        if !stack.interface(0).smooth {
+            return little && base >= ROUGH_CV_MIN_BASE;
+        }
+        let grey = m.grey() && m.albedo.iter().all(|&a| a == m.albedo[0]);
+        let boosted_pays =
+            grey && tau[0] <= BOOSTED_CV_MAX_DEPTH && m.phase_kind() == PhaseKind::Hg;
+        boosted_pays || little
+    }
+}

@@ -1,0 +1,192 @@
+//! A rough dielectric coat over a clear or absorbing layer over a
+//! Lambertian base: the BSDF factorizes, and its estimate needs no walk.
+//!
+//! Every path but the coat's own reflection enters the coat, crosses the
+//! layer to the base, bounces between the base and the coat, and leaves. A
+//! Lambertian base forgets directions, so the bounces sum to a geometric
+//! series whose ratio does not depend on `wi` or `wo`:
+//!
+//! ```text
+//! f(wi, wo) = f_coat(wi, wo) + (n0/n1)² ρ A(wi) A(wo) / (π (1 − ρ R̄))
+//! A(w) = ∫ f_t(w → d) |d.z| e^(−τ/|d.z|) dd
+//! ```
+//!
+//! `f_coat` is the coat's reflection (the first-order term the walks add
+//! exactly too), `A(w)` the fraction of light from `w` that reaches the base
+//! (the smooth closed form's `T(θ) e^(−τ/μ′)`), `R̄` the fraction of the
+//! base's exitance that the layer and the coat send back to it
+//! ([`super::coat_return::rough`], by quadrature, once per coat and layer),
+//! `n0` and `n1` the IORs of the exterior and of the coat. The estimator
+//! draws `A(wi)` and `A(wo)` by the coat's own transmission sampler, the one
+//! a walk enters by (visible normals, weight `(1 − F) G/G1`, times the
+//! layer's transmittance): the only variance left is that of those two
+//! samples, with none from the number of bounces or where they go, which is
+//! most of the walks' variance on these stacks. The samples are independent
+//! of each other, so their product is unbiased.
+//!
+//! With a *scattering* layer the same formula at the layer's `σt` is the sum
+//! over the paths that never collide in it: the part of `Auto`'s control
+//! variate that the walks, which then score only paths with a collision,
+//! leave out ([`super::coat_lambertian`]).
+
+use super::coat_return;
+use super::layout::MediumLanes;
+use super::wavefront::DefaultWide;
+use super::{MeanVar, Settings};
+use crate::interface::InterfaceLanes;
+use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::microfacet::Microfacet;
+use crate::rng::{seed_state_from, LaneRng, Stream};
+use crate::stack::{InterfaceKind, LayerStack};
+use std::f64::consts::PI;
+use std::sync::{Arc, OnceLock};
+
+/// The factorized BSDF of a rough coat over a layer over a Lambertian base.
+#[derive(Clone, Debug)]
+pub struct RoughCoatLambertian {
+    /// The coat, on every lane (the sampler's lanes).
+    coat: InterfaceLanes<DefaultWide>,
+    /// The layer, as an absorber of its extinction.
+    layer: MediumLanes<DefaultWide>,
+    /// The coat's microfacets and `n_below / n_above`, for `R̄`.
+    mf: Microfacet<f64>,
+    eta: f64,
+    /// Optical depth of the layer per channel (0 without one).
+    tau: [f64; 3],
+    /// The base's albedo.
+    rho: [f64; 3],
+    /// `R̄` per channel, integrated on first use and shared by clones (and
+    /// by the parameter sets that have this coat and layer).
+    r_bar: Arc<OnceLock<[f64; 3]>>,
+}
+
+impl RoughCoatLambertian {
+    /// The factorization of `stack`, if it has one under `settings`: a rough,
+    /// isotropic, untilted dielectric coat over a clear or absorbing layer
+    /// over a Lambertian base, with no depth cap (which would truncate the
+    /// series).
+    pub fn of(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        if stack.medium(0).is_some_and(|m| m.scatters()) {
+            return None;
+        }
+        Self::unscattered(stack, settings)
+    }
+
+    /// The part of `stack`'s BSDF carried by the paths that never collide
+    /// in its layer, for the shape of [`RoughCoatLambertian::of`] with any
+    /// layer (clear, absorbing or scattering): the factorization of the same
+    /// stack with the layer a pure absorber of the same `σt`, which is the
+    /// whole BSDF where the layer does not scatter. `None` for other stacks,
+    /// and under a depth cap. (An extinction that depends on the direction,
+    /// SGGX, breaks the factorization's one-dimensional transmittance; an
+    /// anisotropic coat's `R̄` is not built.)
+    pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        let tilted = stack.interfaces().iter().any(|i| i.tilted());
+        let directional = stack
+            .medium(0)
+            .is_some_and(|m| m.phase_kind().directional());
+        if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
+            return None;
+        }
+        let (coat, base) = (stack.interface(0), stack.interface(1));
+        let isotropic = coat.alpha[0] == coat.alpha[1];
+        if coat.kind != InterfaceKind::Dielectric
+            || coat.smooth
+            || !isotropic
+            || base.kind != InterfaceKind::Diffuse
+        {
+            return None;
+        }
+        let mut layer = MediumLanes::<DefaultWide>::new(stack, 0);
+        if layer.thickness.lane(0) > 0.0 {
+            // The uncollided paths see only the extinction.
+            layer.kind = super::layout::LayerKind::Absorbing;
+        }
+        Some(RoughCoatLambertian {
+            coat: stack.interface_lanes(0),
+            layer,
+            mf: stack.interface_lanes::<f64>(0).mf,
+            eta: coat.n_below / coat.n_above,
+            tau: stack.medium(0).map_or([0.0; 3], |m| m.optical_depth()),
+            rho: base.albedo,
+            r_bar: Arc::default(),
+        })
+    }
+
+    /// `R̄` per channel ([`coat_return::rough`]; 5–15 ms the first time).
+    pub fn r_bar(&self) -> [f64; 3] {
+        *self
+            .r_bar
+            .get_or_init(|| coat_return::rough(&self.mf, self.eta, self.tau))
+    }
+
+    /// Whether `other` has the same coat and layer, so that it can share this
+    /// one's `R̄` (the base's albedo may differ).
+    pub fn same_return(&self, other: &RoughCoatLambertian) -> bool {
+        let mf = |m: &Microfacet<f64>| (m.alpha_x, m.alpha_y, m.beckmann, m.separable);
+        mf(&self.mf) == mf(&other.mf) && self.eta == other.eta && self.tau == other.tau
+    }
+
+    /// `other` with this one's `R̄` (computed or not), where they have the
+    /// same coat and layer ([`RoughCoatLambertian::same_return`]).
+    pub fn sharing_return(&self, mut other: RoughCoatLambertian) -> RoughCoatLambertian {
+        if self.same_return(&other) {
+            other.r_bar = Arc::clone(&self.r_bar);
+        }
+        other
+    }
+
+    /// `n` samples of `f − f_coat` at `(wi, wo)`, in the stack's oriented
+    /// frame (both above the coat), each `(n0/n1)² ρ Â(wi) Â(wo) / (π (1 −
+    /// ρ R̄))`, reduced in sample order. The samples draw from the
+    /// [`Stream::Coat`] streams of the query (`prefix`): lane `j` of the
+    /// sampler's lanes takes samples `j`, `j + LANES`, … from stream `j`,
+    /// so the result is a function of the query and `n`, whichever engine
+    /// asks.
+    pub fn sample_mean(&self, wi: [f64; 3], wo: [f64; 3], n: u64, prefix: u64) -> MeanVar {
+        type W = DefaultWide;
+        let r_bar = self.r_bar();
+        let scale: [f64; 3] = std::array::from_fn(|c| {
+            self.rho[c] / (PI * self.eta * self.eta * (1.0 - self.rho[c] * r_bar[c]))
+        });
+        let splat = |w: [f64; 3]| V3::new(W::splat(w[0]), W::splat(w[1]), W::splat(w[2]));
+        let (wi, wo) = (splat(wi), splat(wo));
+        let mut rng =
+            LaneRng::<W>::from_states(|j| seed_state_from(prefix, j as u64, Stream::Coat));
+        let all = <W as Lane>::Mask::splat(true);
+        let mut sum = super::BlockReducer::new();
+        let mut k = 0;
+        while k < n {
+            let u = [(); 4].map(|_| rng.uniform(all));
+            let a = entrance_product(&self.coat, &self.layer, wi, wo, u);
+            let lanes = (n - k).min(W::LANES as u64) as usize;
+            for j in 0..lanes {
+                let v = [a.r.lane(j), a.g.lane(j), a.b.lane(j)];
+                sum.push(std::array::from_fn(|c| scale[c] * v[c]));
+            }
+            k += lanes as u64;
+        }
+        sum.finish()
+    }
+}
+
+/// `Â(wi) Â(wo)` per channel on every lane, from four uniforms: each factor
+/// is the coat's transmission sampled from that direction as a walk enters
+/// (`transmit_only`: weight `(1 − F) G/G1`) times the layer's transmittance
+/// along the refracted direction; 0 where the coat lets nothing through.
+#[inline(always)]
+pub fn entrance_product<L: Lane>(
+    coat: &InterfaceLanes<L>,
+    layer: &MediumLanes<L>,
+    wi: V3<L>,
+    wo: V3<L>,
+    u: [L; 4],
+) -> Rgb<L> {
+    let all = L::Mask::splat(true);
+    let enter = |w: V3<L>, u1: L, u2: L| {
+        let s = coat.sample(w, L::zero(), u1, u2, all);
+        let t = layer.transmittance(L::one(), s.b);
+        Rgb::select(s.valid, s.weight * t, Rgb::zero())
+    };
+    enter(wi, u[0], u[1]) * enter(wo, u[2], u[3])
+}
