@@ -734,6 +734,16 @@ impl Bsdf {
         self.inner.sample_is_exact()
     }
 
+    /// Whether `eval` is answered without walks (`estimator = "auto"` on a
+    /// coat over a clear or absorbing layer over a Lambertian base): the
+    /// smooth coat's closed form (standard error 0), or a rough coat's
+    /// factorization, whose samples are draws of the light entering from
+    /// `wi` and `wo`, far cheaper than walks.
+    #[getter]
+    fn eval_without_walks(&self) -> bool {
+        self.inner.eval_without_walks()
+    }
+
     /// `f(wi, wo)` per RGB channel, without the cosine, and its standard
     /// error: `(f, stderr)`, each in the layout of `wi`.
     ///

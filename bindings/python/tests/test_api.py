@@ -409,3 +409,36 @@ def test_closed_form_stacks_sample_with_an_exact_pdf(materials, estimator):
         assert np.any(se > 0)
     assert np.all(np.isfinite(weight)) and np.all(weight >= 0)
 
+
+
+ROUGH_COAT = """
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+medium = { thickness = 0.1, sigma_t = 1.0, albedo = 0.0 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.6 }
+"""
+
+
+@pytest.mark.parametrize("estimator", ["auto", "uni"])
+def test_a_rough_coat_over_lambertian_evaluates_without_walks(strata_cli, tmp_path, estimator):
+    # The factorization under `auto` (estimator::rough_coat): sampled, not
+    # exact, and bit for bit what the CLI prints for the same queries.
+    path = tmp_path / "rough_coat.toml"
+    path.write_text(ROUGH_COAT)
+    bsdf = Bsdf.from_path(path, samples=256, seed=3, estimator=estimator)
+    assert bsdf.eval_without_walks == (estimator == "auto")
+    assert not bsdf.exact_sampling
+    rng = np.random.default_rng(4)
+    wi = fixed_directions(8, rng)
+    wo = fixed_directions(8, rng)
+    f, se = bsdf.eval(wi, wo)
+    assert np.all(np.isfinite(f)) and np.all(f > 0)
+    assert np.all(se > 0)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    args = ["eval", "--material", str(path), "--samples", "256", "--seed", "3", "--estimator", estimator]
+    cli = run_cli(strata_cli, args, lines)
+    np.testing.assert_array_equal(f, np.array([c["f"] for c in cli], dtype=np.float64).astype(np.float32))
+    np.testing.assert_array_equal(se, np.array([c["stderr"] for c in cli], dtype=np.float64).astype(np.float32))

@@ -380,6 +380,49 @@ fn closed_form_against_the_exact_solution() {
     );
 }
 
+/// The factorization of a rough coat over a Lambertian base
+/// (`estimator::rough_coat`, `Estimator::Auto`, no walks) against Mitsuba's
+/// explicit slab of `rough_coat_lambertian.toml`: the cone-integrated BSDF
+/// rows, within 4 combined standard errors (both engines, their seeds), on
+/// the same cone directions as the walks above.
+#[test]
+fn rough_factorization_against_mitsuba() {
+    let rows = read_csv("mitsuba.csv");
+    let mut compared = 0;
+    for (engine, seed, label) in ENGINES {
+        let bsdf = LayeredBsdf::new(material("rough_coat_lambertian.toml"))
+            .engine(engine)
+            .seed(seed);
+        assert!(bsdf.eval_without_walks());
+        let of_it = |r: &&Row| {
+            r.get("material") == Some("rough_coat_lambertian.toml")
+                && r.get("quantity") == Some("cone")
+        };
+        for row in rows.iter().filter(of_it) {
+            let s = strata_value(&bsdf, row, 1 << 20, 512);
+            let (r, rs) = (row.rgb("ref", 0.0), row.rgb("sigma", 0.0));
+            for c in 0..3 {
+                let z = (s[c].0 - r[c]) / s[c].1.hypot(rs[c]);
+                eprintln!(
+                    "{label} θi {} ch {c}: factorized {:.6e} ± {:.1e}, Mitsuba {:.6e} ± {:.1e}, z {z:+.2}",
+                    row.num("theta_i"),
+                    s[c].0,
+                    s[c].1,
+                    r[c],
+                    rs[c]
+                );
+                assert!(
+                    z.abs() <= K,
+                    "{label} θi {} ch {c}: z = {z}",
+                    row.num("theta_i")
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared >= 18, "only {compared} values compared");
+}
+
 #[test]
 fn mitsuba_explicit_slab() {
     point_file("mitsuba.csv", 1 << 20, 512);

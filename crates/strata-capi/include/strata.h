@@ -352,6 +352,21 @@ int32_t strata_bsdf_info(const struct StrataBsdf *b, struct StrataStackInfo *out
 int32_t strata_bsdf_is_exact(const struct StrataBsdf *b, uint32_t *out);
 
 /**
+ * Writes to `*out` whether the BSDF answers eval without walks (1) or with
+ * them (0): under `STRATA_ESTIMATOR_AUTO`, a smooth coat over a clear or
+ * absorbing layer over a Lambertian base (its closed form:
+ * `strata_bsdf_is_exact`) or a rough, isotropic one (its factorization:
+ * the coat's reflection plus samples of the light entering from `wi` and
+ * from `wo` times a constant of the stack, integrated, in 2–15 ms, by the
+ * first eval that needs it); untilted normals, no depth cap. The samples
+ * per eval are then those draws, each much cheaper than a walk.
+ *
+ * # Safety
+ * `b` is NULL or live; `out` is NULL or points to a writable `uint32_t`.
+ */
+int32_t strata_bsdf_eval_without_walks(const struct StrataBsdf *b, uint32_t *out);
+
+/**
  * Frees a BSDF. NULL is a no-op.
  *
  * # Safety

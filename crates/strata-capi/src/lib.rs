@@ -723,6 +723,34 @@ pub unsafe extern "C" fn strata_bsdf_is_exact(b: *const StrataBsdf, out: *mut u3
     })
 }
 
+/// Writes to `*out` whether the BSDF answers eval without walks (1) or with
+/// them (0): under `STRATA_ESTIMATOR_AUTO`, a smooth coat over a clear or
+/// absorbing layer over a Lambertian base (its closed form:
+/// `strata_bsdf_is_exact`) or a rough, isotropic one (its factorization:
+/// the coat's reflection plus samples of the light entering from `wi` and
+/// from `wo` times a constant of the stack, integrated, in 2–15 ms, by the
+/// first eval that needs it); untilted normals, no depth cap. The samples
+/// per eval are then those draws, each much cheaper than a walk.
+///
+/// # Safety
+/// `b` is NULL or live; `out` is NULL or points to a writable `uint32_t`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_eval_without_walks(
+    b: *const StrataBsdf,
+    out: *mut u32,
+) -> i32 {
+    guard("strata_bsdf_eval_without_walks", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let without = unsafe { bsdf_ref(b)? }.eval_without_walks();
+        if out.is_null() {
+            return Err(Failure::new(STRATA_ERR_NULL, "out is NULL"));
+        }
+        // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
+        unsafe { out.write(without as u32) };
+        Ok(())
+    })
+}
+
 /// Frees a BSDF. NULL is a no-op.
 ///
 /// # Safety

@@ -858,6 +858,62 @@ fn exactness_is_the_rust_apis() {
     }
 }
 
+/// `strata_bsdf_eval_without_walks` is the Rust API's
+/// `eval_without_walks`: the closed form and a rough coat's factorization
+/// under `Auto`, walks under the unidirectional estimator and on other
+/// stacks; NULLs are errors; eval through C is the Rust eval bit for bit.
+#[test]
+fn eval_without_walks_is_the_rust_apis() {
+    let clear = include_str!("../../../examples/materials/clear_coat_lambertian.toml");
+    let rough = r#"
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+        medium = { thickness = 0.1, sigma_t = 1.0, albedo = 0.0 }
+        [[layers]]
+        interface = { kind = "diffuse", albedo = 0.6 }
+    "#;
+    let mut without = 7u32;
+    // SAFETY: live BSDFs used by this thread only, and writable memory.
+    unsafe {
+        for (toml, want) in [(clear, 1), (rough, 1), (COATED_COPPER, 0)] {
+            let c = Capi::toml(toml, 16, 0);
+            assert_eq!(rust(toml, 16, 0).eval_without_walks(), want == 1);
+            assert_eq!(strata_bsdf_eval_without_walks(c.0, &mut without), STRATA_OK);
+            assert_eq!(without, want);
+            let code = STRATA_ESTIMATOR_UNIDIRECTIONAL;
+            assert_eq!(strata_bsdf_set_estimator(c.0, code), STRATA_OK);
+            assert_eq!(strata_bsdf_eval_without_walks(c.0, &mut without), STRATA_OK);
+            assert_eq!(without, 0);
+        }
+        let c = Capi::toml(rough, 16, 0);
+        let (wi, wo) = ([0.3f32, 0.1, 0.9], [-0.5f32, 0.2, 0.8]);
+        let (mut f, mut se) = ([0f32; 3], [0f32; 3]);
+        let code = strata_eval_batch(
+            c.0,
+            1,
+            wi.as_ptr(),
+            wo.as_ptr(),
+            f.as_mut_ptr(),
+            se.as_mut_ptr(),
+        );
+        assert_eq!(code, STRATA_OK);
+        let want = rust(rough, 16, 0)
+            .eval(glam::Vec3::from(wi), glam::Vec3::from(wo))
+            .unwrap();
+        assert_eq!(f, want.value.map(|x| x as f32));
+        assert!(se.iter().all(|&s| s > 0.0), "sampled, not exact");
+        assert_eq!(
+            strata_bsdf_eval_without_walks(c.0, null_mut()),
+            STRATA_ERR_NULL
+        );
+        assert_eq!(last_error(), "strata_bsdf_eval_without_walks: out is NULL");
+        assert_eq!(
+            strata_bsdf_eval_without_walks(null(), &mut without),
+            STRATA_ERR_NULL
+        );
+    }
+}
+
 #[test]
 fn the_estimator_is_the_rust_apis() {
     // Three interfaces: `Auto` runs the bidirectional estimator there.

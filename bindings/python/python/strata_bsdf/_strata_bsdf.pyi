@@ -11,6 +11,7 @@ F32 = npt.NDArray[np.float32]
 Vectors = Union[F32, Tuple[F32, F32, F32]]
 Keys = Optional[npt.NDArray[np.uint64]]
 Transport = Literal["radiance", "importance"]
+Estimator = Literal["auto", "uni", "unidirectional", "bidir", "bidirectional"]
 #: Per-query parameters: a parameter path of the material ("layers[0].medium.thickness",
 #: "layers[0].medium.sigma_t", "exterior_ior"; docs/materials.md) to a C-contiguous float32
 #: array of shape (N,) (a number per query) or (N, 3) (a triple per query).
@@ -44,11 +45,21 @@ class Bsdf:
 
     @staticmethod
     def from_toml(
-        text: str, samples: int = 1, seed: int = 0, transport: Transport = "radiance", pdf_samples: int = 4
+        text: str,
+        samples: int = 1,
+        seed: int = 0,
+        transport: Transport = "radiance",
+        pdf_samples: int = 4,
+        estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
     def from_json(
-        text: str, samples: int = 1, seed: int = 0, transport: Transport = "radiance", pdf_samples: int = 4
+        text: str,
+        samples: int = 1,
+        seed: int = 0,
+        transport: Transport = "radiance",
+        pdf_samples: int = 4,
+        estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
     def from_path(
@@ -57,8 +68,10 @@ class Bsdf:
         seed: int = 0,
         transport: Transport = "radiance",
         pdf_samples: int = 4,
+        estimator: Estimator = "auto",
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
+    def with_estimator(self, estimator: Estimator) -> Bsdf: ...
     def eval(
         self, wi: Vectors, wo: Vectors, keys: Keys = None, *, params: Params = None
     ) -> Tuple[Vectors, Vectors]:
@@ -81,6 +94,14 @@ class Bsdf:
         self, wi: Vectors, n: int, keys: Keys = None, *, params: Params = None
     ) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
         """(R, T, R_stderr, T_stderr) from n walks per direction."""
+    @property
+    def estimator(self) -> Estimator: ...
+    @property
+    def bidirectional(self) -> bool: ...
+    @property
+    def exact_sampling(self) -> bool: ...
+    @property
+    def eval_without_walks(self) -> bool: ...
     @property
     def samples(self) -> int: ...
     @property

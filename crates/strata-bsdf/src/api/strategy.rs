@@ -57,21 +57,22 @@ pub const MAX_OPTICAL_DEPTH: f64 = 1.0;
 pub enum Estimator {
     /// The exact value where the stack has a closed form (a smooth coat over
     /// a clear or absorbing layer over a Lambertian base:
-    /// `estimator::closed_form`; standard error 0); for a smooth coat over a
+    /// `estimator::closed_form`; standard error 0); for a rough coat over a
+    /// clear or absorbing layer over a Lambertian base, its factorization
+    /// (`estimator::rough_coat`: the coat's reflection exactly, plus samples
+    /// of the light that enters from `wi` and from `wo` times a constant of
+    /// the stack, integrated once; no walks); for a coat over a
     /// *scattering* layer over a Lambertian base, a control variate: the
-    /// paths that never collide in the medium (the closed form of the same
-    /// stack with the medium as a pure absorber) exactly, plus the walks of
-    /// the unidirectional estimator scoring only the paths with a collision
-    /// (unbiased; in a grey medium they make their first collision more
-    /// likely and weight it down: `estimator::events::FIRST_COLLISION_BOOST`),
-    /// where the medium is grey (extinction and albedo), of optical depth at
-    /// most 2, with a Henyey–Greenstein phase, or scatters little against
-    /// what the base reflects (`SmoothCoatLambertian::control_variate_pays`,
-    /// the rule under which it measured lower variance: docs/performance.md);
-    /// the bidirectional estimator on stacks of three interfaces or more, on
-    /// rough coats over smooth conductors and on near-specular coated
-    /// conductors ([`Estimator::bidirectional_pays`]); the unidirectional
-    /// estimator elsewhere. The default.
+    /// paths that never collide in the medium (the same expressions with the
+    /// medium as a pure absorber) added, plus the walks of the unidirectional
+    /// estimator scoring only the paths with a collision (unbiased; in a grey
+    /// medium they make their first collision more likely and weight it
+    /// down: `estimator::events::FIRST_COLLISION_BOOST`), where that measured
+    /// lower variance per unit of time (`CoatLambertian::control_variate_pays`:
+    /// docs/performance.md); the bidirectional estimator on stacks of three
+    /// interfaces or more, on rough coats over smooth conductors and on
+    /// near-specular coated conductors ([`Estimator::bidirectional_pays`]);
+    /// the unidirectional estimator elsewhere. The default.
     #[default]
     Auto,
     /// The unidirectional random-walk estimator, always (method.md §4).

@@ -80,6 +80,10 @@ int main(void) {
            NULL);
     expect("exact, NULL out", strata_bsdf_is_exact(b, NULL), STRATA_ERR_NULL, "out is NULL",
            NULL);
+    expect("without walks, NULL b", strata_bsdf_eval_without_walks(NULL, &exact), STRATA_ERR_NULL,
+           "b is NULL", NULL);
+    expect("without walks, NULL out", strata_bsdf_eval_without_walks(b, NULL), STRATA_ERR_NULL,
+           "out is NULL", NULL);
     expect("too many threads", strata_bsdf_set_threads(b, 5000), STRATA_ERR_INVALID_ARGUMENT,
            "threads = 5000", NULL);
     strata_bsdf_free(NULL); /* a no-op */
