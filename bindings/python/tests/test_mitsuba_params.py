@@ -8,14 +8,17 @@ dr = pytest.importorskip("drjit")
 
 from test_mitsuba import material, scene, use_variant  # noqa: E402
 
-# A rough coat with a tinted absorber over a white Lambertian base: the
-# thickness shows as colour depth.
+# A rough coat with a tinted absorber over rough silver: the thickness shows
+# as colour depth. (Not a Lambertian base: there `auto` answers a uniform
+# material without walks, by a constant of its coat and layer, but textured
+# thicknesses and extinctions by the walks, which agree with it in
+# expectation only; docs/embedding.md.)
 COAT = """
 [[layers]]
 interface = {{ kind = "dielectric", ior = 1.5, roughness = 0.2 }}
 medium = {{ thickness = {thickness}, sigma_t = {sigma_t}, albedo = 0.0 }}
 [[layers]]
-interface = {{ kind = "diffuse", albedo = 0.8 }}
+interface = {{ kind = "conductor", preset = "Ag", roughness = 0.3 }}
 """
 TH = "param:layers[0]:medium:thickness"
 SIG = "param:layers[0]:medium:sigma_t"

@@ -520,12 +520,14 @@ fn a_mixed_batch_answers_what_each_material_answers() {
 }
 
 /// Per-query columns over a rough coat over a Lambertian base: a column of
-/// the base's albedo keeps the coat and the layer of the first query's
-/// material, whose integral `R̄` every query shares, and each query answers
-/// bit for bit what its material file answers (without walks); a column
-/// of the roughness would need an integral per query, so those queries are
-/// answered by the plain walks: bit for bit what their material file
-/// answers under `Estimator::Unidirectional`.
+/// the base's albedo keeps the coat and the layer of the template, whose
+/// integral `R̄` every query shares, and each query answers bit for bit what
+/// its material file answers (without walks); a roughness column would need
+/// an integral per distinct value, so the queries whose roughness is not the
+/// template's are answered by the plain walks: bit for bit what their
+/// material file answers under `Estimator::Unidirectional`. The rule is the
+/// query's own value against the template's, whatever the batch's first
+/// query is.
 #[test]
 fn per_query_columns_share_the_rough_coats_integral_or_walk() {
     use strata_bsdf::Column;
@@ -540,16 +542,16 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
     let n = 6;
     let (pairs, _) = queries(n);
     let keys: Vec<u64> = (0..n as u64).collect();
-    for (path, values, walked) in [
+    for (path, values, template_value) in [
         (
             "layers[1].interface.albedo",
             [0.2, 0.4, 0.5, 0.6, 0.8, 0.9],
-            false,
+            None,
         ),
         (
             "layers[0].interface.roughness",
-            [0.2, 0.1, 0.3, 0.4, 0.5, 0.6],
-            true,
+            [0.3, 0.2, 0.1, 0.4, 0.2, 0.6],
+            Some(0.2),
         ),
     ] {
         let p = path.parse().unwrap();
@@ -565,8 +567,9 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
         for k in 0..n {
             let st = base.with_set(&[(p.clone(), (values[k] as f32 as f64).into())]);
             let own = LayeredBsdf::new(st.unwrap()).samples(32).seed(3);
-            // The first query's material keeps its own integral.
-            let own = if walked && k > 0 {
+            let walked = template_value.is_some_and(|t| values[k] != t);
+            assert!(own.eval_without_walks());
+            let own = if walked {
                 own.estimator(Estimator::Unidirectional)
             } else {
                 own

@@ -85,11 +85,11 @@ impl Materials {
     /// Queries whose rows are equal share one material (a texture's texels
     /// repeat). Under [`crate::Estimator::Auto`], a rough coat over a
     /// Lambertian base is answered without walks through a constant of its
-    /// coat and layer (an integral of 5–15 ms, `estimator::coat_return`):
-    /// queries whose columns change the coat or the layer of the first
-    /// query's material would each need their own, so they are answered by
-    /// the walks (which agree in expectation, not bit for bit, with what
-    /// their material file answers); columns of the base's albedo keep it.
+    /// coat and layer (an integral of 2–15 ms, `estimator::coat_return`):
+    /// queries whose coat or layer differ from `template`'s would each need
+    /// their own, so they are answered by the walks (which agree in
+    /// expectation, not bit for bit, with what their material file
+    /// answers); columns of the base's albedo keep it.
     /// Every row is checked before anything runs: the first query whose
     /// values are invalid is an error naming it, and no material is built
     /// (a renderer clamps its textures, or drops the query and retries the
@@ -145,7 +145,7 @@ impl Materials {
             };
             of.push(u);
         }
-        Ok(Materials::building(template, stacks, false).repeated(&of))
+        Ok(Materials::building(template, stacks, true).repeated(&of))
     }
 
     /// `0, 1, …, n − 1`: the material indices of a batch whose query `k`

@@ -9,6 +9,7 @@
 //! alone answers, with the same configuration and key
 //! (`tests/param_sets.rs`).
 
+use super::sets::Returns;
 use super::{BatchError, LayeredBsdf, ParamSets, QueryError, Sample};
 use crate::estimator::pdf::PdfEstimate;
 use crate::estimator::{Albedo, Estimate};
@@ -31,17 +32,21 @@ impl Materials {
     /// with `template`'s configuration: its walk settings, samples, seed,
     /// estimator, engine, transport mode, start side and threads.
     pub fn new(template: &LayeredBsdf, stacks: impl IntoIterator<Item = LayerStack>) -> Self {
-        Self::building(template, stacks, true)
+        Self::building(template, stacks, false)
     }
 
-    /// [`Materials::new`]; `own_returns` as [`LayeredBsdf::build_sets`]
-    /// takes it (per-query columns share the integral of their group's
-    /// first material, or are walked).
+    /// [`Materials::new`]; `columns`: the materials are per-query columns of
+    /// `template`, which share its rough coat's integral `R̄` or are walked
+    /// ([`Returns::SharedWith`]).
     pub(super) fn building(
         template: &LayeredBsdf,
         stacks: impl IntoIterator<Item = LayerStack>,
-        own_returns: bool,
+        columns: bool,
     ) -> Self {
+        let returns = match columns {
+            true => Returns::SharedWith(template.coat.as_ref()),
+            false => Returns::Own,
+        };
         let mut members: Vec<(LayeredBsdf, Vec<LayerStack>)> = Vec::new();
         let mut of = Vec::new();
         for st in stacks {
@@ -59,7 +64,7 @@ impl Materials {
         let groups = (members.into_iter())
             .map(|(b, stacks)| {
                 let sets = b
-                    .build_sets(stacks, own_returns)
+                    .build_sets(stacks, returns)
                     .expect("a group's stacks share its shape");
                 (b, sets)
             })

@@ -93,6 +93,21 @@ impl fmt::Display for SetsError {
 
 impl std::error::Error for SetsError {}
 
+/// Which parameter sets of a rough coat over a Lambertian base integrate
+/// their own `R̄` (`estimator::coat_return`, 2–15 ms each).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Returns<'a> {
+    /// Every set (explicit parameter sets and materials: a handful).
+    Own,
+    /// None: a set shares the `R̄` of this coat (a template's) where its
+    /// coat and layer are the same, and is answered by the walks, without
+    /// the control variate, where they are not. For per-query columns, where
+    /// an integral per texel would cost far more than the walks; the rule is
+    /// the query's own values against the template's, so an answer does not
+    /// depend on the batch.
+    SharedWith(Option<&'a CoatLambertian>),
+}
+
 /// Which parameters each query of a call has: the BSDF's own, or a set
 /// each (`set[k]` for query `k`).
 #[derive(Clone, Copy, Debug)]
@@ -139,18 +154,15 @@ impl LayeredBsdf {
         &self,
         stacks: impl IntoIterator<Item = LayerStack>,
     ) -> Result<ParamSets, SetsError> {
-        self.build_sets(stacks, true)
+        self.build_sets(stacks, Returns::Own)
     }
 
-    /// [`LayeredBsdf::param_sets`]; without `own_returns`, a set that would
-    /// need an integral `R̄` of its own (a rough coat or a layer other than
-    /// this BSDF's, over a Lambertian base) is answered by the walks
-    /// instead, without the control variate: for per-query columns, where
-    /// an integral per texel would cost far more than the walks.
+    /// [`LayeredBsdf::param_sets`], with `returns` saying which sets may
+    /// integrate a rough coat's `R̄` of their own.
     pub(super) fn build_sets(
         &self,
         stacks: impl IntoIterator<Item = LayerStack>,
-        own_returns: bool,
+        returns: Returns,
     ) -> Result<ParamSets, SetsError> {
         let shape = self.shape.clone();
         let stacks: Vec<LayerStack> = stacks.into_iter().collect();
@@ -165,13 +177,17 @@ impl LayeredBsdf {
         let mut coats = Vec::with_capacity(stacks.len());
         for st in &stacks {
             let coat = CoatLambertian::unscattered(st, &settings).and_then(|c| {
-                let own = self.coat.as_ref();
-                let shared = match (own.and_then(CoatLambertian::rough), c.rough()) {
+                let (shared, own) = match returns {
+                    Returns::Own => (None, true),
+                    Returns::SharedWith(t) => (t, false),
+                };
+                let with = shared.or(self.coat.as_ref());
+                let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
                     (_, None) => true,
                     (Some(o), Some(r)) => o.same_return(r),
                     (None, Some(_)) => false,
                 };
-                (own_returns || shared).then(|| own.map_or(c.clone(), |o| o.sharing_return(c)))
+                (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
             });
             let cv = coat.clone().filter(|_| self.control_variate_for(st));
             table.push(st, cv.clone());

@@ -102,13 +102,27 @@ impl RoughCoatLambertian {
             // The uncollided paths see only the extinction.
             layer.kind = super::layout::LayerKind::Absorbing;
         }
+        // The integral takes the numbers the walks take, in single precision,
+        // so that a stack whose numbers differ below that (a texture's f32
+        // value and a material file's decimal) integrates to the same `R̄`.
+        let (it, medium) = (
+            stack.interface_lanes::<f32>(0),
+            MediumLanes::<f32>::new(stack, 0),
+        );
+        let f64s = |c: Rgb<f32>| [c.r, c.g, c.b].map(f64::from);
+        let mf = Microfacet {
+            alpha_x: it.mf.alpha_x as f64,
+            alpha_y: it.mf.alpha_y as f64,
+            beckmann: it.mf.beckmann,
+            separable: it.mf.separable,
+        };
         Some(RoughCoatLambertian {
             coat: stack.interface_lanes(0),
             layer,
-            mf: stack.interface_lanes::<f64>(0).mf,
-            eta: coat.n_below / coat.n_above,
-            tau: stack.medium(0).map_or([0.0; 3], |m| m.optical_depth()),
-            rho: base.albedo,
+            mf,
+            eta: (it.n_below / it.n_above) as f64,
+            tau: f64s(medium.sigma_t).map(|t| t * medium.thickness as f64),
+            rho: f64s(stack.interface_lanes::<f32>(1).albedo),
             r_bar: Arc::default(),
         })
     }
