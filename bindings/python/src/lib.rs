@@ -725,10 +725,11 @@ impl Bsdf {
         self.inner.bidirectional()
     }
 
-    /// Whether `sample` and `pdf` use the closed form's sampler (`estimator
-    /// = "auto"` on a smooth coat over a clear or absorbing layer over a
-    /// Lambertian base): no walk, and `pdf` is the exact density of
-    /// `sample`'s directions (`pdf_unbiased` then has standard error 0).
+    /// Whether `sample` and `pdf` use a walk-free sampler (`estimator =
+    /// "auto"` on a smooth or rough coat over a clear or absorbing layer over
+    /// a Lambertian base): no walk, bounded weights, and `pdf` is the exact
+    /// density of `sample`'s directions (`pdf_unbiased` then has standard
+    /// error 0).
     #[getter]
     fn exact_sampling(&self) -> bool {
         self.inner.sample_is_exact()

@@ -539,7 +539,9 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
          interface = { kind = \"diffuse\", albedo = 0.8 }\n",
     );
     let template = LayeredBsdf::new(base.clone()).samples(32).seed(3);
-    let n = 6;
+    // Enough queries for the wavefront (a batch of more walks than lanes),
+    // the six values in turn.
+    let n = 24;
     let (pairs, _) = queries(n);
     let keys: Vec<u64> = (0..n as u64).collect();
     for (path, values, template_value) in [
@@ -555,17 +557,23 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
         ),
     ] {
         let p = path.parse().unwrap();
+        let values: Vec<f64> = (0..n).map(|k| values[k % 6]).collect();
+        let column_values: Vec<f32> = values.iter().map(|&x| x as f32).collect();
         let column = Column {
             path: &p,
             width: 1,
-            values: &values.map(|x| x as f32),
+            values: &column_values,
         };
         let m = Materials::per_query(&template, n, &[column]).unwrap();
-        let got = m
-            .eval_batch_keyed(&Materials::identity(n), &pairs, 32, &keys)
-            .unwrap();
+        let ids = Materials::identity(n);
+        let got = m.eval_batch_keyed(&ids, &pairs, 32, &keys).unwrap();
+        let wis: Vec<_> = pairs.iter().map(|p| p.0).collect();
+        let idx: Vec<u64> = (0..n as u64).collect();
+        let s = m.sample_batch_keyed(&ids, &wis, &keys, &idx).unwrap();
+        let p_all = m.pdf_batch(&ids, &pairs).unwrap();
+        let u = m.pdf_unbiased_batch(&ids, &pairs, 8).unwrap();
         for k in 0..n {
-            let st = base.with_set(&[(p.clone(), (values[k] as f32 as f64).into())]);
+            let st = base.with_set(&[(p.clone(), (column_values[k] as f64).into())]);
             let own = LayeredBsdf::new(st.unwrap()).samples(32).seed(3);
             let walked = template_value.is_some_and(|t| values[k] != t);
             assert!(own.eval_without_walks());
@@ -576,6 +584,15 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
             };
             let want = own.eval_batch_keyed(&pairs[k..k + 1], 32, &keys[k..k + 1]);
             assert_eq!(got[k], want.unwrap()[0], "{path}, query {k}");
+            // sample and pdf too, in a batch that mixes walk-free and walked
+            // queries: each its material file's, bit for bit.
+            let want = own.sample_batch_keyed(&wis[k..k + 1], &keys[k..k + 1], &idx[k..k + 1]);
+            assert_eq!(s[k], want.unwrap()[0], "{path}, sample {k}");
+            assert_eq!(own.sample_is_exact(), !walked, "{path}, query {k}");
+            let want = own.pdf_batch(&pairs[k..k + 1]).unwrap()[0];
+            assert_eq!(p_all[k].to_bits(), want.to_bits(), "{path}, pdf {k}");
+            let want = own.pdf_unbiased_batch(&pairs[k..k + 1], 8).unwrap()[0];
+            assert_eq!(u[k], want, "{path}, unbiased pdf {k}");
         }
     }
 }

@@ -120,8 +120,9 @@ pub struct StrataSample {
     pub weight: [f32; 3],
     /// The density of `wo` per solid angle: exactly what `strata_pdf_batch`
     /// gives for `(wi, wo)`, so MIS sees the same number from either
-    /// strategy. Approximate (exact on stacks with a closed form, which are
-    /// sampled without a walk), so the weight is not `f cos / pdf` in general.
+    /// strategy. Approximate (exact on the coats over Lambertian bases that
+    /// are sampled without a walk: `strata_bsdf_is_exact`), so the weight is
+    /// not `f cos / pdf` in general.
     pub pdf: f32,
     /// `STRATA_SAMPLE_*` bits: REFLECTION or TRANSMISSION, and DELTA; 0 if
     /// absorbed.
@@ -698,14 +699,15 @@ pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut Strata
     })
 }
 
-/// Writes to `*out` whether the BSDF answers eval, sample and pdf with its
-/// stack's closed form (1) or with walks (0): under `STRATA_ESTIMATOR_AUTO`,
-/// a smooth coat over a clear or absorbing layer over a Lambertian base
+/// Writes to `*out` whether the BSDF answers sample and pdf without walks
+/// (1) or with them (0): under `STRATA_ESTIMATOR_AUTO`, a smooth or rough
+/// (isotropic) coat over a clear or absorbing layer over a Lambertian base
 /// (untilted normals, an absorber whose extinction does not depend on the
-/// direction, no depth cap).
-/// Then eval has standard error 0, sample draws without a walk with bounded
-/// weights, and `strata_pdf_batch` returns the exact density of sample's
-/// directions (elsewhere an approximation).
+/// direction, no depth cap). Then sample draws from a known density with
+/// bounded weights, and `strata_pdf_batch` returns that exact density
+/// (elsewhere an approximation). Eval is then answered without walks too
+/// (`strata_bsdf_eval_without_walks`), exactly (standard error 0) under a
+/// smooth coat.
 ///
 /// # Safety
 /// `b` is NULL or live; `out` is NULL or points to a writable `uint32_t`.

@@ -880,6 +880,10 @@ fn eval_without_walks_is_the_rust_apis() {
             assert_eq!(rust(toml, 16, 0).eval_without_walks(), want == 1);
             assert_eq!(strata_bsdf_eval_without_walks(c.0, &mut without), STRATA_OK);
             assert_eq!(without, want);
+            // Sampled without walks too, with an exact pdf.
+            let mut exact = 7u32;
+            assert_eq!(strata_bsdf_is_exact(c.0, &mut exact), STRATA_OK);
+            assert_eq!(exact, want);
             let code = STRATA_ESTIMATOR_UNIDIRECTIONAL;
             assert_eq!(strata_bsdf_set_estimator(c.0, code), STRATA_OK);
             assert_eq!(strata_bsdf_eval_without_walks(c.0, &mut without), STRATA_OK);

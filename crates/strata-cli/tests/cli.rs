@@ -490,16 +490,16 @@ fn sample_prints_valid_lines_with_consistent_flags() {
 
 #[test]
 fn sample_prints_absorbed_walks_as_null_with_zero_weight() {
-    // A thick absorber under a rough coat over a white base: most walks die.
-    // (Under a smooth coat the stack has a closed form, which `Auto` samples
-    // without a walk: nothing is absorbed.)
+    // A thick absorber under a rough coat over silver: most walks die.
+    // (Over a Lambertian base `Auto` samples a coat without a walk: nothing
+    // is absorbed.)
     let dir = scratch("absorbed");
     let p = dir.join("absorber.toml");
     std::fs::write(
         &p,
         "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.2 }\n\
          medium = { thickness = 5.0, sigma_t = 5.0, albedo = 0.0 }\n\
-         [[layers]]\ninterface = { kind = \"diffuse\", albedo = 1.0 }\n",
+         [[layers]]\ninterface = { kind = \"conductor\", preset = \"Ag\", roughness = 0.3 }\n",
     )
     .unwrap();
     let lines = sample(p.to_str().unwrap(), "0,0,1", 400, 0);

@@ -340,18 +340,20 @@ impl LayeredBsdf {
             .flatten()
     }
 
-    /// Whether `sample` and `pdf` are answered by the closed form's sampler
-    /// (the same condition as [`LayeredBsdf::eval_is_exact`]): a direction
-    /// drawn without a walk, with bounded weights and an exact pdf, which
+    /// Whether `sample` and `pdf` are answered without walks (the same
+    /// condition as [`LayeredBsdf::eval_without_walks`]): a direction drawn
+    /// from a known density with bounded weights and an exact pdf, which
     /// [`LayeredBsdf::pdf_unbiased`] then also returns (standard error 0).
+    /// Under a smooth coat it is the closed form's sampler, under a rough
+    /// one a mixture of the coat's lobe and a cosine lobe, weighted by one
+    /// sample of the factorization (`estimator::rough_coat`).
     pub fn sample_is_exact(&self) -> bool {
-        self.eval_is_exact()
+        self.eval_without_walks()
     }
 
-    /// Query `k`'s closed-form sampler, where `sample` and `pdf` use it.
-    fn exact_sampler<'a>(&'a self, per: Per<'a>, k: usize) -> Option<&'a SmoothCoatLambertian> {
+    /// Query `k`'s walk-free sampler, where `sample` and `pdf` use it.
+    fn exact_sampler<'a>(&'a self, per: Per<'a>, k: usize) -> Option<&'a CoatLambertian> {
         self.without_walks_in(per, k)
-            .and_then(CoatLambertian::smooth)
     }
 
     /// The transport mode.
@@ -845,13 +847,57 @@ impl LayeredBsdf {
         query: impl Fn(usize) -> (Pt, u64, u64) + Sync,
         mut out: impl FnMut(usize, Option<Sample>),
     ) {
-        if self.engine.resolve(n, 1) == Engine::Scalar || self.sample_is_exact() {
-            for k in 0..n {
-                let (a, key, index) = query(k);
-                out(k, self.sample_one(per, k, a, key, index));
+        let one = |k: usize| {
+            let (a, key, index) = query(k);
+            self.sample_one(per, k, a, key, index)
+        };
+        if self.engine.resolve(n, 1) == Engine::Scalar {
+            (0..n).for_each(|k| out(k, one(k)));
+            return;
+        }
+        // Walk-free samplers answer query by query (over the pool's threads
+        // when the batch is large); the walks run as a batch of their own.
+        let free = |k: usize| self.exact_sampler(per, k).is_some();
+        let n_free = (0..n).filter(|&k| free(k)).count();
+        if n_free == n {
+            if n as u64 > SERIAL_WALKS && !self.serial() {
+                use rayon::prelude::*;
+                let s: Vec<_> = self.install(n, 1, || (0..n).into_par_iter().map(one).collect());
+                s.into_iter().enumerate().for_each(|(k, s)| out(k, s));
+            } else {
+                (0..n).for_each(|k| out(k, one(k)));
             }
             return;
         }
+        if n_free == 0 {
+            self.sample_walked(per, n, query, out);
+            return;
+        }
+        let ks: Vec<usize> = (0..n).filter(|&k| !free(k)).collect();
+        let set: Vec<u32> = ks.iter().map(|&k| per.set(k) as u32).collect();
+        let mut walked = Vec::with_capacity(ks.len());
+        let sub = |j: usize| query(ks[j]);
+        self.sample_walked(per.with_set(&set), ks.len(), sub, |_, s| walked.push(s));
+        let mut walked = walked.into_iter();
+        for k in 0..n {
+            let s = if free(k) {
+                one(k)
+            } else {
+                walked.next().flatten()
+            };
+            out(k, s);
+        }
+    }
+
+    /// [`LayeredBsdf::sample_each`] of queries that all walk, on the
+    /// wavefront engine.
+    fn sample_walked(
+        &self,
+        per: Per,
+        n: usize,
+        query: impl Fn(usize) -> (Pt, u64, u64) + Sync,
+        mut out: impl FnMut(usize, Option<Sample>),
+    ) {
         with_kept(&SAMPLES, |b| {
             let serial = self.serial();
             let walks = &mut b.walks;
@@ -938,8 +984,8 @@ impl LayeredBsdf {
         self.engine.resolve(queries, 2 * self.pdf_samples as u64)
     }
 
-    /// Whether a pdf call of `queries` queries runs query by query: by the
-    /// closed form's sampler, or on the scalar engine.
+    /// Whether a pdf call of `queries` queries of the BSDF's own stack runs
+    /// query by query: by the walk-free sampler, or on the scalar engine.
     pub(super) fn pdf_by_query(&self, queries: usize) -> bool {
         self.sample_is_exact() || self.pdf_engine(queries) == Engine::Scalar
     }
@@ -973,9 +1019,25 @@ impl LayeredBsdf {
 
     /// The approximate pdf of validated pairs, keyed by the directions.
     fn pdf_validated(&self, per: Per, dirs: &[Pair]) -> Vec<f32> {
-        if self.pdf_by_query(dirs.len()) {
+        let n = dirs.len();
+        let free = |k: usize| self.exact_sampler(per, k).is_some();
+        let by_query = (0..n).all(free) || self.pdf_engine(n) == Engine::Scalar;
+        if by_query {
             let pdf = |(k, &(a, b)): (usize, &Pair)| self.pdf_one(per, k, a, b);
             return dirs.iter().enumerate().map(pdf).collect();
+        }
+        if (0..n).any(free) {
+            // Walk-free pdfs query by query, the density walks as a batch.
+            let ks: Vec<usize> = (0..n).filter(|&k| !free(k)).collect();
+            let set: Vec<u32> = ks.iter().map(|&k| per.set(k) as u32).collect();
+            let sub: Vec<Pair> = ks.iter().map(|&k| dirs[k]).collect();
+            let mut walked = self.pdf_validated(per.with_set(&set), &sub).into_iter();
+            return (0..n)
+                .map(|k| match free(k) {
+                    true => self.pdf_one(per, k, dirs[k].0, dirs[k].1),
+                    false => walked.next().unwrap_or(0.0),
+                })
+                .collect();
         }
         let keys: Vec<u64> = dirs.iter().map(|&(a, b)| pdf_key(a, b)).collect();
         let p = self.install_if(dirs.len() > PDF_CHUNK, || {
@@ -1000,17 +1062,29 @@ impl LayeredBsdf {
         samples: u64,
     ) -> Vec<PdfEstimate> {
         let kind = PdfKind::Unbiased;
-        if self.sample_is_exact() || self.engine.resolve(dirs.len(), samples) == Engine::Scalar {
+        let n = dirs.len();
+        let free = |k: usize| self.exact_sampler(per, k).is_some();
+        if (0..n).any(free) && !(0..n).all(free) {
+            // Walk-free pdfs query by query, the density walks as a batch.
+            let ks: Vec<usize> = (0..n).filter(|&k| !free(k)).collect();
+            let set: Vec<u32> = ks.iter().map(|&k| per.set(k) as u32).collect();
+            let sub: Vec<Pair> = ks.iter().map(|&k| dirs[k]).collect();
+            let walked = self.pdf_unbiased_validated(per.with_set(&set), &sub, samples);
+            let mut walked = walked.into_iter();
+            return (0..n)
+                .map(|k| match free(k) {
+                    true => self.exact_pdf(per, k, dirs[k], samples),
+                    false => walked.next().expect("one per walked query"),
+                })
+                .collect();
+        }
+        if (0..n).all(free) || self.engine.resolve(n, samples) == Engine::Scalar {
             return dirs
                 .iter()
                 .enumerate()
                 .map(|(k, &(a, b))| {
-                    if let Some(exact) = self.exact_sampler(per, k) {
-                        return PdfEstimate {
-                            value: exact.pdf_query(self.stack_in(per, k), a, b),
-                            stderr: 0.0,
-                            samples,
-                        };
+                    if free(k) {
+                        return self.exact_pdf(per, k, (a, b), samples);
                     }
                     let key = pdf_key(a, b);
                     self.scalar_in(per, k)
@@ -1022,6 +1096,19 @@ impl LayeredBsdf {
         self.install(dirs.len(), samples, || {
             (self.wave).pdf_batch_in(per.sets(), dirs, samples, self.seed, &keys, kind)
         })
+    }
+
+    /// Query `k`'s exact pdf from its walk-free sampler, as an estimate of
+    /// standard error 0.
+    fn exact_pdf(&self, per: Per, k: usize, (a, b): Pair, samples: u64) -> PdfEstimate {
+        let value = self
+            .exact_sampler(per, k)
+            .map_or(0.0, |e| e.pdf_query(self.stack_in(per, k), a, b));
+        PdfEstimate {
+            value,
+            stderr: 0.0,
+            samples,
+        }
     }
 
     /// Albedos of validated directions; the transmitted fraction follows the

@@ -33,10 +33,9 @@
 //! way, with integrals in place of the Fresnel terms
 //! ([`super::rough_coat`]).
 
-use super::{coat_return, Settings, WalkSample};
+use super::{coat_return, Settings};
 use crate::fresnel;
-use crate::rng::WalkRng;
-use crate::stack::{InterfaceKind, LayerStack};
+use crate::stack::LayerStack;
 use std::f64::consts::PI;
 
 /// The closed form of a smooth coat over an absorbing layer over a
@@ -75,20 +74,8 @@ impl SmoothCoatLambertian {
     /// does not scatter it is the whole BSDF. `None` for other stacks, and
     /// under a depth cap (which truncates these paths too).
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        // A tilted normal breaks the closed form's planar geometry; an
-        // extinction that depends on the azimuth (SGGX) its 1D integrals.
-        let tilted = stack.interfaces().iter().any(|i| i.tilted());
-        let directional = stack
-            .medium(0)
-            .is_some_and(|m| m.phase_kind().directional());
-        if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
-            return None;
-        }
-        let (coat, base) = (stack.interface(0), stack.interface(1));
-        if coat.kind != InterfaceKind::Dielectric
-            || !coat.smooth
-            || base.kind != InterfaceKind::Diffuse
-        {
+        let (coat, base) = super::coat_lambertian::coat_and_base(stack, settings)?;
+        if !coat.smooth {
             return None;
         }
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
@@ -183,36 +170,6 @@ impl SmoothCoatLambertian {
     /// coat: 1, or `η²` where the exterior is denser (`η < 1`).
     fn cone(&self) -> f64 {
         (self.eta * self.eta).min(1.0)
-    }
-
-    /// [`SmoothCoatLambertian::sample`] for a query on `stack` (any
-    /// orientation: a two-sided stack lit from below is turned over),
-    /// drawing its uniforms from `rng`, as a walk's sample.
-    pub fn sample_query(
-        &self,
-        stack: &LayerStack,
-        wi: [f64; 3],
-        rng: &mut WalkRng,
-    ) -> Option<WalkSample> {
-        let o = super::orient(stack, wi, None)?;
-        let u = [(); 3].map(|_| rng.uniform() as f64);
-        let s = self.sample(o.wi, u)?;
-        let wo = o.apply(s.wo).map(|x| x as f32);
-        Some(WalkSample {
-            wo: glam::Vec3::from(wo),
-            weight: s.weight.map(|x| x as f32),
-            reflection: true,
-            specular: s.specular,
-        })
-    }
-
-    /// [`SmoothCoatLambertian::pdf`] for a query on `stack` (0 where `wo`
-    /// leaves on a side light cannot leave by).
-    pub fn pdf_query(&self, stack: &LayerStack, wi: [f64; 3], wo: [f64; 3]) -> f64 {
-        match super::orient(stack, wi, Some(wo)) {
-            Some(o) => self.pdf(o.wi, o.apply(wo)),
-            None => 0.0,
-        }
     }
 
     /// The coat's transmittance from outside at incidence cosine `c`, and the

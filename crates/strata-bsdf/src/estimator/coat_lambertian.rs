@@ -12,8 +12,9 @@
 
 use super::closed_form::SmoothCoatLambertian;
 use super::rough_coat::RoughCoatLambertian;
-use super::{MeanVar, Settings};
-use crate::stack::{LayerStack, PhaseKind};
+use super::{MeanVar, Settings, WalkSample};
+use crate::rng::WalkRng;
+use crate::stack::{Interface, InterfaceKind, LayerStack, PhaseKind};
 
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
 /// boosted control variate ([`CoatLambertian::control_variate_pays`]).
@@ -29,6 +30,28 @@ pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 /// sampling `f₀` costs about what it saves (a base of 0.3: 1.02× at the
 /// median, 0.91× at a pair).
 pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
+
+/// The coat and the base of `stack` if it is a dielectric coat over one
+/// layer over a Lambertian base that the walk-free forms can answer under
+/// `settings`: untilted (a tilted normal breaks their planar geometry), an
+/// extinction that does not depend on the direction (SGGX breaks their
+/// one-dimensional transmittances), no depth cap (which truncates the series
+/// of bounces).
+pub(super) fn coat_and_base<'a>(
+    stack: &'a LayerStack,
+    settings: &Settings,
+) -> Option<(&'a Interface, &'a Interface)> {
+    let tilted = stack.interfaces().iter().any(|i| i.tilted());
+    let directional = stack
+        .medium(0)
+        .is_some_and(|m| m.phase_kind().directional());
+    if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
+        return None;
+    }
+    let (coat, base) = (stack.interface(0), stack.interface(1));
+    let shape = coat.kind == InterfaceKind::Dielectric && base.kind == InterfaceKind::Diffuse;
+    shape.then_some((coat, base))
+}
 
 /// A coat over a layer over a Lambertian base, smooth or rough.
 #[derive(Clone, Debug)]
@@ -90,6 +113,45 @@ impl CoatLambertian {
     /// for a smooth coat.
     pub fn sampled(&self, wi: [f64; 3], wo: [f64; 3], n: u64, prefix: u64) -> Option<MeanVar> {
         self.rough().map(|r| r.sample_mean(wi, wo, n, prefix))
+    }
+
+    /// `sample()` without a walk for a query on `stack` (any orientation: a
+    /// two-sided stack lit from below is turned over), drawing its uniforms
+    /// from `rng` as a walk's sample: the smooth coat's closed-form sampler
+    /// (three uniforms), the rough coat's mixture of its lobe and a cosine
+    /// lobe (seven). Its pdf, [`CoatLambertian::pdf_query`], is exact.
+    pub fn sample_query(
+        &self,
+        stack: &LayerStack,
+        wi: [f64; 3],
+        rng: &mut WalkRng,
+    ) -> Option<WalkSample> {
+        let o = super::orient(stack, wi, None)?;
+        let mut u = || rng.uniform() as f64;
+        let s = match self {
+            CoatLambertian::Smooth(c) => c.sample(o.wi, [(); 3].map(|_| u())),
+            CoatLambertian::Rough(c) => c.sample(o.wi, [(); 7].map(|_| u())),
+        }?;
+        let wo = o.apply(s.wo).map(|x| x as f32);
+        Some(WalkSample {
+            wo: glam::Vec3::from(wo),
+            weight: s.weight.map(|x| x as f32),
+            reflection: true,
+            specular: s.specular,
+        })
+    }
+
+    /// The density of [`CoatLambertian::sample_query`]'s directions for a
+    /// query on `stack` (0 where `wo` leaves on a side light cannot leave
+    /// by).
+    pub fn pdf_query(&self, stack: &LayerStack, wi: [f64; 3], wo: [f64; 3]) -> f64 {
+        let Some(o) = super::orient(stack, wi, Some(wo)) else {
+            return 0.0;
+        };
+        match self {
+            CoatLambertian::Smooth(c) => c.pdf(o.wi, o.apply(wo)),
+            CoatLambertian::Rough(c) => c.pdf(o.wi, o.apply(wo)),
+        }
     }
 
     /// `other`, sharing this one's integral `R̄` where both are rough with

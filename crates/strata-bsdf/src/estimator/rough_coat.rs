@@ -29,15 +29,17 @@
 //! variate that the walks, which then score only paths with a collision,
 //! leave out ([`super::coat_lambertian`]).
 
+use super::closed_form::ExactSample;
 use super::coat_return;
 use super::layout::MediumLanes;
 use super::wavefront::DefaultWide;
 use super::{MeanVar, Settings};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::math::sample_cosine_hemisphere;
 use crate::microfacet::Microfacet;
 use crate::rng::{seed_state_from, LaneRng, Stream};
-use crate::stack::{InterfaceKind, LayerStack};
+use crate::stack::LayerStack;
 use std::f64::consts::PI;
 use std::sync::{Arc, OnceLock};
 
@@ -48,6 +50,9 @@ pub struct RoughCoatLambertian {
     coat: InterfaceLanes<DefaultWide>,
     /// The layer, as an absorber of its extinction.
     layer: MediumLanes<DefaultWide>,
+    /// The same two on one lane, for single samples and densities.
+    coat_one: InterfaceLanes<f64>,
+    layer_one: MediumLanes<f64>,
     /// The coat's microfacets and `n_below / n_above`, for `R̄`.
     mf: Microfacet<f64>,
     eta: f64,
@@ -81,26 +86,16 @@ impl RoughCoatLambertian {
     /// SGGX, breaks the factorization's one-dimensional transmittance; an
     /// anisotropic coat's `R̄` is not built.)
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        let tilted = stack.interfaces().iter().any(|i| i.tilted());
-        let directional = stack
-            .medium(0)
-            .is_some_and(|m| m.phase_kind().directional());
-        if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
-            return None;
-        }
-        let (coat, base) = (stack.interface(0), stack.interface(1));
-        let isotropic = coat.alpha[0] == coat.alpha[1];
-        if coat.kind != InterfaceKind::Dielectric
-            || coat.smooth
-            || !isotropic
-            || base.kind != InterfaceKind::Diffuse
-        {
+        let (coat, _) = super::coat_lambertian::coat_and_base(stack, settings)?;
+        if coat.smooth || coat.alpha[0] != coat.alpha[1] {
             return None;
         }
         let mut layer = MediumLanes::<DefaultWide>::new(stack, 0);
+        let mut layer_one = MediumLanes::<f64>::new(stack, 0);
         if layer.thickness.lane(0) > 0.0 {
             // The uncollided paths see only the extinction.
             layer.kind = super::layout::LayerKind::Absorbing;
+            layer_one.kind = super::layout::LayerKind::Absorbing;
         }
         // The integral takes the numbers the walks take, in single precision,
         // so that a stack whose numbers differ below that (a texture's f32
@@ -119,6 +114,8 @@ impl RoughCoatLambertian {
         Some(RoughCoatLambertian {
             coat: stack.interface_lanes(0),
             layer,
+            coat_one: stack.interface_lanes(0),
+            layer_one,
             mf,
             eta: (it.n_below / it.n_above) as f64,
             tau: f64s(medium.sigma_t).map(|t| t * medium.thickness as f64),
@@ -159,10 +156,7 @@ impl RoughCoatLambertian {
     /// asks.
     pub fn sample_mean(&self, wi: [f64; 3], wo: [f64; 3], n: u64, prefix: u64) -> MeanVar {
         type W = DefaultWide;
-        let r_bar = self.r_bar();
-        let scale: [f64; 3] = std::array::from_fn(|c| {
-            self.rho[c] / (PI * self.eta * self.eta * (1.0 - self.rho[c] * r_bar[c]))
-        });
+        let scale = self.scale();
         let splat = |w: [f64; 3]| V3::new(W::splat(w[0]), W::splat(w[1]), W::splat(w[2]));
         let (wi, wo) = (splat(wi), splat(wo));
         let mut rng =
@@ -182,7 +176,99 @@ impl RoughCoatLambertian {
         }
         sum.finish()
     }
+
+    /// `(n0/n1)² ρ / (π (1 − ρ R̄))` per channel: what multiplies `A(wi) A(wo)`.
+    fn scale(&self) -> [f64; 3] {
+        let r_bar = self.r_bar();
+        std::array::from_fn(|c| {
+            self.rho[c] / (PI * self.eta * self.eta * (1.0 - self.rho[c] * r_bar[c]))
+        })
+    }
+
+    /// `sample()` without a walk, in the stack's oriented frame (`wi` above
+    /// the coat), from seven uniforms: with probability `P` (the coat's
+    /// Fresnel reflectance at `θi` as if it were smooth, kept within
+    /// [`COAT_SHARE`]) a direction of the coat's reflection lobe, drawn as a
+    /// walk draws it (visible normals), else a cosine-distributed one;
+    /// weight `f̂ cos θo / p`, with `f̂` the coat's reflection plus one sample
+    /// of the factorized part (four uniforms). `p`, the mixture's density
+    /// ([`RoughCoatLambertian::pdf`]), is exact; the weight is an unbiased
+    /// estimate of `f cos θo / p`, bounded by `F G/G1 / P + π f_rest / (1 −
+    /// P)`. `None` for `wi` below the coat and for a reflection that the
+    /// microfacet leaves below the horizon (the lobe's share the
+    /// single-scattering model loses).
+    pub fn sample(&self, wi: [f64; 3], u: [f64; 7]) -> Option<ExactSample> {
+        if wi[2] <= 0.0 {
+            return None;
+        }
+        let a = V3::new(wi[0], wi[1], wi[2]);
+        let wo = if u[0] < self.coat_share(wi[2]) {
+            let s = self.coat_one.sample(a, 0.0, u[1], u[2], false);
+            if !s.valid || s.b.z <= 0.0 {
+                return None;
+            }
+            [s.b.x, s.b.y, s.b.z]
+        } else {
+            let d = sample_cosine_hemisphere(u[1], u[2]);
+            [d.x, d.y, d.z]
+        };
+        let p = self.pdf(wi, wo);
+        if p <= 0.0 {
+            return None;
+        }
+        let b = V3::new(wo[0], wo[1], wo[2]);
+        let coat = self.coat_one.eval(a, b);
+        let rest = entrance_product(
+            &self.coat_one,
+            &self.layer_one,
+            a,
+            b,
+            [u[3], u[4], u[5], u[6]],
+        );
+        let scale = self.scale();
+        let f = [
+            coat.r + scale[0] * rest.r,
+            coat.g + scale[1] * rest.g,
+            coat.b + scale[2] * rest.b,
+        ];
+        Some(ExactSample {
+            wo,
+            weight: f.map(|v| v * wo[2] / p),
+            specular: false,
+        })
+    }
+
+    /// The density of [`RoughCoatLambertian::sample`]'s directions (oriented
+    /// frame): `P p_coat(wo) + (1 − P) cos θo / π`, `p_coat` the density of
+    /// the coat's reflection lobe as the walks sample it, `D_vis(h) / (4
+    /// wi·h)` (the single-scattering model's lost share left out).
+    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> f64 {
+        if wi[2] <= 0.0 || wo[2] <= 0.0 {
+            return 0.0;
+        }
+        let (a, b) = (V3::new(wi[0], wi[1], wi[2]), V3::new(wo[0], wo[1], wo[2]));
+        let h = (a + b).normalize_or_z();
+        let (ah, bh) = (a.dot(h), b.dot(h));
+        let lobe = if h.z > 0.0 && ah > 0.0 && bh > 0.0 {
+            self.coat_one.mf.pdf(a, h) / (4.0 * ah)
+        } else {
+            0.0
+        };
+        let share = self.coat_share(wi[2]);
+        share * lobe + (1.0 - share) * wo[2] * std::f64::consts::FRAC_1_PI
+    }
+
+    /// The probability of the coat's lobe in [`RoughCoatLambertian::sample`].
+    fn coat_share(&self, cos_i: f64) -> f64 {
+        let f = crate::fresnel::dielectric_rt(cos_i, self.eta).0;
+        f.clamp(COAT_SHARE.0, COAT_SHARE.1)
+    }
 }
+
+/// The range of the probability with which [`RoughCoatLambertian::sample`]
+/// draws from the coat's lobe: a share never so small that the lobe's
+/// weights grow past 1/0.05, nor so large that the cosine part's do.
+pub const COAT_SHARE: (f64, f64) = (0.05, 0.95);
 
 /// `Â(wi) Â(wo)` per channel on every lane, from four uniforms: each factor
 /// is the coat's transmission sampled from that direction as a walk enters
