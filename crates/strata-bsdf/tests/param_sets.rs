@@ -596,3 +596,74 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
         }
     }
 }
+
+/// A BSDF whose own stack has no walk-free form (an anisotropic rough coat
+/// over a Lambertian base) still answers a set that has one (an isotropic
+/// coat) without walks, as that set's material file does; a batch of
+/// materials answers each whatever their order; per-query columns over such
+/// a template are walked (the template has no integral to share), row by
+/// row whatever the order of the rows.
+#[test]
+fn a_set_has_its_own_walk_free_form_whatever_the_bsdf_or_the_order() {
+    use strata_bsdf::Column;
+    let coat = |rough: &str| {
+        stack(&format!(
+            "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = 1.5, roughness = {rough} }}\n\
+             medium = {{ thickness = 0.2, sigma_t = 1.0, albedo = 0.0 }}\n\
+             [[layers]]\ninterface = {{ kind = \"diffuse\", albedo = 0.7 }}\n"
+        ))
+    };
+    let (aniso, iso) = (coat("[0.1, 0.3]"), coat("0.2"));
+    let make = |s: &LayerStack| LayeredBsdf::new(s.clone()).samples(32).seed(9);
+    assert!(!make(&aniso).eval_without_walks() && make(&iso).eval_without_walks());
+    let (pairs, _) = queries(12);
+    let keys: Vec<u64> = (0..12).collect();
+    let want: Vec<_> = (0..12)
+        .map(|k| {
+            make(&iso)
+                .eval_batch_keyed(&pairs[k..k + 1], 32, &keys[k..k + 1])
+                .unwrap()[0]
+        })
+        .collect();
+    // A set of the anisotropic BSDF.
+    let sets = make(&aniso).param_sets([iso.clone()]).unwrap();
+    let got = make(&aniso)
+        .eval_batch_sets_keyed(&sets, &[0; 12], &pairs, 32, &keys)
+        .unwrap();
+    assert_eq!(got, want);
+    // Materials in either order.
+    for order in [[aniso.clone(), iso.clone()], [iso.clone(), aniso.clone()]] {
+        let m = Materials::new(&make(&aniso), order.clone());
+        let which = if order[0].interface(0).alpha[0] == 0.2 {
+            0
+        } else {
+            1
+        };
+        let got = m.eval_batch_keyed(&[which; 12], &pairs, 32, &keys).unwrap();
+        assert_eq!(got, want, "iso material at {which}");
+    }
+    // Per-query columns over the anisotropic template: walked, row by row.
+    let p: strata_bsdf::SetPath = "layers[0].interface.roughness".parse().unwrap();
+    for values in [[0.2f32, 0.3, 0.2], [0.3, 0.2, 0.2]] {
+        let column: Vec<f32> = (0..12).map(|k| values[k % 3]).collect();
+        let col = Column {
+            path: &p,
+            width: 1,
+            values: &column,
+        };
+        let m = Materials::per_query(&make(&aniso), 12, &[col]).unwrap();
+        let got = m
+            .eval_batch_keyed(&Materials::identity(12), &pairs, 32, &keys)
+            .unwrap();
+        for k in 0..12 {
+            let st = aniso
+                .with_set(&[(p.clone(), (column[k] as f64).into())])
+                .unwrap();
+            let own = make(&st).estimator(Estimator::Unidirectional);
+            let w = own
+                .eval_batch_keyed(&pairs[k..k + 1], 32, &keys[k..k + 1])
+                .unwrap()[0];
+            assert_eq!(got[k], w, "rows {values:?}, query {k}");
+        }
+    }
+}

@@ -252,8 +252,10 @@ fn a_nearly_smooth_coat_gives_the_closed_form() {
     }
 }
 
-/// It runs no walk: both engines give the same bits, a key gives the same
-/// answer whatever the batch, and different keys give different noise.
+/// It runs no walk, so the engine changes nothing (both route it to the
+/// same code: this checks the routing, and a large batch's parallel path
+/// against single queries); a key gives the same answer whatever the batch,
+/// and different keys give different noise.
 #[test]
 fn engines_and_keys() {
     let st = stack(STACKS[2].1);

@@ -491,8 +491,8 @@ fn sample_prints_valid_lines_with_consistent_flags() {
 #[test]
 fn sample_prints_absorbed_walks_as_null_with_zero_weight() {
     // A thick absorber under a rough coat over silver: most walks die.
-    // (Over a Lambertian base `Auto` samples a coat without a walk: nothing
-    // is absorbed.)
+    // (Over a Lambertian base `Auto` samples a coat without a walk, and a
+    // sample is lost only where the coat's lobe leaves the hemisphere.)
     let dir = scratch("absorbed");
     let p = dir.join("absorber.toml");
     std::fs::write(

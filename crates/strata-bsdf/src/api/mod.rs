@@ -333,11 +333,17 @@ impl LayeredBsdf {
     /// What answers `eval` without walks, under `Auto`: the coat over a
     /// Lambertian base, where its layer does not scatter.
     pub(super) fn without_walks(&self) -> Option<&CoatLambertian> {
-        let stack = self.stack();
-        let scatters = stack.medium(0).is_some_and(|m| m.scatters());
-        (self.estimator == Estimator::Auto && !scatters)
+        self.walks_can_be_skipped()
             .then_some(self.coat.as_ref())
             .flatten()
+    }
+
+    /// Whether queries of this BSDF's shape may be answered without walks
+    /// (under `Auto`, where the layer does not scatter), if their own stack
+    /// has a walk-free form.
+    pub(super) fn walks_can_be_skipped(&self) -> bool {
+        let scatters = self.stack().medium(0).is_some_and(|m| m.scatters());
+        self.estimator == Estimator::Auto && !scatters
     }
 
     /// Whether `sample` and `pdf` are answered without walks (the same
@@ -688,7 +694,15 @@ impl LayeredBsdf {
             self.eval_one(per, k, a, b, samples, key)
         };
         let without_walks = (0..n).all(|k| route(k) == Route::WithoutWalks);
-        let large = (n as u64).saturating_mul(samples) > SERIAL_WALKS;
+        // A rough coat's factorization costs its samples; a closed form
+        // costs nothing, and runs on the calling thread.
+        let sampled = |k: usize| {
+            matches!(
+                self.without_walks_in(per, k),
+                Some(CoatLambertian::Rough(_))
+            )
+        };
+        let large = (n as u64).saturating_mul(samples) > SERIAL_WALKS && (0..n).any(sampled);
         if without_walks && large && !self.serial() {
             // Query by query, over the pool's threads.
             use rayon::prelude::*;
@@ -860,7 +874,11 @@ impl LayeredBsdf {
         let free = |k: usize| self.exact_sampler(per, k).is_some();
         let n_free = (0..n).filter(|&k| free(k)).count();
         if n_free == n {
-            if n as u64 > SERIAL_WALKS && !self.serial() {
+            // The closed form's sampler costs next to nothing: the pool only
+            // for the rough coats' (a few of their transmissions a sample).
+            let rough =
+                |k: usize| matches!(self.exact_sampler(per, k), Some(CoatLambertian::Rough(_)));
+            if n as u64 > SERIAL_WALKS && !self.serial() && (0..n).any(rough) {
                 use rayon::prelude::*;
                 let s: Vec<_> = self.install(n, 1, || (0..n).into_par_iter().map(one).collect());
                 s.into_iter().enumerate().for_each(|(k, s)| out(k, s));

@@ -148,7 +148,7 @@ impl LayeredBsdf {
     /// variate where it pays, the closed form where the shape has one), so
     /// a BSDF configured otherwise refuses them. Under a rough coat over a
     /// Lambertian base, a set whose coat or layer differs from this BSDF's
-    /// integrates its own constant `R̄` (`estimator::coat_return`, 5–15 ms)
+    /// integrates its own constant `R̄` (`estimator::coat_return`, 2–15 ms)
     /// the first time `eval` needs it.
     pub fn param_sets(
         &self,
@@ -177,11 +177,10 @@ impl LayeredBsdf {
         let mut coats = Vec::with_capacity(stacks.len());
         for st in &stacks {
             let coat = CoatLambertian::unscattered(st, &settings).and_then(|c| {
-                let (shared, own) = match returns {
-                    Returns::Own => (None, true),
+                let (with, own) = match returns {
+                    Returns::Own => (self.coat.as_ref(), true),
                     Returns::SharedWith(t) => (t, false),
                 };
-                let with = shared.or(self.coat.as_ref());
                 let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
                     (_, None) => true,
                     (Some(o), Some(r)) => o.same_return(r),
@@ -264,10 +263,14 @@ impl LayeredBsdf {
         per: Per<'a>,
         k: usize,
     ) -> Option<&'a CoatLambertian> {
-        let own = self.without_walks()?;
         match per.0 {
-            None => Some(own),
-            Some((p, s)) => p.coat[s[k] as usize].as_ref(),
+            None => self.without_walks(),
+            // The estimator and the layer's class are the shape's: the same
+            // for every set; whether the set has a walk-free form is its own.
+            Some((p, s)) => self
+                .walks_can_be_skipped()
+                .then_some(p.coat[s[k] as usize].as_ref())
+                .flatten(),
         }
     }
 

@@ -15,6 +15,7 @@ use super::rough_coat::RoughCoatLambertian;
 use super::{MeanVar, Settings, WalkSample};
 use crate::rng::WalkRng;
 use crate::stack::{Interface, InterfaceKind, LayerStack, PhaseKind};
+use std::sync::Arc;
 
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
 /// boosted control variate ([`CoatLambertian::control_variate_pays`]).
@@ -58,8 +59,9 @@ pub(super) fn coat_and_base<'a>(
 pub enum CoatLambertian {
     /// A smooth coat: the closed form.
     Smooth(SmoothCoatLambertian),
-    /// A rough coat: the factorization (its lanes make it large).
-    Rough(Box<RoughCoatLambertian>),
+    /// A rough coat: the factorization (its lanes make it large: shared,
+    /// not copied, by the engines and parameter sets that hold it).
+    Rough(Arc<RoughCoatLambertian>),
 }
 
 impl CoatLambertian {
@@ -68,7 +70,7 @@ impl CoatLambertian {
     pub fn of(stack: &LayerStack, settings: &Settings) -> Option<Self> {
         SmoothCoatLambertian::of(stack, settings)
             .map(CoatLambertian::Smooth)
-            .or_else(|| RoughCoatLambertian::of(stack, settings).map(|r| Self::Rough(Box::new(r))))
+            .or_else(|| RoughCoatLambertian::of(stack, settings).map(|r| Self::Rough(Arc::new(r))))
     }
 
     /// The part of `stack`'s BSDF carried by the paths without a collision
@@ -77,7 +79,7 @@ impl CoatLambertian {
         SmoothCoatLambertian::unscattered(stack, settings)
             .map(CoatLambertian::Smooth)
             .or_else(|| {
-                RoughCoatLambertian::unscattered(stack, settings).map(|r| Self::Rough(Box::new(r)))
+                RoughCoatLambertian::unscattered(stack, settings).map(|r| Self::Rough(Arc::new(r)))
             })
     }
 
@@ -159,7 +161,7 @@ impl CoatLambertian {
     pub fn sharing_return(&self, other: CoatLambertian) -> CoatLambertian {
         match (self, other) {
             (CoatLambertian::Rough(a), CoatLambertian::Rough(b)) => {
-                CoatLambertian::Rough(Box::new(a.sharing_return(*b)))
+                CoatLambertian::Rough(Arc::new(a.sharing_return((*b).clone())))
             }
             (_, other) => other,
         }
@@ -195,7 +197,11 @@ impl CoatLambertian {
     /// Measured in `tests/layered_control_variate.rs`
     /// (`control_variate_efficiency`; docs/performance.md).
     pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
-        if Self::unscattered(stack, settings).is_none() {
+        // The shape of `unscattered`, without building it.
+        let Some((coat, _)) = coat_and_base(stack, settings) else {
+            return false;
+        };
+        if !coat.smooth && !RoughCoatLambertian::in_domain(coat) {
             return false;
         }
         let Some(m) = stack.medium(0).filter(|m| m.scatters()) else {

@@ -39,7 +39,7 @@ use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::math::sample_cosine_hemisphere;
 use crate::microfacet::Microfacet;
 use crate::rng::{seed_state_from, LaneRng, Stream};
-use crate::stack::LayerStack;
+use crate::stack::{Interface, LayerStack};
 use std::f64::consts::PI;
 use std::sync::{Arc, OnceLock};
 
@@ -84,10 +84,11 @@ impl RoughCoatLambertian {
     /// whole BSDF where the layer does not scatter. `None` for other stacks,
     /// and under a depth cap. (An extinction that depends on the direction,
     /// SGGX, breaks the factorization's one-dimensional transmittance; an
-    /// anisotropic coat's `R̄` is not built.)
+    /// anisotropic coat's `R̄` is not built; outside [`DOMAIN`] `R̄` is not
+    /// checked.)
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
         let (coat, _) = super::coat_lambertian::coat_and_base(stack, settings)?;
-        if coat.smooth || coat.alpha[0] != coat.alpha[1] {
+        if !Self::in_domain(coat) {
             return None;
         }
         let mut layer = MediumLanes::<DefaultWide>::new(stack, 0);
@@ -124,7 +125,18 @@ impl RoughCoatLambertian {
         })
     }
 
-    /// `R̄` per channel ([`coat_return::rough`]; 5–15 ms the first time).
+    /// Whether `coat` is a rough coat the factorization answers: isotropic
+    /// (an anisotropic coat's `R̄` is not built) and within [`DOMAIN`].
+    pub fn in_domain(coat: &Interface) -> bool {
+        let eta = coat.n_below / coat.n_above;
+        let alpha = coat.alpha[0];
+        !coat.smooth
+            && coat.alpha[1] == alpha
+            && (DOMAIN.alpha.0..=DOMAIN.alpha.1).contains(&alpha)
+            && (DOMAIN.eta.0..=DOMAIN.eta.1).contains(&eta)
+    }
+
+    /// `R̄` per channel ([`coat_return::rough`]; 2–15 ms the first time).
     pub fn r_bar(&self) -> [f64; 3] {
         *self
             .r_bar
@@ -263,6 +275,26 @@ impl RoughCoatLambertian {
         let f = crate::fresnel::dielectric_rt(cos_i, self.eta).0;
         f.clamp(COAT_SHARE.0, COAT_SHARE.1)
     }
+}
+
+/// Where the factorization answers: roughness and relative IOR (`n_below /
+/// n_above`) of the coat, the ranges over which its integral `R̄` is checked
+/// (`coat_return::tests::rough_return_converges`, corners included).
+/// Outside them (a coat nearly a mirror, or so dense that almost no light
+/// escapes and `1 − ρ R̄` would rest on the quadrature's last digits) the
+/// walks answer.
+pub const DOMAIN: Domain = Domain {
+    alpha: (0.001, 1.5),
+    eta: (0.5, 3.0),
+};
+
+/// The ranges of [`DOMAIN`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Domain {
+    /// Roughness α.
+    pub alpha: (f64, f64),
+    /// Relative IOR of the coat, `n_below / n_above`.
+    pub eta: (f64, f64),
 }
 
 /// The range of the probability with which [`RoughCoatLambertian::sample`]
