@@ -423,6 +423,58 @@ fn rough_factorization_against_mitsuba() {
     assert!(compared >= 18, "only {compared} values compared");
 }
 
+/// The walk-free sampler of a rough coat over a Lambertian base
+/// (`RoughCoatLambertian::sample`, `Estimator::Auto`): the mean of its
+/// weights is the directional albedo, against Mitsuba's explicit slab of
+/// `rough_coat_lambertian.toml` (its two albedo rows, three channels, both
+/// engines' seeds), within 4 combined standard errors.
+#[test]
+fn rough_sampler_against_mitsuba() {
+    let rows = read_csv("mitsuba.csv");
+    let mut compared = 0;
+    for (engine, seed, label) in ENGINES {
+        let bsdf = LayeredBsdf::new(material("rough_coat_lambertian.toml"))
+            .engine(engine)
+            .seed(seed);
+        assert!(bsdf.sample_is_exact());
+        let of_it = |r: &&Row| {
+            r.get("material") == Some("rough_coat_lambertian.toml")
+                && r.get("quantity") == Some("R")
+        };
+        for row in rows.iter().filter(of_it) {
+            let wi = vec3(dir(row.num("theta_i"), row.num_or("phi_i", 0.0)));
+            let n = 400_000;
+            let idx: Vec<u64> = (0..n).collect();
+            let s = bsdf
+                .sample_batch_keyed(&vec![wi; n as usize], &vec![1; n as usize], &idx)
+                .unwrap();
+            let (r, rs) = (row.rgb("ref", 0.0), row.rgb("sigma", 0.0));
+            for c in 0..3 {
+                let w: Vec<f64> = s
+                    .iter()
+                    .map(|x| x.map_or(0.0, |x| x.weight[c] as f64))
+                    .collect();
+                let mean = w.iter().sum::<f64>() / n as f64;
+                let var = w.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1) as f64;
+                let z = (mean - r[c]) / (var / n as f64 + rs[c] * rs[c]).sqrt();
+                eprintln!(
+                    "{label} R(θi {}) ch {c}: mean weight {mean:.6}, Mitsuba {:.6} ± {:.1e}, z {z:+.2}",
+                    row.num("theta_i"),
+                    r[c],
+                    rs[c]
+                );
+                assert!(
+                    z.abs() <= K,
+                    "{label} θi {} ch {c}: z = {z}",
+                    row.num("theta_i")
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared >= 12, "only {compared} values compared");
+}
+
 #[test]
 fn mitsuba_explicit_slab() {
     point_file("mitsuba.csv", 1 << 20, 512);
