@@ -314,7 +314,19 @@ fn approximate_pdf_ratios() {
         let pairs: Vec<_> = dirs.iter().map(|&d| (wi, d)).collect();
         let u = b.pdf_unbiased_batch(&pairs, 4096).unwrap();
         let umax = u.iter().map(|x| x.value).fold(0.0, f64::max);
-        print!("== {name}:");
+        // One density walk's relative variance: what sets the walks a
+        // pointwise accuracy needs.
+        let mut rel_var: Vec<f64> = u
+            .iter()
+            .filter(|u| u.value > 0.05 * umax)
+            .map(|u| (u.stderr / u.value).powi(2) * u.samples as f64)
+            .collect();
+        rel_var.sort_by(f64::total_cmp);
+        print!(
+            "== {name}: one walk's relative variance q50 {:.2} q95 {:.2};",
+            rel_var[rel_var.len() / 2],
+            rel_var[rel_var.len() * 19 / 20]
+        );
         for ns in [4u32, 8, 16, 32] {
             let a = b.clone().pdf_samples(ns).pdf_batch(&pairs).unwrap();
             let mut r: Vec<f64> = a
