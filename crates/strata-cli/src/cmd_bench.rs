@@ -46,7 +46,7 @@ pub struct Args {
     #[arg(long)]
     material: Option<PathBuf>,
     /// Run only this engine's one-thread row (to profile it).
-    #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16"])]
+    #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16", "scalar-bidir", "wavefront-bidir"])]
     only: Option<String>,
     /// Compare cost at equal error with another renderer's layered BxDFs, from
     /// its measured values and times (shipped with strata): `pbrt-v4`.
@@ -269,12 +269,30 @@ fn bench_stack(
     }
     ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
     ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
+    if stack.len() >= 2 {
+        // The bidirectional walks, whose connections make them costlier.
+        ms.push(Measurement::new("scalar-bidir", 1, || {
+            let s: f64 = (pairs.iter().enumerate())
+                .map(|(k, &(wi, wo))| sc.eval_bidir(wi, wo, n, 1, k as u64).value[0])
+                .sum();
+            std::hint::black_box(s);
+            None
+        }));
+        let wf = Wavefront::<F32x8>::new(stack, Settings::default(), Plan::Specialized);
+        let (one, pairs, keys) = (pool(1)?, &pairs, &keys);
+        ms.push(Measurement::new("wavefront-bidir", 1, move || {
+            let e = one.install(|| wf.eval_bidir_batch(pairs, n, 1, keys));
+            std::hint::black_box(e.len());
+            None
+        }));
+    }
     if let Some(only) = &args.only {
         ms.retain(|m| m.engine == only && m.threads == 1);
     }
     interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
     // The scalar engine runs the same walks as the specialized wavefront: it
-    // takes that row's segment count (unknown if it ran alone).
+    // takes that row's segment count (unknown if it ran alone; the
+    // bidirectional walks' segments are not counted).
     let walks = ms
         .iter()
         .find(|m| m.engine == "wavefront")
@@ -288,7 +306,10 @@ fn bench_stack(
                 engine: m.engine,
                 threads: m.threads,
                 queries_per_s: q / t,
-                segments_per_s: m.stats.or(walks).map(|st| st.segments as f64 / t),
+                segments_per_s: match m.engine.ends_with("-bidir") {
+                    true => None,
+                    false => m.stats.or(walks).map(|st| st.segments as f64 / t),
+                },
                 occupancy: m.stats.map(|s| s.occupancy()),
             }
         })
@@ -493,17 +514,25 @@ fn table(o: &mut String, rows: &[Row], args: &Args) {
         "stack", "engine", "threads", "queries/s", "Msegments/s", "occupancy", "x scalar"
     );
     let mut last = "";
-    let mut scalar = None;
+    // The scalar engine's rate with the unidirectional and the
+    // bidirectional walks: each row is against the one of its walks.
+    let (mut scalar, mut scalar_bidir) = (None, None);
     for r in rows {
         let name = if r.stack != last {
-            scalar = None;
+            (scalar, scalar_bidir) = (None, None);
             r.stack.as_str()
         } else {
             ""
         };
-        if r.engine == "scalar" {
-            scalar = Some(r.queries_per_s);
+        match r.engine {
+            "scalar" => scalar = Some(r.queries_per_s),
+            "scalar-bidir" => scalar_bidir = Some(r.queries_per_s),
+            _ => {}
         }
+        let scalar = match r.engine.ends_with("-bidir") {
+            true => scalar_bidir,
+            false => scalar,
+        };
         let dash = |x: Option<f64>, f: fn(f64) -> String| x.map_or("-".into(), f);
         let _ = writeln!(
             o,
