@@ -250,7 +250,10 @@ fn bidirectional_agrees_with_unidirectional() {
 
 /// Walk-by-walk parity of the two engines' bidirectional walks (the same
 /// lane code on one lane and on eight; this checks the scheduling, not the
-/// physics), and equal estimates from the wavefront's parallel blocks.
+/// physics: on the stacks with scattering layers or three interfaces the
+/// wavefront regroups traced walks by their subpath lengths before
+/// connecting them, 300 walks making a full unit and a partial one), and
+/// equal estimates from the wavefront's parallel blocks.
 #[test]
 fn wavefront_replays_the_scalar_walks() {
     use strata_bsdf::estimator::wavefront::{Plan, Wavefront};

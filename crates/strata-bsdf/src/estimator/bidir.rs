@@ -112,27 +112,101 @@ pub struct Buffers<L: Lane> {
     eye: Vec<Vertex<L>>,
 }
 
+impl<L: Lane> Buffers<L> {
+    /// The number of vertices of lane `j`'s light and eye subpaths (a
+    /// subpath's vertices are a prefix of its rows).
+    pub fn lengths(&self, j: usize) -> (usize, usize) {
+        let len = |rows: &[Vertex<L>]| rows.iter().take_while(|v| v.exists.lane(j)).count();
+        (len(&self.light), len(&self.eye))
+    }
+
+    /// Fills these buffers with other walks' subpaths: lane `j` gets lane
+    /// `lane` of `src(j) = (buffers, lane)`, with as many rows as the
+    /// longest needs (a lane's rows past its subpath are its last vertex,
+    /// marked absent). Walks then run their connections in the company of
+    /// walks as long as they are ([`BidirWalk::connect`]).
+    pub fn gather<'b>(&mut self, src: impl Fn(usize) -> (&'b Buffers<L>, usize))
+    where
+        L: 'b,
+    {
+        let src: Vec<_> = (0..L::LANES).map(src).collect();
+        gather_rows(&mut self.light, src.iter().map(|(b, l)| (&b.light[..], *l)));
+        gather_rows(&mut self.eye, src.iter().map(|(b, l)| (&b.eye[..], *l)));
+    }
+}
+
+/// `out` row `r`, lane `j`: row `r` of the `j`-th subpath, as in
+/// [`Buffers::gather`].
+fn gather_rows<'b, L: Lane + 'b>(
+    out: &mut Vec<Vertex<L>>,
+    src: impl Iterator<Item = (&'b [Vertex<L>], usize)>,
+) {
+    let src: Vec<_> = src.collect();
+    let len = src.iter().map(|(rows, _)| rows.len()).max().unwrap_or(0);
+    out.clear();
+    let mut row = Vec::with_capacity(src.len());
+    for r in 0..len {
+        row.clear();
+        row.extend(src.iter().map(|&(rows, lane)| {
+            let v = &rows[r.min(rows.len() - 1)];
+            (v, lane, r < rows.len() && v.exists.lane(lane))
+        }));
+        out.push(Vertex::gather(&row));
+    }
+}
+
+impl<L: Lane> Vertex<L> {
+    /// Lane `j` of the result is lane `lane` of `v` for `src[j] = (v, lane,
+    /// exists)`.
+    fn gather(src: &[(&Vertex<L>, usize, bool)]) -> Self {
+        // Each field's lanes, read straight from the sources (a macro, not
+        // closures over accessors, so that every read is inlined).
+        macro_rules! lanes {
+            ($t:ident, $($f:tt)+) => {
+                $t::from_fn(|j| src[j].0.$($f)+.lane(src[j].1))
+            };
+        }
+        Vertex {
+            exists: L::Mask::from_fn(|j| src[j].2),
+            surface: lanes!(LaneMask, surface),
+            delta: lanes!(LaneMask, delta),
+            idx: lanes!(Lane, idx),
+            z: lanes!(Lane, z),
+            a: V3::new(lanes!(Lane, a.x), lanes!(Lane, a.y), lanes!(Lane, a.z)),
+            beta: Rgb::new(
+                lanes!(Lane, beta.r),
+                lanes!(Lane, beta.g),
+                lanes!(Lane, beta.b),
+            ),
+            own: lanes!(Lane, own),
+            other: lanes!(Lane, other),
+            land: lanes!(Lane, land),
+            land_rev: lanes!(Lane, land_rev),
+            order: lanes!(Lane, order),
+        }
+    }
+}
+
 thread_local! {
-    /// This thread's buffers, one per lane type, kept between calls so that
-    /// a warm thread's bidirectional walks allocate nothing.
+    /// This thread's working memory, one of each type, kept between calls so
+    /// that a warm thread's bidirectional walks allocate nothing.
     static KEPT: std::cell::RefCell<Vec<Box<dyn std::any::Any>>> =
         const { std::cell::RefCell::new(Vec::new()) };
 }
 
-impl<L: Lane + 'static> Buffers<L> {
-    /// Runs `f` with this thread's kept buffers of this lane type (new ones
-    /// the first time), and keeps them again, grown as `f` needed.
-    pub fn with_kept<R>(f: impl FnOnce(&mut Self) -> R) -> R {
-        let kept = KEPT.with(|k| {
-            let mut k = k.borrow_mut();
-            let i = k.iter().position(|b| b.is::<Self>())?;
-            k.swap_remove(i).downcast::<Self>().ok()
-        });
-        let mut b = kept.unwrap_or_default();
-        let r = f(&mut b);
-        KEPT.with(|k| k.borrow_mut().push(b));
-        r
-    }
+/// Runs `f` with this thread's kept `T` (a new one the first time), and
+/// keeps it again, grown as `f` needed. (Lane types are generic, so the
+/// memory is kept by type.)
+pub fn with_kept<T: Default + 'static, R>(f: impl FnOnce(&mut T) -> R) -> R {
+    let kept = KEPT.with(|k| {
+        let mut k = k.borrow_mut();
+        let i = k.iter().position(|b| b.is::<T>())?;
+        k.swap_remove(i).downcast::<T>().ok()
+    });
+    let mut b = kept.map(|b| *b).unwrap_or_default();
+    let r = f(&mut b);
+    KEPT.with(|k| k.borrow_mut().push(Box::new(b)));
+    r
 }
 
 /// A connection's own values at one end: the vertex's term (value) in the
@@ -481,12 +555,44 @@ impl<L: Lane> BidirWalk<'_, L> {
         buf: &mut Buffers<L>,
         mut draw: impl FnMut(L::Mask) -> L,
     ) -> Rgb<L> {
-        if self.n() < 2 {
+        if !self.connects() {
             return Rgb::zero();
         }
+        self.trace_both(wi, wo, buf, &mut draw);
+        self.connect(buf, draw)
+    }
+
+    /// Whether the lengths of subpaths vary much from walk to walk: in a
+    /// scattering layer or between three interfaces or more (where the
+    /// wavefront regroups walks by them before connecting).
+    pub fn subpath_lengths_vary(&self) -> bool {
+        self.n() >= 3 || (self.media.iter()).any(|m| m.kind == LayerKind::Scattering)
+    }
+
+    /// Whether the stack has paths to connect (two interfaces or more).
+    pub fn connects(&self) -> bool {
+        self.n() >= 2
+    }
+
+    /// The first half of [`Self::run`]: the light subpath from `wi`, then
+    /// the eye subpath from `wo`, into `buf`.
+    pub fn trace_both(
+        &self,
+        wi: V3<L>,
+        wo: V3<L>,
+        buf: &mut Buffers<L>,
+        mut draw: impl FnMut(L::Mask) -> L,
+    ) {
+        self.trace(wi, false, &mut buf.light, &mut draw);
+        self.trace(wo, true, &mut buf.eye, &mut draw);
+    }
+
+    /// The second half of [`Self::run`]: every connection of the traced
+    /// subpaths, drawing after their tracing. A lane's value depends only
+    /// on its own subpaths and draws, so the wavefront may regroup traced
+    /// walks before connecting them.
+    pub fn connect(&self, buf: &Buffers<L>, mut draw: impl FnMut(L::Mask) -> L) -> Rgb<L> {
         let Buffers { light, eye } = buf;
-        self.trace(wi, false, light, &mut draw);
-        self.trace(wo, true, eye, &mut draw);
         let mut acc = Rgb::zero();
         for jy in 0..light.len() {
             for jz in 0..eye.len() {

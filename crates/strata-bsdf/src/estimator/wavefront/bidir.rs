@@ -8,20 +8,51 @@
 
 use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
-use crate::estimator::bidir::{BidirWalk, Buffers};
+use crate::estimator::bidir::{with_kept, BidirWalk, Buffers};
 use crate::estimator::Estimate;
 use crate::lane::{Wide, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use rayon::prelude::*;
 
+/// A unit's walks between their tracing and their connections.
+#[derive(Default)]
+struct Regrouped<W: Wide> {
+    /// The subpaths, per chunk of consecutive walks as they were traced.
+    traced: Vec<Buffers<W>>,
+    /// Per walk: where its subpaths are, their lengths, its random state.
+    walks: Vec<Traced>,
+    /// The walks in connection order: by subpath lengths.
+    order: Vec<u32>,
+    /// One chunk of walks of like lengths, gathered for their connections.
+    joined: Buffers<W>,
+    /// Per walk, its value.
+    values: Vec<[f64; 3]>,
+}
+
+/// One traced walk.
+struct Traced {
+    chunk: usize,
+    lane: usize,
+    lengths: (usize, usize),
+    state: [u32; 4],
+}
+
 impl<W: Wide> Wavefront<W> {
     /// The walk values of unit `u` (consecutive walks of one query), handed
     /// to `push` in sample order.
+    ///
+    /// Every pair of vertices of a walk's two subpaths is a connection, so a
+    /// chunk of walks loops over the longest subpaths among its lanes. The
+    /// unit's walks are therefore traced in chunks of consecutive walks,
+    /// then regrouped by the lengths of their subpaths for the connections,
+    /// each lane carrying its walk's subpaths and random state: a walk's
+    /// value and draws are its own, whatever its company, so the values are
+    /// the scalar engine's walk for walk.
     fn bidir_values(
         &self,
         q: &Queries,
         u: Unit,
-        buf: &mut Buffers<W>,
+        g: &mut Regrouped<W>,
         mut push: impl FnMut([f64; 3]),
     ) {
         let qi = u.query as usize;
@@ -42,6 +73,11 @@ impl<W: Wide> Wavefront<W> {
                 }
             }
         };
+        let count = u.count as usize;
+        if !walk.connects() {
+            (0..count).for_each(|_| push([0.0; 3]));
+            return;
+        }
         let s = |c: &[Vec<f32>; 3]| {
             V3::new(
                 W::splat(c[0][qi] as f64),
@@ -50,18 +86,60 @@ impl<W: Wide> Wavefront<W> {
             )
         };
         let (wi, wo) = (s(&q.wi), s(&q.wo));
-        let count = u.count as u64;
-        for first in (0..count).step_by(W::LANES) {
-            let lanes = (count - first).min(W::LANES as u64) as usize;
-            let sample = |j: usize| u.first + first + j.min(lanes - 1) as u64;
-            let mut rng = LaneRng::<W>::from_states(|j| {
-                seed_state_from(q.prefix[qi], sample(j), Stream::Bidir)
-            });
-            let v = walk.run(wi, wo, buf, |m| rng.uniform(m));
-            for j in 0..lanes {
-                push([v.r.lane(j), v.g.lane(j), v.b.lane(j)]);
+        let sample = |k: usize| u.first + k as u64;
+        let rng_of = |k: usize| seed_state_from(q.prefix[qi], sample(k), Stream::Bidir);
+        if !walk.subpath_lengths_vary() {
+            // Chunk by chunk: regrouping would not pay.
+            if g.traced.is_empty() {
+                g.traced.push(Buffers::default());
+            }
+            let buf = &mut g.traced[0];
+            for first in (0..count).step_by(W::LANES) {
+                let lanes = (count - first).min(W::LANES);
+                let mut rng = LaneRng::<W>::from_states(|j| rng_of(first + j.min(lanes - 1)));
+                let v = walk.run(wi, wo, buf, |m| rng.uniform(m));
+                (0..lanes).for_each(|j| push([v.r.lane(j), v.g.lane(j), v.b.lane(j)]));
+            }
+            return;
+        }
+        let chunks = count.div_ceil(W::LANES);
+        if g.traced.len() < chunks {
+            g.traced.resize_with(chunks, Buffers::default);
+        }
+        g.walks.clear();
+        for (c, buf) in g.traced[..chunks].iter_mut().enumerate() {
+            let first = c * W::LANES;
+            let lanes = (count - first).min(W::LANES);
+            let mut rng = LaneRng::<W>::from_states(|j| rng_of(first + j.min(lanes - 1)));
+            walk.trace_both(wi, wo, buf, |m| rng.uniform(m));
+            g.walks.extend((0..lanes).map(|lane| Traced {
+                chunk: c,
+                lane,
+                lengths: buf.lengths(lane),
+                state: rng.lane_state(lane),
+            }));
+        }
+        let Regrouped {
+            traced,
+            walks,
+            order,
+            joined,
+            values,
+        } = g;
+        order.clear();
+        order.extend(0..count as u32);
+        order.sort_unstable_by_key(|&w| walks[w as usize].lengths);
+        values.resize(count, [0.0; 3]);
+        for group in order.chunks(W::LANES) {
+            let pick = |j: usize| &walks[group[j.min(group.len() - 1)] as usize];
+            joined.gather(|j| (&traced[pick(j).chunk], pick(j).lane));
+            let mut rng = LaneRng::<W>::from_states(|j| pick(j).state);
+            let v = walk.connect(joined, |m| rng.uniform(m));
+            for (j, &w) in group.iter().enumerate() {
+                values[w as usize] = [v.r.lane(j), v.g.lane(j), v.b.lane(j)];
             }
         }
+        values[..count].iter().for_each(|&v| push(v));
     }
 
     /// Bidirectional eval of the `m` queries `query(k) = (pair, key)` with
@@ -89,7 +167,7 @@ impl<W: Wide> Wavefront<W> {
             let run = |u: usize| {
                 let u = unit(u);
                 let mut b = MeanVar::new();
-                Buffers::with_kept(|buf| self.bidir_values(q, u, buf, |x| b.push(x)));
+                with_kept(|g: &mut Regrouped<W>| self.bidir_values(q, u, g, |x| b.push(x)));
                 (u, b)
             };
             c.red.clear();
@@ -154,7 +232,7 @@ impl<W: Wide> Wavefront<W> {
         if !q.valid[0] {
             return vec![[0.0; 3]; samples as usize];
         }
-        let mut buf = Buffers::default();
+        let mut g = Regrouped::default();
         let mut v = Vec::with_capacity(samples as usize);
         for first in (0..samples).step_by(BLOCK as usize) {
             let count = BLOCK.min(samples - first) as u32;
@@ -163,7 +241,7 @@ impl<W: Wide> Wavefront<W> {
                 first,
                 count,
             };
-            self.bidir_values(&q, u, &mut buf, |x| v.push(x));
+            self.bidir_values(&q, u, &mut g, |x| v.push(x));
         }
         v
     }
