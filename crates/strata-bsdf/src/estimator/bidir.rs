@@ -61,7 +61,7 @@
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::{events, Settings};
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::lane::{Lane, LaneMask, Rgb, MAX_LANES, V3};
 use crate::medium;
 
 /// The stack as the bidirectional walk reads it.
@@ -129,29 +129,29 @@ impl<L: Lane> Buffers<L> {
     where
         L: 'b,
     {
-        let src: Vec<_> = (0..L::LANES).map(src).collect();
-        gather_rows(&mut self.light, src.iter().map(|(b, l)| (&b.light[..], *l)));
-        gather_rows(&mut self.eye, src.iter().map(|(b, l)| (&b.eye[..], *l)));
+        let src: [_; MAX_LANES] = std::array::from_fn(|j| src(j.min(L::LANES - 1)));
+        let src = &src[..L::LANES];
+        gather_rows(&mut self.light, |j| (&src[j].0.light[..], src[j].1));
+        gather_rows(&mut self.eye, |j| (&src[j].0.eye[..], src[j].1));
     }
 }
 
-/// `out` row `r`, lane `j`: row `r` of the `j`-th subpath, as in
-/// [`Buffers::gather`].
+/// `out` row `r`, lane `j`: row `r` of the subpath `src(j)`, as in
+/// [`Buffers::gather`]. (Arrays, not vectors: a warm walk allocates
+/// nothing.)
 fn gather_rows<'b, L: Lane + 'b>(
     out: &mut Vec<Vertex<L>>,
-    src: impl Iterator<Item = (&'b [Vertex<L>], usize)>,
+    src: impl Fn(usize) -> (&'b [Vertex<L>], usize),
 ) {
-    let src: Vec<_> = src.collect();
-    let len = src.iter().map(|(rows, _)| rows.len()).max().unwrap_or(0);
+    let len = (0..L::LANES).map(|j| src(j).0.len()).max().unwrap_or(0);
     out.clear();
-    let mut row = Vec::with_capacity(src.len());
     for r in 0..len {
-        row.clear();
-        row.extend(src.iter().map(|&(rows, lane)| {
+        let row: [_; MAX_LANES] = std::array::from_fn(|j| {
+            let (rows, lane) = src(j.min(L::LANES - 1));
             let v = &rows[r.min(rows.len() - 1)];
             (v, lane, r < rows.len() && v.exists.lane(lane))
-        }));
-        out.push(Vertex::gather(&row));
+        });
+        out.push(Vertex::gather(&row[..L::LANES]));
     }
 }
 
@@ -203,9 +203,10 @@ pub fn with_kept<T: Default + 'static, R>(f: impl FnOnce(&mut T) -> R) -> R {
         let i = k.iter().position(|b| b.is::<T>())?;
         k.swap_remove(i).downcast::<T>().ok()
     });
-    let mut b = kept.map(|b| *b).unwrap_or_default();
+    // (Kept boxed: unboxing would allocate a new box on every call.)
+    let mut b: Box<T> = kept.unwrap_or_default();
     let r = f(&mut b);
-    KEPT.with(|k| k.borrow_mut().push(Box::new(b)));
+    KEPT.with(|k| k.borrow_mut().push(b));
     r
 }
 
