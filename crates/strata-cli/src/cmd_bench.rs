@@ -288,6 +288,11 @@ fn bench_stack(
     }
     if let Some(only) = &args.only {
         ms.retain(|m| m.engine == only && m.threads == 1);
+        if ms.is_empty() {
+            return Err(format!(
+                "--only {only}: {name} has one interface, no bidirectional walks to time"
+            ));
+        }
     }
     interleaved(&mut ms, Duration::from_secs_f64(args.min_seconds));
     // The scalar engine runs the same walks as the specialized wavefront: it
@@ -306,9 +311,10 @@ fn bench_stack(
                 engine: m.engine,
                 threads: m.threads,
                 queries_per_s: q / t,
-                segments_per_s: match m.engine.ends_with("-bidir") {
-                    true => None,
-                    false => m.stats.or(walks).map(|st| st.segments as f64 / t),
+                segments_per_s: if m.engine.ends_with("-bidir") {
+                    None
+                } else {
+                    m.stats.or(walks).map(|st| st.segments as f64 / t)
                 },
                 occupancy: m.stats.map(|s| s.occupancy()),
             }
@@ -529,9 +535,10 @@ fn table(o: &mut String, rows: &[Row], args: &Args) {
             "scalar-bidir" => scalar_bidir = Some(r.queries_per_s),
             _ => {}
         }
-        let scalar = match r.engine.ends_with("-bidir") {
-            true => scalar_bidir,
-            false => scalar,
+        let scalar = if r.engine.ends_with("-bidir") {
+            scalar_bidir
+        } else {
+            scalar
         };
         let dash = |x: Option<f64>, f: fn(f64) -> String| x.map_or("-".into(), f);
         let _ = writeln!(

@@ -1116,6 +1116,22 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
         &run(&[&base[..], &["--only", "gpu"]].concat(), ""),
         &["--only", "gpu"],
     );
+    // One interface: no bidirectional walks, said rather than no rows.
+    let dir = std::env::temp_dir().join(format!("strata-bench-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let one = dir.join("one_interface.toml");
+    std::fs::write(
+        &one,
+        "[[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.5 }\n",
+    )
+    .unwrap();
+    let one = one.to_str().unwrap();
+    let mut args = base.to_vec();
+    let at = args.iter().position(|a| *a == mat.as_str()).unwrap();
+    args[at] = one;
+    let out = run(&[&args[..], &["--only", "wavefront-bidir"]].concat(), "");
+    assert_fails_with(&out, &["--only", "wavefront-bidir", "one interface"]);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -121,29 +121,32 @@ impl<L: Lane> Buffers<L> {
     }
 
     /// Fills these buffers with other walks' subpaths: lane `j` gets lane
-    /// `lane` of `src(j) = (buffers, lane)`, with as many rows as the
-    /// longest needs (a lane's rows past its subpath are its last vertex,
-    /// marked absent). Walks then run their connections in the company of
-    /// walks as long as they are ([`BidirWalk::connect`]).
-    pub fn gather<'b>(&mut self, src: impl Fn(usize) -> (&'b Buffers<L>, usize))
-    where
+    /// `lane` of `src(j) = (buffers, lane)`, in `rows = (light, eye)` rows,
+    /// the longest of those subpaths (a lane's rows past its own subpath
+    /// are marked absent). Walks then run their connections in the company
+    /// of walks as long as they are ([`BidirWalk::connect`]).
+    pub fn gather<'b>(
+        &mut self,
+        rows: (usize, usize),
+        src: impl Fn(usize) -> (&'b Buffers<L>, usize),
+    ) where
         L: 'b,
     {
         let src: [_; MAX_LANES] = std::array::from_fn(|j| src(j.min(L::LANES - 1)));
         let src = &src[..L::LANES];
-        gather_rows(&mut self.light, |j| (&src[j].0.light[..], src[j].1));
-        gather_rows(&mut self.eye, |j| (&src[j].0.eye[..], src[j].1));
+        gather_rows(&mut self.light, rows.0, |j| (&src[j].0.light[..], src[j].1));
+        gather_rows(&mut self.eye, rows.1, |j| (&src[j].0.eye[..], src[j].1));
     }
 }
 
-/// `out` row `r`, lane `j`: row `r` of the subpath `src(j)`, as in
+/// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)`, as in
 /// [`Buffers::gather`]. (Arrays, not vectors: a warm walk allocates
 /// nothing.)
 fn gather_rows<'b, L: Lane + 'b>(
     out: &mut Vec<Vertex<L>>,
+    len: usize,
     src: impl Fn(usize) -> (&'b [Vertex<L>], usize),
 ) {
-    let len = (0..L::LANES).map(|j| src(j).0.len()).max().unwrap_or(0);
     out.clear();
     for r in 0..len {
         let row: [_; MAX_LANES] = std::array::from_fn(|j| {

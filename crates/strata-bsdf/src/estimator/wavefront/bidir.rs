@@ -1,8 +1,9 @@
 //! The bidirectional estimator on lanes: one walk of a query per lane
 //! ([`crate::estimator::bidir`] written once over lanes; the lanes of a
-//! chunk are consecutive walks of one query, so that they share its
-//! parameters). Each lane draws only where it is active, so lane `j`
-//! replays the scalar engine's walk of its sample exactly. Queries are cut
+//! chunk are walks of one query, so that they share its parameters:
+//! consecutive walks while tracing, walks of like subpath lengths while
+//! connecting, where those vary). Each lane draws only where it is active,
+//! so a lane replays the scalar engine's walk of its sample exactly. Queries are cut
 //! into blocks of [`BLOCK`] walks, reduced in sample order and merged in
 //! block order: the scalar engine's reduction, whatever the threads.
 
@@ -86,8 +87,14 @@ impl<W: Wide> Wavefront<W> {
             )
         };
         let (wi, wo) = (s(&q.wi), s(&q.wo));
-        let sample = |k: usize| u.first + k as u64;
-        let rng_of = |k: usize| seed_state_from(q.prefix[qi], sample(k), Stream::Bidir);
+        // The random streams of the chunk of walks `first..first + lanes`
+        // (a partial chunk's spare lanes repeat its last walk).
+        let chunk_rng = |first: usize, lanes: usize| {
+            LaneRng::<W>::from_states(|j| {
+                let sample = u.first + (first + j.min(lanes - 1)) as u64;
+                seed_state_from(q.prefix[qi], sample, Stream::Bidir)
+            })
+        };
         if !walk.subpath_lengths_vary() {
             // Chunk by chunk: regrouping would not pay.
             if g.traced.is_empty() {
@@ -96,7 +103,7 @@ impl<W: Wide> Wavefront<W> {
             let buf = &mut g.traced[0];
             for first in (0..count).step_by(W::LANES) {
                 let lanes = (count - first).min(W::LANES);
-                let mut rng = LaneRng::<W>::from_states(|j| rng_of(first + j.min(lanes - 1)));
+                let mut rng = chunk_rng(first, lanes);
                 let v = walk.run(wi, wo, buf, |m| rng.uniform(m));
                 (0..lanes).for_each(|j| push([v.r.lane(j), v.g.lane(j), v.b.lane(j)]));
             }
@@ -110,7 +117,7 @@ impl<W: Wide> Wavefront<W> {
         for (c, buf) in g.traced[..chunks].iter_mut().enumerate() {
             let first = c * W::LANES;
             let lanes = (count - first).min(W::LANES);
-            let mut rng = LaneRng::<W>::from_states(|j| rng_of(first + j.min(lanes - 1)));
+            let mut rng = chunk_rng(first, lanes);
             walk.trace_both(wi, wo, buf, |m| rng.uniform(m));
             g.walks.extend((0..lanes).map(|lane| Traced {
                 chunk: c,
@@ -132,7 +139,11 @@ impl<W: Wide> Wavefront<W> {
         values.resize(count, [0.0; 3]);
         for group in order.chunks(W::LANES) {
             let pick = |j: usize| &walks[group[j.min(group.len() - 1)] as usize];
-            joined.gather(|j| (&traced[pick(j).chunk], pick(j).lane));
+            let rows = group.iter().fold((0, 0), |(y, z), &w| {
+                let (ly, lz) = walks[w as usize].lengths;
+                (y.max(ly), z.max(lz))
+            });
+            joined.gather(rows, |j| (&traced[pick(j).chunk], pick(j).lane));
             let mut rng = LaneRng::<W>::from_states(|j| pick(j).state);
             let v = walk.connect(joined, |m| rng.uniform(m));
             for (j, &w) in group.iter().enumerate() {
