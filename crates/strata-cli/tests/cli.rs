@@ -1117,9 +1117,7 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
         &["--only", "gpu"],
     );
     // One interface: no bidirectional walks, said rather than no rows.
-    let dir = std::env::temp_dir().join(format!("strata-bench-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let one = dir.join("one_interface.toml");
+    let one = scratch("bench-one-interface").join("one_interface.toml");
     std::fs::write(
         &one,
         "[[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.5 }\n",
@@ -1131,7 +1129,6 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
     args[at] = one;
     let out = run(&[&args[..], &["--only", "wavefront-bidir"]].concat(), "");
     assert_fails_with(&out, &["--only", "wavefront-bidir", "one interface"]);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

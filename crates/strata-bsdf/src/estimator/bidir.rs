@@ -198,9 +198,10 @@ thread_local! {
 }
 
 /// Runs `f` with this thread's kept `T` (a new one the first time), and
-/// keeps it again, grown as `f` needed. (Lane types are generic, so the
-/// memory is kept by type.)
-pub fn with_kept<T: Default + 'static, R>(f: impl FnOnce(&mut T) -> R) -> R {
+/// keeps it again, grown as `f` needed. (The wavefront's `with_kept` keeps
+/// one type per static; the bidirectional walks' memory is generic over the
+/// lane type, so it is kept by type instead.)
+pub fn with_kept_by_type<T: Default + 'static, R>(f: impl FnOnce(&mut T) -> R) -> R {
     let kept = KEPT.with(|k| {
         let mut k = k.borrow_mut();
         let i = k.iter().position(|b| b.is::<T>())?;

@@ -624,7 +624,7 @@ impl<S: Scalar> ScalarEngine<S> {
             settings: &self.settings,
         };
         let prefix = query_prefix(seed, query);
-        super::bidir::with_kept(|buf: &mut super::bidir::Buffers<S>| {
+        super::bidir::with_kept_by_type(|buf: &mut super::bidir::Buffers<S>| {
             for k in 0..n {
                 let mut rng = WalkRng::from_prefix(prefix, k, Stream::Bidir);
                 let draw = |m: bool| if m { Self::u(&mut rng) } else { S::zero() };

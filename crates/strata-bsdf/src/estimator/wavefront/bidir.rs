@@ -9,7 +9,7 @@
 
 use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
-use crate::estimator::bidir::{with_kept, BidirWalk, Buffers};
+use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers};
 use crate::estimator::Estimate;
 use crate::lane::{Wide, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
@@ -178,7 +178,7 @@ impl<W: Wide> Wavefront<W> {
             let run = |u: usize| {
                 let u = unit(u);
                 let mut b = MeanVar::new();
-                with_kept(|g: &mut Regrouped<W>| self.bidir_values(q, u, g, |x| b.push(x)));
+                with_kept_by_type(|g: &mut Regrouped<W>| self.bidir_values(q, u, g, |x| b.push(x)));
                 (u, b)
             };
             c.red.clear();
