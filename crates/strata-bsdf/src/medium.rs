@@ -70,6 +70,30 @@ pub fn free_flight<L: Lane>(
     let t = L::div_or_zero(-(L::one() - u_dist).ln(), sh, has);
     let collide = has & t.lt(max_dist);
     let dist = L::select(collide, t, max_dist);
+    let (weight, ratios) = flight_weights(sigma_t, sh, dist, collide, albedo, ratios);
+    FreeFlight {
+        collide,
+        distance: dist,
+        weight,
+        ratios,
+    }
+}
+
+/// The throughput factor and channel ratios of a flight of `dist` with the
+/// hero's extinction `sh`, that ends in a collision (lanes `collide`) or
+/// passes: each channel's density over the hero's, normalized by their
+/// mean under the walk's `ratios` (one-sample MIS over channels).
+#[inline(always)]
+fn flight_weights<L: Lane>(
+    sigma_t: Rgb<L>,
+    sh: L,
+    dist: L,
+    collide: L::Mask,
+    albedo: Rgb<L>,
+    ratios: Rgb<L>,
+) -> (Rgb<L>, Rgb<L>) {
+    let zero = L::zero();
+    let has = sh.gt(zero);
     // T_c / T_h = exp(-(σc - σh) d), kept finite for absurd optical depths.
     let rel = sigma_t.map(|s| {
         (-(s - sh) * dist)
@@ -84,12 +108,10 @@ pub fn free_flight<L: Lane>(
     let s = r.average();
     let ok = s.gt(zero);
     let inv = L::div_or_zero(L::one(), s, ok);
-    FreeFlight {
-        collide,
-        distance: dist,
-        weight: Rgb::select(ok, x.scale(inv), Rgb::zero()),
-        ratios: Rgb::select(ok, r.scale(inv), Rgb::one()),
-    }
+    (
+        Rgb::select(ok, x.scale(inv), Rgb::zero()),
+        Rgb::select(ok, r.scale(inv), Rgb::one()),
+    )
 }
 
 /// Free flight in a medium whose `sigma_t` is the same in every channel:
@@ -205,20 +227,36 @@ pub fn no_collision<L: Lane>(
         return ((-(sigma_t.r * dist)).exp(), Rgb::one(), ratios);
     }
     let sh = hero_sigma(sigma_t, hero);
-    let rel = sigma_t.map(|s| {
-        (-(s - sh) * dist)
-            .clamp(L::splat(-87.0), L::splat(80.0))
-            .exp()
-    });
-    let r = ratios * rel;
-    let s = r.average();
-    let ok = s.gt(L::zero());
-    let inv = L::div_or_zero(L::one(), s, ok);
-    (
-        (-(sh * dist)).exp(),
-        Rgb::select(ok, rel.scale(inv), Rgb::zero()),
-        Rgb::select(ok, r.scale(inv), Rgb::one()),
-    )
+    let no = L::Mask::splat(false);
+    let (w, r) = flight_weights(sigma_t, sh, dist, no, Rgb::one(), ratios);
+    ((-(sh * dist)).exp(), w, r)
+}
+
+/// A collision at distance `dist`, in expectation of where it falls: the
+/// density (per unit distance) with which [`sample_free_flight`] (hero
+/// channel `hero`) collides there, and the throughput factor and channel
+/// ratios it then gives (its collision branch).
+#[inline(always)]
+pub fn collision_at<L: Lane>(
+    sigma_t: Rgb<L>,
+    albedo: Rgb<L>,
+    grey: bool,
+    dist: L,
+    hero: L,
+    ratios: Rgb<L>,
+) -> (L, Rgb<L>, Rgb<L>) {
+    let sh = if grey {
+        sigma_t.r
+    } else {
+        hero_sigma(sigma_t, hero)
+    };
+    let density = sh * (-(sh * dist)).exp();
+    if grey {
+        return (density, albedo, ratios);
+    }
+    let yes = L::Mask::splat(true);
+    let (w, r) = flight_weights(sigma_t, sh, dist, yes, albedo, ratios);
+    (density, w, r)
 }
 
 /// The density in depth of a collision at distance `t` along a direction with

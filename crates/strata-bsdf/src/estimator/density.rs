@@ -46,6 +46,21 @@
 //! `k`'s own lobe and connects the vertices below (or above) to it, so the
 //! vertex's density is evaluated instead; the power heuristic combines them.
 //!
+//! A collision reached straight from the walk's previous non-delta vertex
+//! `v` in the same layer has two ways too. The walk's own collision `x`
+//! adds `p(d → u)` at its arrival `d`: a peaked phase function at a random
+//! argument, heavy tailed like `k`'s lobe above. The *medium connection*
+//! makes `x` from the exit's side instead: it samples `x`'s arrival `d'`
+//! by the phase function from the candidate `u` that heads for the exit
+//! (for a phase function of the angle alone, `p(d' → u)` is that
+//! density), and `x`'s depth backwards along `u` by the collision density
+//! `C` of a flight entering where `u` leaves the layer; then `v`'s density
+//! of `d'` times the flight's density of reaching `x` (`P`) replaces the
+//! phase value. The two are weighted by the balance of squares of their
+//! densities (`K = C p / P`; `P` leaves out the roulette after `v`, on both
+//! sides, so the weights still sum to 1). It runs where the phase function
+//! is peaked enough to pay for it (`PEAKED`).
+//!
 //! The chain itself is `sample()`'s: the same kernels, hero channel, Russian
 //! roulette and settings, on its own random stream. So each walk's sum is an
 //! unbiased estimate of the density of `sample()` (the "unbiased, slow" pdf);
@@ -63,7 +78,6 @@ use super::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
-use crate::phase::PhaseLanes;
 
 /// The stack as the density walk reads it: per-interface and per-layer
 /// parameters splatted over the lanes.
@@ -120,13 +134,17 @@ enum Vertex<'a, L: Lane> {
     },
     /// A collision at depth `z` of layer `l`, travelling along `d`, with
     /// the uniforms of two independent estimates of its phase value (where
-    /// it has no closed form): one for the density, one for MIS weights.
+    /// it has no closed form): one for the density, one for MIS weights;
+    /// and the walk's density of arriving here (direction and depth) from
+    /// its previous vertex, where the medium connection could have made
+    /// this vertex instead (0 elsewhere).
     Collision {
-        phase: &'a PhaseLanes<L>,
+        med: &'a MediumLanes<L>,
         d: V3<L>,
         l: L,
         z: L,
         e: [(L, L); 2],
+        p_in: L,
     },
 }
 
@@ -144,7 +162,8 @@ impl<L: Lane> Vertex<'_, L> {
                 let w = it.eval(*a, u).scale(L::div_or_zero(u.z.abs(), pv, ok));
                 (pv, w, pv)
             }
-            Vertex::Collision { phase, d, e, .. } => {
+            Vertex::Collision { med, d, e, .. } => {
+                let phase = &med.phase;
                 let pv = phase.eval(*d, u, e[0]);
                 let pw = if phase.exact() {
                     pv
@@ -206,6 +225,45 @@ impl<L: Lane> Target<L> {
         let ok = self.ok & self.q.gt(L::zero());
         L::div_or_zero(pv * self.pe, self.q, ok) * events::power_heuristic(self.q, pw)
     }
+}
+
+/// The second moment `4π ∫ p²` of a phase function from which the density
+/// walk connects its medium (`DensityWalk::medium_connects`):
+/// Henyey–Greenstein with `g ≈ 0.57`.
+const PEAKED: f64 = 3.0;
+
+/// The walk's share of a collision that the medium connection could also
+/// have made, with ratio `K = C h / P` (the connection's density over the
+/// walk's): `1 / (1 + K²)`, the balance of squares (1 where `K = 0`).
+fn walk_share<L: Lane>(k: L) -> L {
+    L::one() / (L::one() + k * k)
+}
+
+/// The density, per unit depth, with which a walk flying from depth `z0`
+/// along `d` in layer `med` collides at depth `z` (hero channel `hero`),
+/// whatever it meets beyond.
+fn flight_density<L: Lane>(med: &MediumLanes<L>, z0: L, z: L, d: V3<L>, hero: L) -> L {
+    let mu = d.z.abs();
+    let ok = mu.gt(L::zero());
+    let dist = L::div_or_zero((z - z0).abs(), mu, ok);
+    let (den, _, _) = medium::collision_at(
+        med.sigma_along(d),
+        med.albedo,
+        med.grey,
+        dist,
+        hero,
+        Rgb::one(),
+    );
+    L::div_or_zero(den, mu, ok)
+}
+
+/// The medium connection's density, per unit depth, of a collision at
+/// depth `z` of layer `med` that leaves along `u`: the collision density
+/// of a flight that starts where `u` leaves the layer and runs back along
+/// `-u`.
+fn backward_density<L: Lane>(med: &MediumLanes<L>, z: L, u: V3<L>, hero: L) -> L {
+    let dz = depth_to_boundary(z, med.thickness, u.z.gt(L::zero()));
+    flight_density(med, dz, L::zero(), u, hero)
 }
 
 /// How a delta event at `it` from `a` to `b` changes a density of
@@ -294,6 +352,13 @@ impl<L: Lane> DensityWalk<'_, L> {
         // angle (0 before the first one): the weight of its own arrival at a
         // rough exit, or at k, against the connections.
         let mut rho = zero;
+        // Lanes whose direction was sampled by a non-delta vertex in the
+        // layer they cross, with no event since: a collision on the way is
+        // one the medium connection could also make. And, for the walk's
+        // own arrival at a rough exit, the medium connection's ratio `K` of
+        // its last collision, if that was its last non-delta vertex.
+        let mut straight;
+        let mut k_b = zero;
         let mut i = L::select(wi.z.gt(zero), zero, last);
         let mut a = wi;
         while alive.any() {
@@ -306,7 +371,8 @@ impl<L: Lane> DensityWalk<'_, L> {
                 let v = it.pdf(a, wo, L::Mask::splat(false)).max(zero);
                 let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
                 let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
-                p += L::select(direct, v * w, zero);
+                let k = L::select(q.gt(zero), k_b, zero);
+                p += L::select(direct, v * w * walk_share(k), zero);
             }
             if rough.any() {
                 let v = Vertex::Surface { it: &it, a, i };
@@ -329,6 +395,8 @@ impl<L: Lane> DensityWalk<'_, L> {
             alive = ok;
             let d = s.b;
             rho = L::select(s.delta, rho * refraction_jacobian(&it, a, d), s.pdf);
+            straight = !s.delta;
+            k_b = L::select(s.delta, k_b, zero);
             let up = d.z.gt(zero);
             let (l, out) = layout.enter(i, up);
             alive = alive & !out;
@@ -350,6 +418,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                         alive = alive & !events::cross_inert(med, z, d, here, &mut st.beta);
                         flying = flying & !here;
                     } else {
+                        let z0 = z;
                         let fl = Flight {
                             z: &mut z,
                             beta: &mut st.beta,
@@ -367,14 +436,37 @@ impl<L: Lane> DensityWalk<'_, L> {
                             continue;
                         }
                         let e = [(); 2].map(|_| events::estimate_uniforms(med, || draw(hit)));
-                        let phase = &med.phase;
-                        let v = Vertex::Collision { phase, d, l, z, e };
+                        let made = hit & straight & self.medium_connects(med);
+                        let p_in = if made.any() {
+                            let f = flight_density(med, z0, z, d, st.hero);
+                            L::select(made, rho * f, zero)
+                        } else {
+                            zero
+                        };
+                        let v = Vertex::Collision {
+                            med,
+                            d,
+                            l,
+                            z,
+                            e,
+                            p_in,
+                        };
                         p += self.connect(&goal, &v, st, rho, hit, &mut draw);
                         let u = events::phase_uniforms(med, || draw(hit));
                         let dn = events::phase_scatter(med, d, u, hit, &mut specular);
                         // The arrival density, for the next vertex's MIS weight.
                         let er = events::estimate_uniforms(med, || draw(hit));
-                        rho = L::select(hit, med.phase.eval(d, dn, er), rho);
+                        let h = med.phase.eval(d, dn, er);
+                        let toward = L::select(wo.z.gt(zero), dn.z, -dn.z).gt(zero);
+                        let made = hit & p_in.gt(zero) & toward;
+                        if made.any() {
+                            let c = backward_density(med, z, dn, st.hero);
+                            k_b = L::select(hit, L::div_or_zero(c * h, p_in, made), k_b);
+                        } else {
+                            k_b = L::select(hit, zero, k_b);
+                        }
+                        rho = L::select(hit, h, rho);
+                        straight = straight | hit;
                         events::after_collision(&mut d, &mut st.events, dn, hit);
                         let keep = self.survive(&mut st, hit, draw(hit));
                         alive = alive & !(hit & !keep);
@@ -442,7 +534,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                 beta: st.beta * w,
                 ..st
             };
-            (u, pv * jac, pw * jac, s, ok & pv.gt(zero))
+            (u, pv * jac, pw * jac, s, ok & pv.gt(zero), pv)
         };
         let mut p = zero;
         for (side, &(l, z, has)) in sides.iter().enumerate() {
@@ -452,7 +544,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             let n_t = L::select(rough_exit, exit_target.n_t, g.n_out);
             let r_t = L::select(rough_exit, exit_target.region, g.outside);
             let ok = m & has & (exit_target.ok | g.exit.smooth);
-            let (u, pv, pw, s, ok) = leave(l, up, t, n_t, r_t, ok, g.e_out);
+            let (u, pv, pw, s, ok, h) = leave(l, up, t, n_t, r_t, ok, g.e_out);
             if ok.any() {
                 let (pe, _) = self.delta_exit(l, z, u, s, g.e_out, g.wo.z, ok, draw);
                 let share = L::select(rough_exit, exit_target.value(pv, pw), pv);
@@ -468,14 +560,25 @@ impl<L: Lane> DensityWalk<'_, L> {
                             L::one()
                         }
                     }
-                    Vertex::Collision { .. } => L::one(),
+                    // The walk's own collision, against the medium
+                    // connection, which could have made it.
+                    Vertex::Collision { med, z, p_in, .. } => {
+                        let toward = if up { top } else { !top };
+                        let made = ok & p_in.gt(zero) & toward;
+                        if made.any() {
+                            let c = backward_density(med, *z, u, st.hero);
+                            walk_share(L::div_or_zero(c * h, *p_in, made))
+                        } else {
+                            L::one()
+                        }
+                    }
                 };
                 p += L::select(ok, share * pe * w_own, zero);
             }
             // Through k to u_w: arrive at k along the sampled target.
             let t = inner_target.t;
             let ok = inner_on & has & inner_target.ok;
-            let (u, pv, pw, s, ok) =
+            let (u, pv, pw, s, ok, _) =
                 leave(l, up, t, inner_target.n_t, inner_target.region, ok, g.k);
             if ok.any() {
                 let (p1, mut s1) = self.delta_exit(l, z, u, s, g.k, t.z, ok, draw);
@@ -489,6 +592,142 @@ impl<L: Lane> DensityWalk<'_, L> {
                         self.delta_exit(g.layer, g.z_k, g.u_w, s1, g.e_out, g.wo.z, ok, draw);
                     let share = inner_target.value(pv, pw) * g.j_w;
                     p += L::select(ok, share * p1 * p2, zero);
+                }
+            }
+        }
+        p + self.connect_medium(g, v, st, m, &exit_target, draw)
+    }
+
+    /// The lanes where the medium connection runs in the layer of `med`
+    /// (only with MIS on, `Settings::mis`: it needs MIS weights): a
+    /// scattering medium whose phase function has a closed form and
+    /// depends on the angle alone (so that `p(d → u)`, as a density of
+    /// `d`, is what sampling from `u` gives), in a stack whose delta paths
+    /// conserve tangential momentum, with no cap on scattering orders; and
+    /// where it pays: a phase function peaked enough (`4π ∫ p² ≥ PEAKED`)
+    /// that the walk's own collisions, which evaluate it at a random
+    /// argument, are noisier than the connection's work costs
+    /// (docs/performance.md measures both sides).
+    fn medium_connects(&self, med: &MediumLanes<L>) -> L::Mask {
+        let runs = self.settings.mis
+            && med.kind == LayerKind::Scattering
+            && !med.directional
+            && med.phase.exact()
+            && self.settings.max_scatter_order.is_none()
+            && !self.tilted_delta();
+        if runs {
+            med.phase.second_moment().ge(L::splat(PEAKED))
+        } else {
+            L::Mask::splat(false)
+        }
+    }
+
+    /// The medium connection of a non-delta vertex `v` (lanes `m`, walk
+    /// state `st`) through the exit target `target` (the module docs): for
+    /// each layer `v`'s next direction can enter and each candidate `u`
+    /// there heading to the exit, a collision `x` sampled from the exit's
+    /// side (its arrival `d'` by the phase function from `u`, its depth
+    /// backwards along `u`), connected to `v` by `v`'s density of `d'` and
+    /// the flight's density of reaching `x`. Weighted against the walk's
+    /// own collision by the balance of squares, `K = C h / P`.
+    fn connect_medium(
+        &self,
+        g: &Goal<L>,
+        v: &Vertex<'_, L>,
+        st: State<L>,
+        m: L::Mask,
+        target: &Target<L>,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> L {
+        let zero = L::zero();
+        let one = L::one();
+        let last = L::splat(self.n() as f64 - 1.0);
+        let top = g.wo.z.gt(zero);
+        let rough_exit = m & !g.exit.smooth;
+        let t = V3::select(rough_exit, target.t, g.wo);
+        let n_t = L::select(rough_exit, target.n_t, g.n_out);
+        let r_t = L::select(rough_exit, target.region, g.outside);
+        let exit_share = L::select(
+            rough_exit,
+            L::div_or_zero(target.pe, target.q, target.ok & target.q.gt(zero)),
+            one,
+        );
+        let m = m & (target.ok | g.exit.smooth);
+        // Where x can be, and where the flight to it starts: the layer above
+        // a surface vertex (entered heading up) and the one below (heading
+        // down), or a collision's own layer.
+        let none = L::Mask::splat(false);
+        let starts = match v {
+            Vertex::Surface { i, .. } => [
+                (*i - one, self.thickness(*i - one), i.gt(zero), Some(true)),
+                (*i, zero, i.lt(last), Some(false)),
+            ],
+            Vertex::Collision { l, z, .. } => [(*l, *z, m, None), (*l, *z, none, None)],
+        };
+        let mut p = zero;
+        for &(l, z0, has, heads_up) in &starts {
+            for (ll, med) in self.media.iter().enumerate() {
+                let here = m & has & l.eq(L::splat(ll as f64)) & self.medium_connects(med);
+                if !here.any() {
+                    continue;
+                }
+                // The candidate heading for the exit (one that heads away
+                // and reflects back is left to the walk).
+                let first = L::select(top, l, l + one);
+                let ok = here & (self.at(first).smooth | first.eq(g.e_out));
+                let (u, jac, ok) = self.candidate(l, top, t, n_t, r_t, ok);
+                if ok.any() {
+                    // x's arrival: the phase function depends on d'·u alone,
+                    // so sampling from u gives the density p(d' → u) = h.
+                    let w = events::phase_uniforms(med, || draw(ok));
+                    let dp = med.phase.sample(u, w);
+                    let h = med.phase.eval(dp, u, (zero, zero));
+                    // x's depth, backwards along u from where u leaves the
+                    // layer, with the density c per unit depth.
+                    let mu = u.z.abs();
+                    let sigma = medium::hero_sigma(med.sigma_along(u), st.hero);
+                    let has_s = ok & sigma.gt(zero) & mu.gt(zero);
+                    let back = L::div_or_zero(-(one - draw(ok)).ln() * mu, sigma, has_s);
+                    let zx = L::select(top, back, med.thickness - back);
+                    let c = backward_density(med, zx, u, st.hero);
+                    // The flight from v to x along d': the right way, inside.
+                    let dz = zx - z0;
+                    let heads = match heads_up {
+                        Some(true) => dp.z.gt(zero),
+                        Some(false) => dp.z.lt(zero),
+                        None => (dz * dp.z).lt(zero),
+                    };
+                    let mud = dp.z.abs();
+                    let ok = has_s & back.lt(med.thickness) & heads & mud.gt(zero);
+                    let dist = L::div_or_zero(dz.abs(), mud, ok);
+                    let (den, fw, fr) = medium::collision_at(
+                        med.sigma_along(dp),
+                        med.albedo,
+                        med.grey,
+                        dist,
+                        st.hero,
+                        st.ratios,
+                    );
+                    let (pv, wv, _) = v.density(dp);
+                    let pp = pv * L::div_or_zero(den, mud, ok);
+                    // sample()'s walk reaching x: v's event, its roulette
+                    // (in expectation), the flight.
+                    let mut sx = State {
+                        beta: st.beta * wv,
+                        ..st
+                    };
+                    sx.events += one;
+                    let q_v = self.survival(&mut sx);
+                    sx.beta *= fw;
+                    sx.ratios = fr;
+                    let ok = ok & pp.gt(zero) & q_v.gt(zero);
+                    if ok.any() {
+                        let (pe, _) = self.delta_exit(l, zx, u, sx, g.e_out, g.wo.z, ok, draw);
+                        // (P / c h) · h · w_B with w_B = K² / (1 + K²).
+                        let ch = c * h;
+                        let value = L::div_or_zero(pp * ch * h, pp * pp + ch * ch, ok);
+                        p += L::select(ok, value * q_v * jac * exit_share * pe, zero);
+                    }
                 }
             }
         }

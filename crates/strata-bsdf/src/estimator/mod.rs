@@ -50,7 +50,9 @@ pub struct Settings {
     /// (`Some(1)` gives single scattering, the analytic check of method.md §8).
     pub max_scatter_order: Option<u32>,
     /// Combine next-event estimation and path continuation with MIS (power
-    /// heuristic); `false` uses next-event estimation alone where it applies.
+    /// heuristic); `false` uses next-event estimation alone where it applies,
+    /// and the pdf's density walks leave out their medium connection (an
+    /// unbiased estimate either way: `tests/pdf_density.rs` compares them).
     pub mis: bool,
 }
 

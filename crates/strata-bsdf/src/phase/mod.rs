@@ -87,6 +87,36 @@ impl<L: Lane> PhaseLanes<L> {
         }
     }
 
+    /// How peaked the phase function is: `4π ∫ p(d → u)² du`, 1 for an
+    /// isotropic one (one plus the relative variance of `p` at a uniformly
+    /// random argument). Henyey–Greenstein lobes expand in Legendre
+    /// polynomials as `Σ (2l + 1) g^l P_l / 4π`, so two lobes give
+    /// `4π ∫ p_a p_b = Σ (2l + 1) (g_a g_b)^l = (1 + x) / (1 − x)²` with
+    /// `x = g_a g_b`; a mixture sums that over pairs of lobes. 0 for the SGGX
+    /// kinds, whose value depends on the direction, not on the angle alone.
+    #[inline(always)]
+    pub fn second_moment(&self) -> L {
+        let one = L::one();
+        let pair = |x: L| {
+            let y = one - x;
+            L::div_or_zero(one + x, y * y, y.gt(L::zero()))
+        };
+        match self.kind {
+            PhaseKind::Hg => pair(self.g * self.g),
+            PhaseKind::Mixture(n) => {
+                let lobes = self.lobes(n);
+                let mut m = L::zero();
+                for (&wa, &ga) in lobes.weights.iter().zip(lobes.g) {
+                    for (&wb, &gb) in lobes.weights.iter().zip(lobes.g) {
+                        m += wa * wb * pair(ga * gb);
+                    }
+                }
+                m
+            }
+            PhaseKind::SggxSpecular | PhaseKind::SggxDiffuse => L::zero(),
+        }
+    }
+
     /// The microflake distribution of an SGGX phase.
     #[inline(always)]
     pub fn sggx(&self) -> Sggx<L> {
