@@ -5,7 +5,8 @@
 //! walks. Throughput is in queries per second. Then single `sample` and `pdf`
 //! calls through the public API on each engine (time per call), and small
 //! batches of them (`small`: 4 and 16 queries per call, a BSDF with a pool of
-//! two threads, time per call).
+//! two threads, time per call). Last, the pdf's density walks with and
+//! without their medium connection (`pdf`).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
@@ -13,7 +14,7 @@ use std::hint::black_box;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::F32x8;
-use strata_bsdf::{Engine, LayeredBsdf, Settings};
+use strata_bsdf::{Engine, LayeredBsdf, PdfKind, Settings};
 
 const QUERIES: usize = 16;
 const SAMPLES: u64 = 256;
@@ -128,9 +129,42 @@ fn small_batches(c: &mut Criterion) {
     }
 }
 
+/// The pdf's density walks on the scattering stacks, with the medium
+/// connection (the default) and without it (`Settings::mis` off), on one
+/// thread: the cost side of the connection (its variance side is the
+/// ignored test `pdf_density::medium_connection_variance`).
+fn density_walks(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let pairs = pairs();
+    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    for name in strata_bsdf::materials::SCATTERING {
+        let stack = strata_bsdf::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("pdf/{name}"));
+        g.throughput(Throughput::Elements(QUERIES as u64));
+        for (label, mis) in [("medium-connection", true), ("walk-only", false)] {
+            let settings = Settings {
+                mis,
+                ..Settings::default()
+            };
+            let wf = Wavefront::<F32x8>::new(&stack, settings, Plan::Specialized);
+            g.bench_function(BenchmarkId::new(label, 1), |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        black_box(wf.pdf_batch(&pairs, 64, 1, &keys, PdfKind::Unbiased))
+                    })
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
-    targets = estimators, single_queries, small_batches
+    targets = estimators, single_queries, small_batches, density_walks
 }
 criterion_main!(benches);

@@ -57,6 +57,18 @@ pub const REPRESENTATIVE: &[&str] = &[
     "three_interfaces",
 ];
 
+/// The built-in stacks with a scattering medium whose phase function has a
+/// closed form of the angle alone (Henyey–Greenstein or a mixture), from
+/// least to most peaked: where the pdf's density walks may connect media
+/// (`benches/estimators.rs` times them).
+pub const SCATTERING: &[&str] = &[
+    "varnished_wood",
+    "thick_scattering",
+    "validation1",
+    "scattering_slab",
+    "jade",
+];
+
 /// The TOML text of a built-in material.
 pub fn text(name: &str) -> Option<&'static str> {
     BUILTIN.iter().find(|(n, _)| *n == name).map(|&(_, t)| t)
@@ -74,7 +86,7 @@ mod tests {
         for (name, _) in super::BUILTIN {
             assert!(super::builtin(name).is_some(), "{name}");
         }
-        for name in super::REPRESENTATIVE {
+        for name in super::REPRESENTATIVE.iter().chain(super::SCATTERING) {
             assert!(super::text(name).is_some(), "{name}");
         }
         assert!(super::builtin("nonexistent").is_none());

@@ -357,6 +357,54 @@ fn medium_connection_changes_only_the_variance() {
     }
 }
 
+/// The variance side of the medium connection, for docs/performance.md (its
+/// cost side is the `pdf` group of `benches/estimators.rs`): one density
+/// walk's relative variance (median over the ring of directions of
+/// [`approximate_pdf_ratios`]) with and without it: `cargo test --release
+/// -p strata-bsdf --test pdf_density -- --ignored --nocapture
+/// medium_connection_variance`.
+#[test]
+#[ignore]
+fn medium_connection_variance() {
+    use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
+    use strata_bsdf::lane::F32x8;
+    use strata_bsdf::{PdfKind, Settings};
+    let wi = dir(WI_DEG, 0.0).map(f64::from);
+    let mut pairs = vec![];
+    for t in (5..80).step_by(10) {
+        for p in (0..360).step_by(45) {
+            pairs.push((wi, dir(t as f64, p as f64).map(f64::from)));
+        }
+    }
+    let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+    let builtins = strata_bsdf::materials::SCATTERING
+        .iter()
+        .map(|&n| (n, strata_bsdf::materials::text(n).unwrap()));
+    for (name, toml) in builtins.chain([STACKS[2], STACKS[4]]) {
+        let st = LayerStack::from_toml_str(toml).unwrap();
+        let rel_var = |mis: bool| {
+            let settings = Settings {
+                mis,
+                ..Settings::default()
+            };
+            let wf = Wavefront::<F32x8>::new(&st, settings, Plan::Specialized);
+            let u = wf.pdf_batch(&pairs, 4096, 7, &keys, PdfKind::Unbiased);
+            let top = u.iter().map(|u| u.value).fold(0.0, f64::max);
+            let mut r: Vec<f64> = (u.iter().filter(|u| u.value > 0.05 * top))
+                .map(|u| (u.stderr / u.value).powi(2) * u.samples as f64)
+                .collect();
+            r.sort_by(f64::total_cmp);
+            r[r.len() / 2]
+        };
+        let (with, without) = (rel_var(true), rel_var(false));
+        println!(
+            "== {name}: one walk's relative variance {without:.2} without the medium \
+             connection, {with:.2} with it ({:.2}x less)",
+            without / with
+        );
+    }
+}
+
 /// `sample()` returns the approximate pdf; the unbiased one needs walks.
 #[test]
 fn unbiased_pdf_checks_its_arguments() {
