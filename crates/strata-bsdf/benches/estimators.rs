@@ -19,7 +19,10 @@ use strata_bsdf::{Engine, LayeredBsdf, PdfKind, Settings};
 const QUERIES: usize = 16;
 const SAMPLES: u64 = 256;
 
-fn pairs() -> Vec<([f64; 3], [f64; 3])> {
+/// A query: `(wi, wo)`.
+type Pair = ([f64; 3], [f64; 3]);
+
+fn pairs() -> Vec<Pair> {
     let dir = |t: f64, p: f64| {
         let (t, p) = (t.to_radians(), p.to_radians());
         [t.sin() * p.cos(), t.sin() * p.sin(), t.cos()]
@@ -32,13 +35,17 @@ fn pairs() -> Vec<([f64; 3], [f64; 3])> {
         .collect()
 }
 
-fn estimators(c: &mut Criterion) {
+/// A one-thread pool, the batch's queries and their keys.
+fn batch() -> (rayon::ThreadPool, Vec<Pair>, Vec<u64>) {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .unwrap();
-    let pairs = pairs();
-    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    (pool, pairs(), (0..QUERIES as u64).collect())
+}
+
+fn estimators(c: &mut Criterion) {
+    let (pool, pairs, keys) = batch();
     for &name in strata_bsdf::materials::REPRESENTATIVE {
         let stack = strata_bsdf::materials::builtin(name).unwrap();
         let mut g = c.benchmark_group(format!("eval/{name}"));
@@ -134,12 +141,7 @@ fn small_batches(c: &mut Criterion) {
 /// thread: the cost side of the connection (its variance side is the
 /// ignored test `pdf_density::medium_connection_variance`).
 fn density_walks(c: &mut Criterion) {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let pairs = pairs();
-    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    let (pool, pairs, keys) = batch();
     for name in strata_bsdf::materials::SCATTERING {
         let stack = strata_bsdf::materials::builtin(name).unwrap();
         let mut g = c.benchmark_group(format!("pdf/{name}"));
