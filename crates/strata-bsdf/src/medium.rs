@@ -232,6 +232,18 @@ pub fn no_collision<L: Lane>(
     ((-(sh * dist)).exp(), w, r)
 }
 
+/// The density (per unit distance) with which [`sample_free_flight`] (hero
+/// channel `hero`) collides at distance `dist`: `σ_h e^(−σ_h dist)`.
+#[inline(always)]
+pub fn collision_density_hero<L: Lane>(sigma_t: Rgb<L>, grey: bool, dist: L, hero: L) -> L {
+    let sh = if grey {
+        sigma_t.r
+    } else {
+        hero_sigma(sigma_t, hero)
+    };
+    sh * (-(sh * dist)).exp()
+}
+
 /// A collision at distance `dist`, in expectation of where it falls: the
 /// density (per unit distance) with which [`sample_free_flight`] (hero
 /// channel `hero`) collides there, and the throughput factor and channel
@@ -245,15 +257,11 @@ pub fn collision_at<L: Lane>(
     hero: L,
     ratios: Rgb<L>,
 ) -> (L, Rgb<L>, Rgb<L>) {
-    let sh = if grey {
-        sigma_t.r
-    } else {
-        hero_sigma(sigma_t, hero)
-    };
-    let density = sh * (-(sh * dist)).exp();
+    let density = collision_density_hero(sigma_t, grey, dist, hero);
     if grey {
         return (density, albedo, ratios);
     }
+    let sh = hero_sigma(sigma_t, hero);
     let yes = L::Mask::splat(true);
     let (w, r) = flight_weights(sigma_t, sh, dist, yes, albedo, ratios);
     (density, w, r)

@@ -229,7 +229,7 @@ impl<L: Lane> Target<L> {
 
 /// The second moment `4π ∫ p²` of a phase function from which the density
 /// walk connects its medium (`DensityWalk::medium_connects`):
-/// Henyey–Greenstein with `g ≈ 0.57`.
+/// Henyey–Greenstein with `g ≈ 0.58`.
 const PEAKED: f64 = 3.0;
 
 /// The walk's share of a collision that the medium connection could also
@@ -246,14 +246,7 @@ fn flight_density<L: Lane>(med: &MediumLanes<L>, z0: L, z: L, d: V3<L>, hero: L)
     let mu = d.z.abs();
     let ok = mu.gt(L::zero());
     let dist = L::div_or_zero((z - z0).abs(), mu, ok);
-    let (den, _, _) = medium::collision_at(
-        med.sigma_along(d),
-        med.albedo,
-        med.grey,
-        dist,
-        hero,
-        Rgb::one(),
-    );
+    let den = medium::collision_density_hero(med.sigma_along(d), med.grey, dist, hero);
     L::div_or_zero(den, mu, ok)
 }
 
@@ -723,9 +716,10 @@ impl<L: Lane> DensityWalk<'_, L> {
                     let ok = ok & pp.gt(zero) & q_v.gt(zero);
                     if ok.any() {
                         let (pe, _) = self.delta_exit(l, zx, u, sx, g.e_out, g.wo.z, ok, draw);
-                        // (P / c h) · h · w_B with w_B = K² / (1 + K²).
-                        let ch = c * h;
-                        let value = L::div_or_zero(pp * ch * h, pp * pp + ch * ch, ok);
+                        // (P / c h) · h · w_B with w_B = K² / (1 + K²), from
+                        // the ratio of the densities (no squares to overflow).
+                        let w_b = events::power_heuristic(c * h, pp);
+                        let value = L::div_or_zero(pp, c, ok & c.gt(zero)) * w_b;
                         p += L::select(ok, value * q_v * jac * exit_share * pe, zero);
                     }
                 }
