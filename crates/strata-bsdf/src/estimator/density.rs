@@ -232,13 +232,6 @@ impl<L: Lane> Target<L> {
 /// Henyey–Greenstein with `g ≈ 0.58`.
 const PEAKED: f64 = 3.0;
 
-/// The walk's share of a collision that the medium connection could also
-/// have made, with ratio `K = C h / P` (the connection's density over the
-/// walk's): `1 / (1 + K²)`, the balance of squares (1 where `K = 0`).
-fn walk_share<L: Lane>(k: L) -> L {
-    L::one() / (L::one() + k * k)
-}
-
 /// The density, per unit depth, with which a walk flying from depth `z0`
 /// along `d` in layer `med` collides at depth `z` (hero channel `hero`),
 /// whatever it meets beyond.
@@ -365,7 +358,9 @@ impl<L: Lane> DensityWalk<'_, L> {
                 let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
                 let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
                 let k = L::select(q.gt(zero), k_b, zero);
-                p += L::select(direct, v * w * walk_share(k), zero);
+                // Against the medium connection: 1 / (1 + K²).
+                let w_b = events::power_heuristic(L::one(), k);
+                p += L::select(direct, v * w * w_b, zero);
             }
             if rough.any() {
                 let v = Vertex::Surface { it: &it, a, i };
@@ -560,7 +555,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                         let made = ok & p_in.gt(zero) & toward;
                         if made.any() {
                             let c = backward_density(med, *z, u, st.hero);
-                            walk_share(L::div_or_zero(c * h, *p_in, made))
+                            L::select(made, events::power_heuristic(*p_in, c * h), L::one())
                         } else {
                             L::one()
                         }
