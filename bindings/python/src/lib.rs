@@ -25,8 +25,8 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, MaterialError as StackMaterialError, Materials, SetError, SetPath, Transport,
-    Vectors, VectorsMut, MAX_WALKS,
+    LayeredBsdf, MaterialError as StackMaterialError, Materials, PdfWalks, SetError, SetPath,
+    Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -616,22 +616,23 @@ fn build(
     samples: u64,
     seed: u64,
     transport: &str,
-    pdf_samples: u32,
+    pdf_samples: Option<u32>,
     estimator: &str,
 ) -> PyResult<Bsdf> {
     check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    if pdf_samples == 0 {
+    if pdf_samples == Some(0) {
         return Err(PyValueError::new_err(
             "pdf_samples = 0: at least one walk per pdf is needed",
         ));
     }
+    let pdf_walks = pdf_samples.map_or(PdfWalks::DEFAULT, |n| PdfWalks::fixed(n as u64));
     let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
     let estimator: Estimator = estimator.parse().map_err(PyValueError::new_err)?;
     Ok(Bsdf {
         inner: LayeredBsdf::new(stack)
             .samples(samples)
             .seed(seed)
-            .pdf_samples(pdf_samples)
+            .pdf_walks(pdf_walks)
             .transport(transport)
             .estimator(estimator),
     })
@@ -643,21 +644,22 @@ impl Bsdf {
     ///
     /// `samples` is the number of walks per `eval` query, `seed` seeds every
     /// random stream, `transport` is "radiance" (light flows from `wi` to
-    /// `wo`) or "importance" (the adjoint), `pdf_samples` the density walks
-    /// per approximate `pdf` (default 4, the library's), `estimator` the
+    /// `wo`) or "importance" (the adjoint), `pdf_samples` a fixed number of
+    /// density walks per approximate `pdf` (by default, the library's
+    /// rounds: 8 walks, up to 64 until the relative standard error is 0.15), `estimator` the
     /// estimator of `eval`: "auto" (a closed form where the stack has one,
     /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), "uni" or "bidir". Raises
     /// `MaterialError` (a ValueError) naming the layer, the field and the
     /// value.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_toml(
         text: &str,
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: u32,
+        pdf_samples: Option<u32>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
@@ -666,13 +668,13 @@ impl Bsdf {
 
     /// A BSDF from a JSON material description; arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_json(
         text: &str,
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: u32,
+        pdf_samples: Option<u32>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
@@ -682,13 +684,13 @@ impl Bsdf {
     /// A BSDF from a material file (`.json` as JSON, anything else as TOML);
     /// arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=LayeredBsdf::DEFAULT_PDF_SAMPLES, estimator="auto"))]
+    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_path(
         path: std::path::PathBuf,
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: u32,
+        pdf_samples: Option<u32>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;

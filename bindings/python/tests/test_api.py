@@ -89,6 +89,27 @@ def test_eval_and_pdf_bit_identical_to_cli(strata_cli, materials, material, lowe
     assert np.all(f >= 0) and np.any(f > 0)
 
 
+def test_fixed_pdf_samples_bit_identical_to_cli(strata_cli, materials):
+    # pdf_samples=N fixes the density walks, as `--pdf-samples N` does; the
+    # default (None) runs the library's pilot round, as the CLI's default.
+    path = materials / "scattering_slab.toml"
+    rng = np.random.default_rng(5)
+    n, seed = 16, 3
+    wi = fixed_directions(n, rng)
+    wo = fixed_directions(n, rng)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    args = ["eval", "--material", str(path), "--samples", "4", "--seed", str(seed), "--pdf-samples", "4"]
+    cli = run_cli(strata_cli, args, lines)
+    fixed = Bsdf.from_path(path, samples=4, seed=seed, pdf_samples=4).pdf(wi, wo)
+    np.testing.assert_array_equal(fixed, np.array([c["pdf"] for c in cli], dtype=np.float64).astype(np.float32))
+    default = Bsdf.from_path(path, samples=4, seed=seed).pdf(wi, wo)
+    assert np.all(default > 0) and np.any(default != fixed)
+    with pytest.raises(ValueError, match="pdf_samples = 0"):
+        Bsdf.from_path(path, pdf_samples=0)
+
+
 @pytest.mark.parametrize("material", ["coated_copper.toml", "three_interfaces.toml"])
 @pytest.mark.parametrize("estimator", ["uni", "bidir", "auto"])
 def test_estimators_bit_identical_to_cli(strata_cli, materials, material, estimator):

@@ -5,8 +5,11 @@
 //! walks. Throughput is in queries per second. Then single `sample` and `pdf`
 //! calls through the public API on each engine (time per call), and small
 //! batches of them (`small`: 4 and 16 queries per call, a BSDF with a pool of
-//! two threads, time per call). Last, the pdf's density walks with and
-//! without their medium connection (`pdf`).
+//! two threads, time per call). Then the pdf's density walks with and
+//! without their medium connection (`pdf`). Last, what a renderer's path
+//! vertex asks (`vertex`: a sample, then the eval and pdf of a light
+//! direction, a batch of 16 vertices on one thread) with the default pdf
+//! walks and with 4 fixed ones: the cost of the default's accuracy.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
@@ -14,7 +17,7 @@ use std::hint::black_box;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::F32x8;
-use strata_bsdf::{Engine, LayeredBsdf, PdfKind, Settings};
+use strata_bsdf::{Engine, LayeredBsdf, PdfKind, PdfWalks, Settings};
 
 const QUERIES: usize = 16;
 const SAMPLES: u64 = 256;
@@ -164,9 +167,47 @@ fn density_walks(c: &mut Criterion) {
     }
 }
 
+/// A batch of path vertices on the representative stacks: `sample`, then
+/// `eval` and `pdf` of a light direction, through the public API on one
+/// thread, with the default pdf walks ([`PdfWalks::DEFAULT`]) and with 4.
+fn vertices(c: &mut Criterion) {
+    let pairs: Vec<(Vec3, Vec3)> = pairs()
+        .into_iter()
+        .map(|(a, b)| {
+            (
+                Vec3::from(a.map(|x| x as f32)),
+                Vec3::from(b.map(|x| x as f32)),
+            )
+        })
+        .collect();
+    let wis: Vec<Vec3> = pairs.iter().map(|p| p.0).collect();
+    let keys: Vec<u64> = (0..QUERIES as u64).collect();
+    for &name in strata_bsdf::materials::REPRESENTATIVE {
+        let stack = strata_bsdf::materials::builtin(name).unwrap();
+        let mut g = c.benchmark_group(format!("vertex/{name}"));
+        g.throughput(Throughput::Elements(QUERIES as u64));
+        for (label, walks) in [("default", PdfWalks::DEFAULT), ("pdf4", 4.into())] {
+            let bsdf = (LayeredBsdf::new(stack.clone()).pdf_walks(walks))
+                .threads(1)
+                .unwrap();
+            let mut k = 0u64;
+            g.bench_function(BenchmarkId::new(label, 1), |b| {
+                b.iter(|| {
+                    k += 1;
+                    let idx = vec![k; QUERIES];
+                    let s = bsdf.sample_batch_keyed(&wis, &keys, &idx).unwrap();
+                    let f = bsdf.eval_batch(&pairs).unwrap();
+                    black_box((s, f, bsdf.pdf_batch(&pairs).unwrap()))
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(10).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(3));
-    targets = estimators, single_queries, small_batches, density_walks
+    targets = estimators, single_queries, small_batches, density_walks, vertices
 }
 criterion_main!(benches);

@@ -80,6 +80,6 @@ pub use api::{
     EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags,
     SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
 };
-pub use estimator::pdf::{PdfEstimate, PdfKind};
+pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
 pub use estimator::{Albedo, Estimate, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, SetError, SetPath, Shape, StackError};

@@ -8,20 +8,21 @@
 //!   which have no density; only the rest can appear in a pdf;
 //! * it is a Monte Carlo estimate from a few walks, so its value at one
 //!   direction is noisy (its expectation is what integrates to ≤ 1);
-//! * it is mixed with a uniform density, pdf = 0.9 p + 0.1 / 4π, so that it
-//!   is positive wherever f can be (on the hemispheres light can leave through).
+//! * it is mixed with a uniform density, pdf = (1 − f) p + f / 4π (f is
+//!   `UNIFORM_FRACTION`), so that it is positive wherever f can be (on the
+//!   hemispheres light can leave through).
 //!
-//! Its expected integral is therefore at most 0.9 + 0.1 = 1; the uniform
-//! part alone gives 0.1 on a transmissive stack. What is checked, per stack
+//! Its expected integral is therefore at most (1 − f) + f = 1; the uniform
+//! part alone gives f on a transmissive stack. What is checked, per stack
 //! and incident direction:
 //! * over a grid of directions, the pdf is finite and ≥ 0 everywhere, and > 0
 //!   wherever `eval` is > 0 in some channel;
 //! * its integral over the sphere (jittered quadrature, one random point per
 //!   cell; standard error from pairs of neighbouring cells) lies in
-//!   [0.1 - 4σ, 1 + 4σ] (for an opaque stack the uniform part only counts on
+//!   [f - 4σ, 1 + 4σ] (for an opaque stack the uniform part only counts on
 //!   the upper hemisphere; the lower bound still holds because the interface
 //!   paths carry most of the probability);
-//! * for a lone rough interface it is exactly 0.9 · that interface's density
+//! * for a lone rough interface it is exactly (1 − f) · that interface's density
 //!   plus the uniform part.
 
 mod common;
@@ -186,11 +187,13 @@ fn pdf_integrates_to_at_most_one() {
             eprintln!("{label} wi {wi:?}: ∫ pdf = {total:.4} ± {se:.4}");
             // 1e-9: rounding of the sum when the pdf is the uniform part alone.
             assert!(
-                total >= 0.1 - 4.0 * se - 1e-9 && total <= 1.0 + 4.0 * se,
+                total >= UNIFORM_FRACTION - 4.0 * se - 1e-9 && total <= 1.0 + 4.0 * se,
                 "{label} wi {wi:?}: ∫ pdf = {total} ± {se}"
             );
+            // The three interfaces at grazing light set the bound: a few
+            // walks carry their density, σ ≈ 0.05 at 80 or 96 cells a side.
             assert!(
-                se < 0.05,
+                se < 0.06,
                 "{label} wi {wi:?}: imprecise ∫ pdf = {total} ± {se}"
             );
         }

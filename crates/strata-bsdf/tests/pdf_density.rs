@@ -16,7 +16,9 @@
 mod common;
 use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
-use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, Transport};
+use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
+use strata_bsdf::lane::F32x8;
+use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, PdfKind, PdfWalks, Settings, Transport};
 
 const STACKS: [(&str, &str); 11] = [
     ("smooth coat / white Lambertian", common::SMOOTH_COAT_WHITE),
@@ -257,10 +259,13 @@ fn unbiased_pdf_is_the_density_of_sample() {
     }
 }
 
-/// The approximate pdf is an unbiased estimate (over its keys) of the
+/// The approximate pdf (the default walks: a pilot round, then fresh walks
+/// as many as it says) is an unbiased estimate (over its keys) of the
 /// density of walks of at most `APPROX_EVENTS` events, mixed with the
 /// uniform part: its mean over many seeds, unmixed, agrees with the unbiased
-/// pdf within 4 combined standard errors, at the peak and off it.
+/// pdf within 4 combined standard errors, at the peak and off it. (With the
+/// pilot's walks in the mean, it read 22 % low on the three interfaces'
+/// mirror direction, where one walk in many carries the density.)
 #[test]
 fn approximate_pdf_follows_sample_on_average() {
     use strata_bsdf::estimator::pdf::UNIFORM_FRACTION;
@@ -297,6 +302,57 @@ fn approximate_pdf_follows_sample_on_average() {
                 u.stderr
             );
         }
+    }
+}
+
+/// The ring of directions of the pointwise comparisons: θ from 5° to 75° in
+/// steps of 10°, φ in steps of 45°, light from 25°.
+fn ring() -> Vec<(glam::Vec3, glam::Vec3)> {
+    let wi = glam::Vec3::from(dir(WI_DEG, 0.0));
+    let mut pairs = vec![];
+    for t in (5..80).step_by(10) {
+        for p in (0..360).step_by(45) {
+            pairs.push((wi, glam::Vec3::from(dir(t as f64, p as f64))));
+        }
+    }
+    pairs
+}
+
+/// Ratios of the approximate pdf of `b` to the unbiased one `u`, where the
+/// density is at least 5 % of its largest over the ring, sorted.
+fn ratios(b: &LayeredBsdf, u: &[strata_bsdf::PdfEstimate]) -> Vec<f64> {
+    let umax = u.iter().map(|x| x.value).fold(0.0, f64::max);
+    let a = b.pdf_batch(&ring()).unwrap();
+    let mut r: Vec<f64> = (a.iter().zip(u))
+        .filter(|(_, u)| u.value > 0.05 * umax)
+        .map(|(a, u)| *a as f64 / u.value)
+        .collect();
+    r.sort_by(f64::total_cmp);
+    r
+}
+
+/// Issue 16's four stacks, on the walks: the default approximate pdf is
+/// within 0.7–1.3× of the density of `sample()` (4096 unbiased walks, a
+/// relative standard error under 3 %) at 80 % of the ring's directions or
+/// more (its walks aim at a relative standard error of 0.15: 0.7–1.3× at
+/// two standard errors, 95 % of directions if the pilot's variance is
+/// right; it reads low where one walk in many carries the density), its
+/// median within 0.9–1.1, and at more directions than 4 fixed walks reach.
+#[test]
+fn approximate_pdf_is_close_pointwise() {
+    for (name, toml) in &STACKS[..4] {
+        let b = bsdf(toml);
+        let u = b.pdf_unbiased_batch(&ring(), 4096).unwrap();
+        let within = |r: &[f64]| r.iter().filter(|x| (0.7..=1.3).contains(*x)).count();
+        let r = ratios(&b.clone().seed(11), &u);
+        let four = ratios(&b.clone().seed(11).pdf_samples(4), &u);
+        let (n, median) = (r.len(), r[r.len() / 2]);
+        assert!(
+            within(&r) * 5 >= n * 4 && (0.9..=1.1).contains(&median),
+            "{name}: {} of {n} within 0.7–1.3×, median {median:.3}: {r:.2?}",
+            within(&r)
+        );
+        assert!(within(&r) > within(&four), "{name}: no better than 4 walks");
     }
 }
 
@@ -447,7 +503,6 @@ fn unbiased_pdf_checks_its_arguments() {
 #[test]
 #[ignore]
 fn approximate_pdf_ratios() {
-    let wi = glam::Vec3::from(dir(25.0, 0.0));
     let extra = [(
         "smooth coat / rough copper",
         "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
@@ -455,14 +510,7 @@ fn approximate_pdf_ratios() {
     )];
     for (name, toml) in STACKS.into_iter().chain(extra) {
         let b = bsdf(toml);
-        // θ from 5° to 75° in steps of 10°, φ in steps of 45°.
-        let mut dirs = vec![];
-        for t in (5..80).step_by(10) {
-            for p in (0..360).step_by(45) {
-                dirs.push(glam::Vec3::from(dir(t as f64, p as f64)));
-            }
-        }
-        let pairs: Vec<_> = dirs.iter().map(|&d| (wi, d)).collect();
+        let pairs = ring();
         let u = b.pdf_unbiased_batch(&pairs, 4096).unwrap();
         let umax = u.iter().map(|x| x.value).fold(0.0, f64::max);
         // One density walk's relative variance: what sets the walks a
@@ -478,18 +526,29 @@ fn approximate_pdf_ratios() {
             rel_var[rel_var.len() / 2],
             rel_var[rel_var.len() * 19 / 20]
         );
-        for ns in [4u32, 8, 16, 32] {
-            let a = b.clone().pdf_samples(ns).pdf_batch(&pairs).unwrap();
-            let mut r: Vec<f64> = a
-                .iter()
-                .zip(&u)
-                .filter(|(_, u)| u.value > 0.05 * umax)
-                .map(|(a, u)| *a as f64 / u.value)
-                .collect();
-            r.sort_by(f64::total_cmp);
+        // The default (a pilot round, then the walks it sets), then fixed
+        // numbers of walks; the default's mean number of walks from the
+        // wavefront's estimates of the pairs.
+        let st = LayerStack::from_toml_str(toml).unwrap();
+        let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
+        let wide: Vec<_> = pairs
+            .iter()
+            .map(|&(a, b)| (a.as_dvec3().to_array(), b.as_dvec3().to_array()))
+            .collect();
+        let keys: Vec<u64> = (0..wide.len() as u64).collect();
+        let est = wf.pdf_batch(&wide, PdfWalks::DEFAULT, 7, &keys, PdfKind::Approximate);
+        let mean_walks = est.iter().map(|e| e.samples).sum::<u64>() as f64 / est.len() as f64;
+        print!(" default: 8 + {mean_walks:.1} walks on average;");
+        let walks = [PdfWalks::DEFAULT, 4.into(), 8.into(), 16.into(), 32.into()];
+        for w in walks {
+            let r = ratios(&b.clone().pdf_walks(w), &u);
             let within = r.iter().filter(|&&x| (0.7..=1.3).contains(&x)).count();
+            let ns = match w == PdfWalks::DEFAULT {
+                true => "default".to_string(),
+                false => w.max().to_string(),
+            };
             print!(
-                "  n={ns}: {}/{} in [0.7,1.3], q05 {:.2} q50 {:.2} q95 {:.2};",
+                "  {ns}: {}/{} in [0.7,1.3], q05 {:.2} q50 {:.2} q95 {:.2};",
                 within,
                 r.len(),
                 r[r.len() / 20],

@@ -21,7 +21,7 @@ use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8};
 use strata_bsdf::rng::{Stream, WalkRng};
-use strata_bsdf::{LayerStack, PdfKind, Settings};
+use strata_bsdf::{LayerStack, PdfKind, PdfWalks, Settings};
 
 /// Every interface kind (smooth and rough, GGX and Beckmann, isotropic and
 /// anisotropic), every medium kind (clear, absorbing, scattering; grey and
@@ -414,6 +414,7 @@ fn eval_means_agree_with_independent_seeds() {
 
 #[test]
 fn sample_albedo_and_pdf_match_the_scalar_engine() {
+    let mut rounds = [0; 2];
     for (name, toml) in STACKS {
         let st = stack(toml);
         let sc = ScalarEngine::<f32>::new(&st, Settings::default());
@@ -447,15 +448,31 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
         }
         let qs = queries(&st);
         let keys: Vec<u64> = (0..qs.len() as u64).collect();
-        // Both pdfs: the same density walks, lane by lane.
-        for (kind, walks) in [(PdfKind::Approximate, 8), (PdfKind::Unbiased, 37)] {
+        // Both pdfs: the same density walks, lane by lane, and the same
+        // pilot rounds (the default approximate pdf's).
+        let pdfs = [
+            (PdfKind::Approximate, PdfWalks::fixed(8)),
+            (PdfKind::Approximate, PdfWalks::DEFAULT),
+            (PdfKind::Unbiased, PdfWalks::fixed(37)),
+        ];
+        for (kind, walks) in pdfs {
             let wp = wf.pdf_batch(&qs, walks, 4, &keys, kind);
             for (k, &(wi, wo)) in qs.iter().enumerate() {
                 let sp = sc.pdf_estimate(wi, wo, walks, 4, keys[k], kind);
-                assert_eq!(sp, wp[k], "{name}: {kind:?} pdf {k}");
+                assert_eq!(sp, wp[k], "{name}: {kind:?} {walks:?} pdf {k}");
+            }
+            if walks == PdfWalks::DEFAULT {
+                for e in wp.iter().filter(|e| e.value > 0.0) {
+                    rounds[(e.samples > walks.pilot()) as usize] += 1;
+                }
             }
         }
     }
+    // The rounds ran: some queries stopped after the first, some went on.
+    assert!(
+        rounds[0] > 0 && rounds[1] > 0,
+        "first round only, more: {rounds:?}"
+    );
 }
 
 #[test]

@@ -49,7 +49,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: int = 4,
+        pdf_samples: Optional[int] = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
@@ -58,7 +58,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: int = 4,
+        pdf_samples: Optional[int] = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
@@ -67,7 +67,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: int = 4,
+        pdf_samples: Optional[int] = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...

@@ -33,7 +33,7 @@ pub use transport::Transport;
 
 use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::coat_lambertian::CoatLambertian;
-use crate::estimator::pdf::{PdfEstimate, PdfKind};
+use crate::estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
 use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::{
     with_kept, DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS,
@@ -156,7 +156,7 @@ pub struct LayeredBsdf {
     settings: Settings,
     engine: Engine,
     samples: u64,
-    pdf_samples: u32,
+    pdf_walks: PdfWalks,
     seed: u64,
     transport: Transport,
     eval_start: EvalStart,
@@ -186,8 +186,6 @@ enum Threads {
 impl LayeredBsdf {
     /// Default number of walks per `eval`.
     pub const DEFAULT_SAMPLES: u64 = 256;
-    /// Default number of density walks per approximate `pdf`.
-    pub const DEFAULT_PDF_SAMPLES: u32 = 4;
 
     /// A BSDF over `stack` with default settings.
     pub fn new(stack: LayerStack) -> Self {
@@ -207,7 +205,7 @@ impl LayeredBsdf {
             settings,
             engine: Engine::default(),
             samples: Self::DEFAULT_SAMPLES,
-            pdf_samples: Self::DEFAULT_PDF_SAMPLES,
+            pdf_walks: PdfWalks::DEFAULT,
             seed: 0,
             transport: Transport::default(),
             eval_start: EvalStart::default(),
@@ -225,7 +223,7 @@ impl LayeredBsdf {
         let b = LayeredBsdf {
             engine: self.engine,
             samples: self.samples,
-            pdf_samples: self.pdf_samples,
+            pdf_walks: self.pdf_walks,
             seed: self.seed,
             eval_start: self.eval_start,
             threads: self.threads.clone(),
@@ -241,9 +239,18 @@ impl LayeredBsdf {
         self
     }
 
-    /// Sets the number of density walks per approximate `pdf` (at least 1).
+    /// Sets the number of density walks per approximate `pdf` (at least 1):
+    /// a fixed cost, in place of the default rounds ([`PdfWalks::DEFAULT`]).
     pub fn pdf_samples(mut self, n: u32) -> Self {
-        self.pdf_samples = n.max(1);
+        self.pdf_walks = PdfWalks::fixed(n as u64);
+        self
+    }
+
+    /// Sets how many density walks an approximate `pdf` runs: a fixed
+    /// number, or rounds until their relative standard error is small
+    /// enough (the default, [`PdfWalks::DEFAULT`]).
+    pub fn pdf_walks(mut self, walks: PdfWalks) -> Self {
+        self.pdf_walks = walks;
         self
     }
 
@@ -370,6 +377,11 @@ impl LayeredBsdf {
     /// The seed.
     pub fn seed_value(&self) -> u64 {
         self.seed
+    }
+
+    /// How many density walks an approximate `pdf` runs.
+    pub fn pdf_walks_value(&self) -> PdfWalks {
+        self.pdf_walks
     }
 
     /// The walks per `eval`.
@@ -945,7 +957,7 @@ impl LayeredBsdf {
                 let (pairs, pdf) = (&b.pairs, &mut b.pdf);
                 let keyed = |j: usize| (pairs[j], pdf_key(pairs[j].0, pairs[j].1));
                 let push = |_, p: PdfEstimate| pdf.push(p.value as f32);
-                let (n, walks) = (pairs.len(), self.pdf_samples as u64);
+                let (n, walks) = (pairs.len(), self.pdf_walks);
                 let kind = PdfKind::Approximate;
                 (self.wave).pdf_each(sub.sets(), n, keyed, walks, self.seed, kind, push);
             } else {
@@ -999,7 +1011,8 @@ impl LayeredBsdf {
     /// 1.2–2.1 times faster there on every representative stack,
     /// docs/performance.md).
     pub(super) fn pdf_engine(&self, queries: usize) -> Engine {
-        self.engine.resolve(queries, 2 * self.pdf_samples as u64)
+        self.engine
+            .resolve(queries, 2 * self.pdf_walks.first_round())
     }
 
     /// Whether a pdf call of `queries` queries of the BSDF's own stack runs
@@ -1017,10 +1030,10 @@ impl LayeredBsdf {
         }
         let key = pdf_key(a, b);
         if self.pdf_engine(1) == Engine::Scalar {
-            return (self.scalar_in(per, k)).pdf(a, b, self.pdf_samples, self.seed, key) as f32;
+            return (self.scalar_in(per, k)).pdf(a, b, self.pdf_walks, self.seed, key) as f32;
         }
         let mut p = 0.0;
-        let (walks, kind) = (self.pdf_samples as u64, PdfKind::Approximate);
+        let (walks, kind) = (self.pdf_walks, PdfKind::Approximate);
         let put = |_, e: PdfEstimate| p = e.value as f32;
         let one = per.one(k);
         (self.wave).pdf_each(
@@ -1062,7 +1075,7 @@ impl LayeredBsdf {
             self.wave.pdf_batch_in(
                 per.sets(),
                 dirs,
-                self.pdf_samples as u64,
+                self.pdf_walks,
                 self.seed,
                 &keys,
                 PdfKind::Approximate,

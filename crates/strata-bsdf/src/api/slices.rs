@@ -369,7 +369,7 @@ impl LayeredBsdf {
                 let (a, b) = pair_at(&wi, &wo, k);
                 ((a, b), pdf_key(a, b))
             };
-            let (walks, kind) = (self.pdf_samples as u64, PdfKind::Approximate);
+            let (walks, kind) = (self.pdf_walks, PdfKind::Approximate);
             let put = |k: usize, e: PdfEstimate| pdf[k] = e.value as f32;
             let own = Sets::Own;
             self.wave

@@ -1,13 +1,16 @@
 //! The pdfs of `sample()` (method.md §6), both from the density walk of
 //! [`super::density`]:
 //!
-//! * **approximate** (what `pdf()` and `sample()` return): the mean of a few
-//!   density walks, each stopped after [`APPROX_EVENTS`] events, mixed with
-//!   a uniform density, `pdf = 0.9 p + 0.1 / 4π`, so that it is positive
-//!   wherever `f` can be. It is deterministic for a pair of directions (the
-//!   walks are keyed by them). What it neglects: paths longer than the bound,
-//!   and the noise of a few walks (it is an unbiased estimate of the density
-//!   of walks of at most [`APPROX_EVENTS`] events, then mixed);
+//! * **approximate** (what `pdf()` and `sample()` return): the mean of
+//!   density walks, each stopped after [`APPROX_EVENTS`] events, as many as
+//!   a pilot round says a relative standard error of 0.15 needs
+//!   ([`PdfWalks`]), mixed with a uniform density, `pdf = (1 − f) p + f / 4π`
+//!   ([`UNIFORM_FRACTION`]), so that it is positive wherever `f` can be. It is
+//!   deterministic for a pair of directions (the walks are keyed by them).
+//!   What it neglects: paths longer than the bound, and the noise of its
+//!   walks (it is an unbiased estimate of the density of walks of at most
+//!   [`APPROX_EVENTS`] events, then mixed, except where the pilot found
+//!   nothing);
 //! * **unbiased**: the mean of many unbounded density walks, with its
 //!   standard error: the density of `sample()`'s directions, for references
 //!   and tests.
@@ -17,7 +20,7 @@ use super::scalar::{v3, Scalar, ScalarEngine};
 use crate::rng::{query_prefix, Stream, WalkRng};
 
 /// Weight of the uniform density in the approximate pdf's mixture.
-pub const UNIFORM_FRACTION: f64 = 0.1;
+pub const UNIFORM_FRACTION: f64 = 0.03;
 
 /// The approximate pdf's bound on a density walk's events: more than any
 /// stack of the examples needs for 99 % of its density, and a bound on the
@@ -32,6 +35,104 @@ pub fn mix_uniform(p: f64) -> f64 {
         p
     } else {
         uniform
+    }
+}
+
+/// How many density walks an approximate pdf runs: a fixed number, or a
+/// pilot round that sets it. The pilot's walks give one walk's relative
+/// variance `v`; the pdf is then the mean of `v / rel_stderr²` fresh walks
+/// (at least as many as the pilot, at most `max`), so that its relative
+/// standard error is about `rel_stderr`. The pilot's walks are not in the
+/// mean: a mean over walks whose spread chose their number leans (high where
+/// a few walks that happened to agree stop early), while fresh walks are an
+/// unbiased estimate whatever their number. A query whose pilot walks all
+/// found nothing is 0 (the uniform part answers). The walks of a query are
+/// numbered, pilot first, so both engines run the same walks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PdfWalks {
+    pilot: u64,
+    max: u64,
+    rel_stderr: f64,
+}
+
+impl PdfWalks {
+    /// The default: a pilot of 8 walks, then 8 to 64 walks for a relative
+    /// standard error of 0.15 (0.7–1.3× at two standard errors;
+    /// docs/method.md §6 measures it).
+    pub const DEFAULT: PdfWalks = PdfWalks {
+        pilot: 8,
+        max: 64,
+        rel_stderr: 0.15,
+    };
+
+    /// Exactly `n` walks (at least one), no pilot.
+    pub const fn fixed(n: u64) -> Self {
+        PdfWalks {
+            pilot: 0,
+            max: if n == 0 { 1 } else { n },
+            rel_stderr: 0.0,
+        }
+    }
+
+    /// A pilot of `pilot` walks (at least one), then `pilot` to `max` walks
+    /// for a relative standard error of `rel_stderr` (one that is not
+    /// positive means `max`).
+    pub fn adaptive(pilot: u64, max: u64, rel_stderr: f64) -> Self {
+        let pilot = pilot.max(1);
+        PdfWalks {
+            pilot,
+            max: max.max(pilot),
+            rel_stderr: if rel_stderr > 0.0 { rel_stderr } else { 0.0 },
+        }
+    }
+
+    /// The walks of the pilot round (0 for a fixed number).
+    pub fn pilot(&self) -> u64 {
+        self.pilot
+    }
+
+    /// The most walks in a pdf's mean.
+    pub fn max(&self) -> u64 {
+        self.max
+    }
+
+    /// The relative standard error the walks aim at (0 for a fixed number).
+    pub fn rel_stderr(&self) -> f64 {
+        self.rel_stderr
+    }
+
+    /// The walks of a pdf's first round: its pilot, or all of them.
+    pub fn first_round(&self) -> u64 {
+        if self.pilot > 0 {
+            self.pilot
+        } else {
+            self.max
+        }
+    }
+
+    /// The walks of the mean after a pilot round that summed to `pilot`.
+    pub fn after_pilot(&self, pilot: &DensitySums) -> u64 {
+        if self.pilot == 0 {
+            return self.max;
+        }
+        if pilot.sum == 0.0 {
+            return 0;
+        }
+        let walks = (pilot.rel_variance() / (self.rel_stderr * self.rel_stderr)).ceil();
+        // A NaN (a walk of infinite density) casts to 0: the clamp's floor.
+        (walks as u64).clamp(self.pilot, self.max)
+    }
+}
+
+impl Default for PdfWalks {
+    fn default() -> Self {
+        PdfWalks::DEFAULT
+    }
+}
+
+impl From<u64> for PdfWalks {
+    fn from(n: u64) -> Self {
+        PdfWalks::fixed(n)
     }
 }
 
@@ -96,6 +197,17 @@ impl DensitySums {
         self.n += 1;
     }
 
+    /// One walk's relative variance, `var / mean²` (0 from one walk).
+    fn rel_variance(&self) -> f64 {
+        if self.n < 2 {
+            return 0.0;
+        }
+        let n = self.n as f64;
+        let mean = self.sum / n;
+        let var = (self.sum_sq - n * mean * mean) / (n - 1.0);
+        var.max(0.0) / (mean * mean)
+    }
+
     /// Adds `x` to every walk's density (an exact part, no variance).
     pub fn estimate_plus(&self, x: f64) -> PdfEstimate {
         if self.n == 0 {
@@ -133,22 +245,31 @@ impl DensitySums {
 }
 
 impl<S: Scalar> ScalarEngine<S> {
-    /// The approximate pdf of `wo` for `sample(wi)`, from `samples` walks.
-    pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3], samples: u32, seed: u64, query: u64) -> f64 {
-        self.pdf_estimate(wi, wo, samples as u64, seed, query, PdfKind::Approximate)
+    /// The approximate pdf of `wo` for `sample(wi)`, from `walks`.
+    pub fn pdf(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        walks: impl Into<PdfWalks>,
+        seed: u64,
+        query: u64,
+    ) -> f64 {
+        self.pdf_estimate(wi, wo, walks, seed, query, PdfKind::Approximate)
             .value
     }
 
-    /// A pdf of `wo` for `sample(wi)` from `samples` density walks.
+    /// A pdf of `wo` for `sample(wi)` from density walks: a count, or
+    /// [`PdfWalks`] in rounds.
     pub fn pdf_estimate(
         &self,
         wi: [f64; 3],
         wo: [f64; 3],
-        samples: u64,
+        walks: impl Into<PdfWalks>,
         seed: u64,
         query: u64,
         kind: PdfKind,
     ) -> PdfEstimate {
+        let walks = walks.into();
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             return PdfEstimate::default();
         };
@@ -161,18 +282,61 @@ impl<S: Scalar> ScalarEngine<S> {
             max_events: kind.max_events(),
         };
         let prefix = query_prefix(seed, query);
-        let mut sums = DensitySums::default();
-        for k in 0..samples {
-            let mut rng = WalkRng::from_prefix(prefix, k, Stream::Pdf);
-            let draw = |m: bool| {
-                if m {
-                    S::splat(rng.uniform() as f64)
-                } else {
-                    S::zero()
-                }
-            };
-            sums.push(walk.run(wi, wo, draw).lane(0));
-        }
-        sums.finish(kind)
+        let run = |ks: std::ops::Range<u64>| {
+            let mut sums = DensitySums::default();
+            for k in ks {
+                let mut rng = WalkRng::from_prefix(prefix, k, Stream::Pdf);
+                let draw = |m: bool| {
+                    if m {
+                        S::splat(rng.uniform() as f64)
+                    } else {
+                        S::zero()
+                    }
+                };
+                sums.push(walk.run(wi, wo, draw).lane(0));
+            }
+            sums
+        };
+        let p = walks.pilot();
+        let n = walks.after_pilot(&run(0..p));
+        run(p..p + n).finish(kind)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sums(xs: &[f64]) -> DensitySums {
+        let mut s = DensitySums::default();
+        xs.iter().for_each(|&x| s.push(x));
+        s
+    }
+
+    #[test]
+    fn a_fixed_count_has_no_pilot() {
+        assert_eq!(PdfWalks::fixed(0), PdfWalks::fixed(1));
+        let w = PdfWalks::fixed(5);
+        assert_eq!((w.pilot(), w.first_round()), (0, 5));
+        assert_eq!(w.after_pilot(&DensitySums::default()), 5);
+    }
+
+    #[test]
+    fn the_pilot_sets_the_walks_for_the_relative_error() {
+        let w = PdfWalks::adaptive(4, 100, 0.1);
+        // Mean 1, sample variance 1/3: 1/3 / 0.1² walks, rounded up.
+        let pilot = sums(&[1.5, 0.5, 1.5, 0.5]);
+        assert!((pilot.rel_variance() - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(w.after_pilot(&pilot), 34);
+        // At least the pilot's count, at most `max`.
+        assert_eq!(w.after_pilot(&sums(&[1.0; 4])), 4);
+        assert_eq!(w.after_pilot(&sums(&[100.0, 0.0, 0.0, 0.1])), 100);
+        // Nothing found: 0 walks (the uniform part answers).
+        assert_eq!(w.after_pilot(&sums(&[0.0; 4])), 0);
+        // A non-positive target means `max`; `max` is at least the pilot.
+        assert_eq!(PdfWalks::adaptive(4, 9, 0.0).after_pilot(&pilot), 9);
+        assert_eq!(PdfWalks::adaptive(8, 2, 0.1).max(), 8);
+        // A walk of infinite density: the fewest walks, not a panic.
+        assert_eq!(w.after_pilot(&sums(&[f64::INFINITY, 1.0])), 4);
     }
 }

@@ -52,13 +52,13 @@ use super::coat_lambertian::CoatLambertian;
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::params::{LaneSets, SetTable};
-use super::pdf::{DensitySums, PdfEstimate, PdfKind};
+use super::pdf::{PdfEstimate, PdfKind, PdfWalks};
 use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use rayon::prelude::*;
-use stages::TaskBuffers;
+use stages::{PdfScratch, TaskBuffers};
 use std::borrow::Cow;
 use std::cell::RefCell;
 use std::thread::LocalKey;
@@ -274,7 +274,7 @@ struct CallBuffers {
     red: Vec<BlockReducer>,
     red2: Vec<(BlockReducer, BlockReducer)>,
     /// Pdf: each query's sums of density walks.
-    sums: Vec<DensitySums>,
+    pdf: PdfScratch,
 }
 
 /// What a task keeps between tasks on its thread.
@@ -1058,7 +1058,7 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// A pdf of the `m` pairs `query(k) = (pair, key)` (each called once,
-    /// in order), `samples` density walks each, handed to `out` in query
+    /// in order), from `walks` density walks each, handed to `out` in query
     /// order, on the calling thread, from buffers this thread keeps (a warm
     /// thread allocates nothing): the numbers of [`Wavefront::pdf_batch`].
     #[allow(clippy::too_many_arguments)]
@@ -1067,17 +1067,18 @@ impl<W: Wide> Wavefront<W> {
         sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> (Pair, u64),
-        samples: u64,
+        walks: impl Into<PdfWalks>,
         seed: u64,
         kind: PdfKind,
         out: impl FnMut(usize, PdfEstimate),
     ) {
+        let walks = walks.into();
         with_kept(&CALLS, |c| {
             self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)
             });
-            self.pdf_range(&c.queries, 0..m, samples, kind, &mut c.sums, out);
+            self.pdf_range(&c.queries, 0..m, walks, kind, &mut c.pdf, out);
         })
     }
 
@@ -1111,17 +1112,18 @@ impl<W: Wide> Wavefront<W> {
         (res, stats)
     }
 
-    /// A pdf of every `(wi, wo)` pair (see [`crate::estimator::pdf`]),
-    /// `samples` density walks each, one query-walk pair per lane.
+    /// A pdf of every `(wi, wo)` pair (see [`crate::estimator::pdf`]) from
+    /// `walks` density walks each (a count, or [`PdfWalks`] in rounds), one
+    /// query-walk pair per lane.
     pub fn pdf_batch(
         &self,
         pairs: &[([f64; 3], [f64; 3])],
-        samples: u64,
+        walks: impl Into<PdfWalks>,
         seed: u64,
         keys: &[u64],
         kind: PdfKind,
     ) -> Vec<PdfEstimate> {
-        self.pdf_batch_in(Sets::Own, pairs, samples, seed, keys, kind)
+        self.pdf_batch_in(Sets::Own, pairs, walks, seed, keys, kind)
     }
 
     /// [`Wavefront::pdf_batch`] with each query's parameters from `sets`.
@@ -1129,11 +1131,12 @@ impl<W: Wide> Wavefront<W> {
         &self,
         sets: Sets,
         pairs: &[([f64; 3], [f64; 3])],
-        samples: u64,
+        walks: impl Into<PdfWalks>,
         seed: u64,
         keys: &[u64],
         kind: PdfKind,
     ) -> Vec<PdfEstimate> {
+        let walks = walks.into();
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let spec: Vec<_> = pairs
             .iter()
@@ -1144,9 +1147,8 @@ impl<W: Wide> Wavefront<W> {
         let n = pairs.len();
         let chunk = |qs: std::ops::Range<usize>| {
             let mut res = Vec::with_capacity(qs.len());
-            self.pdf_range(&queries, qs, samples, kind, &mut Vec::new(), |_, e| {
-                res.push(e)
-            });
+            let scratch = &mut PdfScratch::default();
+            self.pdf_range(&queries, qs, walks, kind, scratch, |_, e| res.push(e));
             res
         };
         if n <= PDF_CHUNK {

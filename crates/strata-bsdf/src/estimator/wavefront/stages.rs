@@ -14,7 +14,7 @@ use crate::estimator::events::{self, Connection};
 use crate::estimator::events::{ChainStack, Flight};
 use crate::estimator::layout::{toward_exit, LayerKind, MediumLanes, Next};
 use crate::estimator::params::LaneSets;
-use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind};
+use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind, PdfWalks};
 use crate::interface::InterfaceLanes;
 use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
@@ -822,20 +822,60 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
-    /// Pdfs of queries `qs` (a range of query indices) from `samples`
-    /// density walks each, handed to `out` in query order: lane by lane over
-    /// the query-walk pairs in order (walk `k` of query `qs.start + i` is
-    /// pair `i · samples + k`), so that one query of many walks fills the
-    /// lanes as well as many queries of a few, and each query's sum runs in
-    /// walk order, as the scalar engine's does. `sums` is working memory.
+    /// Pdfs of queries `qs` (a range of query indices) from density walks
+    /// ([`PdfWalks`]: a pilot round, then the walks it sets), handed to
+    /// `out` in query order. A round runs its query-walk pairs lane by lane,
+    /// in order, so that one query of many walks fills the lanes as well as
+    /// many queries of a few, and each query's sums run in walk order, as the
+    /// scalar engine's do. `scratch` is working memory.
     pub(super) fn pdf_range(
         &self,
         q: &Queries,
         qs: std::ops::Range<usize>,
-        samples: u64,
+        walks: PdfWalks,
         kind: PdfKind,
-        sums: &mut Vec<DensitySums>,
+        scratch: &mut PdfScratch,
         mut out: impl FnMut(usize, PdfEstimate),
+    ) {
+        let PdfScratch { pilot, sums, jobs } = scratch;
+        let valid = |i: &usize| q.valid[qs.start + i];
+        for s in [&mut *pilot, &mut *sums] {
+            s.clear();
+            s.resize(qs.len(), DensitySums::default());
+        }
+        let p = walks.pilot();
+        jobs.clear();
+        if p > 0 {
+            jobs.extend((0..qs.len()).filter(valid).map(|i| (i as u32, 0..p)));
+            self.pdf_round(q, qs.start, jobs, kind, pilot);
+        }
+        jobs.clear();
+        for i in (0..qs.len()).filter(valid) {
+            let n = walks.after_pilot(&pilot[i]);
+            if n > 0 {
+                jobs.push((i as u32, p..p + n));
+            }
+        }
+        self.pdf_round(q, qs.start, jobs, kind, sums);
+        for (s, qi) in sums.iter().zip(qs) {
+            let e = if q.valid[qi] {
+                s.finish(kind)
+            } else {
+                PdfEstimate::default()
+            };
+            out(qi, e);
+        }
+    }
+
+    /// For each job `(i, ks)`, walks `ks` of query `first_query + i`, added
+    /// to `sums[i]`: the jobs' pairs in order, [`Wide::LANES`] at a time.
+    fn pdf_round(
+        &self,
+        q: &Queries,
+        first_query: usize,
+        jobs: &[PdfJob],
+        kind: PdfKind,
+        sums: &mut [DensitySums],
     ) {
         let own = DensityWalk {
             ifaces: &self.ifaces,
@@ -845,21 +885,27 @@ impl<W: Wide> Wavefront<W> {
         };
         // With per-query sets: each chunk's lanes gather their sets' numbers.
         let (mut ifaces, mut media) = (Vec::new(), Vec::new());
-        sums.clear();
-        sums.resize(qs.len(), DensitySums::default());
-        let pairs = qs.len() as u64 * samples;
-        for first in (0..pairs).step_by(W::LANES) {
-            let lanes = (pairs - first).min(W::LANES as u64) as usize;
+        let mut pairs = jobs.iter().flat_map(|(i, ks)| ks.clone().map(|k| (*i, k)));
+        let (mut slot, mut index) = ([0u32; MAX_LANES], [0u64; MAX_LANES]);
+        loop {
+            let mut lanes = 0;
+            for (j, (i, k)) in pairs.by_ref().take(W::LANES).enumerate() {
+                (slot[j], index[j], lanes) = (i, k, j + 1);
+            }
+            if lanes == 0 {
+                return;
+            }
             // Lanes past the last pair repeat it (their results are dropped).
-            let pair = |j: usize| first + j.min(lanes - 1) as u64;
-            let query = |j: usize| qs.start + (pair(j) / samples) as usize;
-            let ids: [u32; MAX_LANES] = std::array::from_fn(|j| query(j) as u32);
+            for j in lanes..W::LANES {
+                (slot[j], index[j]) = (slot[lanes - 1], index[lanes - 1]);
+            }
+            let ids: [u32; MAX_LANES] = std::array::from_fn(|j| first_query as u32 + slot[j]);
             let lq = &ids[..W::LANES];
             let g = |col: &[f32]| W::gather(col, lq);
             let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
             let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
             let mut rng = LaneRng::<W>::from_states(|j| {
-                seed_state_from(q.prefix[query(j)], pair(j) % samples, Stream::Pdf)
+                seed_state_from(q.prefix[lq[j] as usize], index[j], Stream::Pdf)
             });
             let p = match q.lane_sets(W::LANES, |j| lq[j]) {
                 None => own.run(wi, wo, |m| rng.uniform(m)),
@@ -875,18 +921,22 @@ impl<W: Wide> Wavefront<W> {
                 }
             };
             for j in 0..lanes {
-                sums[(pair(j) / samples) as usize].push(p.lane(j));
+                sums[slot[j] as usize].push(p.lane(j));
             }
         }
-        for (s, qi) in sums.iter().zip(qs) {
-            let e = if q.valid[qi] {
-                s.finish(kind)
-            } else {
-                PdfEstimate::default()
-            };
-            out(qi, e);
-        }
     }
+}
+
+/// A pdf round's job: walks `ks` of the `i`th query of a range.
+type PdfJob = (u32, std::ops::Range<u64>);
+
+/// A pdf call's working memory: each query's sums of pilot and of counted
+/// walks, and a round's jobs.
+#[derive(Default)]
+pub(crate) struct PdfScratch {
+    pilot: Vec<DensitySums>,
+    sums: Vec<DensitySums>,
+    jobs: Vec<PdfJob>,
 }
 
 /// Lanes `0..n` set.
