@@ -414,7 +414,7 @@ fn eval_means_agree_with_independent_seeds() {
 
 #[test]
 fn sample_albedo_and_pdf_match_the_scalar_engine() {
-    let mut rounds = [0; 2];
+    let mut counts = [0; 2];
     for (name, toml) in STACKS {
         let st = stack(toml);
         let sc = ScalarEngine::<f32>::new(&st, Settings::default());
@@ -463,15 +463,15 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
             }
             if walks == PdfWalks::DEFAULT {
                 for e in wp.iter().filter(|e| e.value > 0.0) {
-                    rounds[(e.samples > walks.pilot()) as usize] += 1;
+                    counts[(e.samples > walks.pilot()) as usize] += 1;
                 }
             }
         }
     }
-    // The rounds ran: some queries stopped after the first, some went on.
+    // The pilots chose: some queries ran the fewest walks, some more.
     assert!(
-        rounds[0] > 0 && rounds[1] > 0,
-        "first round only, more: {rounds:?}"
+        counts[0] > 0 && counts[1] > 0,
+        "fewest walks, more: {counts:?}"
     );
 }
 
