@@ -197,15 +197,21 @@ impl DensitySums {
         self.n += 1;
     }
 
-    /// One walk's relative variance, `var / mean²` (0 from one walk).
-    fn rel_variance(&self) -> f64 {
-        if self.n < 2 {
-            return 0.0;
-        }
-        let n = self.n as f64;
+    /// The walks' mean and sample variance (0 from fewer than two walks).
+    fn mean_var(&self) -> (f64, f64) {
+        let n = self.n.max(1) as f64;
         let mean = self.sum / n;
-        let var = (self.sum_sq - n * mean * mean) / (n - 1.0);
-        var.max(0.0) / (mean * mean)
+        let var = match self.n > 1 {
+            true => ((self.sum_sq - n * mean * mean) / (n - 1.0)).max(0.0),
+            false => 0.0,
+        };
+        (mean, var)
+    }
+
+    /// One walk's relative variance, `var / mean²`.
+    fn rel_variance(&self) -> f64 {
+        let (mean, var) = self.mean_var();
+        var / (mean * mean)
     }
 
     /// Adds `x` to every walk's density (an exact part, no variance).
@@ -217,12 +223,7 @@ impl DensitySums {
             };
         }
         let n = self.n as f64;
-        let mean = self.sum / n;
-        let var = if self.n > 1 {
-            ((self.sum_sq - n * mean * mean) / (n - 1.0)).max(0.0)
-        } else {
-            0.0
-        };
+        let (mean, var) = self.mean_var();
         PdfEstimate {
             value: x + mean,
             stderr: (var / n).sqrt(),
@@ -259,7 +260,7 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// A pdf of `wo` for `sample(wi)` from density walks: a count, or
-    /// [`PdfWalks`] in rounds.
+    /// [`PdfWalks`] (a pilot round, then the walks it sets).
     pub fn pdf_estimate(
         &self,
         wi: [f64; 3],
