@@ -646,7 +646,7 @@ impl Bsdf {
     /// random stream, `transport` is "radiance" (light flows from `wi` to
     /// `wo`) or "importance" (the adjoint), `pdf_samples` a fixed number of
     /// density walks per approximate `pdf` (by default, the library's
-    /// rounds: 8 walks, up to 64 until the relative standard error is 0.15), `estimator` the
+    /// pilot round: 8 walks, then 8 to 64 fresh ones for a relative standard error of 0.15), `estimator` the
     /// estimator of `eval`: "auto" (a closed form where the stack has one,
     /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), "uni" or "bidir". Raises

@@ -27,7 +27,7 @@ use strata_bsdf::stack::{
     Distribution, InterfaceDesc, LayerDesc, MaterialDesc, MediumDesc, PhaseDesc, RgbParam,
     Roughness, Shadowing,
 };
-use strata_bsdf::{Engine, LayerStack, LayeredBsdf, QueryError, Settings};
+use strata_bsdf::{Engine, LayerStack, LayeredBsdf, PdfWalks, QueryError, Settings};
 
 fn config(cases: u32, seed: u64) -> Config {
     Config {
@@ -156,9 +156,11 @@ fn subjects() -> Vec<Subject> {
                 name,
                 transmissive: st.transmissive(),
                 two_sided: st.two_sided(),
+                // The pdf's pilot round too, small (2 walks, then 2 to 8).
                 bsdfs: vec![
                     base.clone().engine(Engine::Scalar),
-                    base.engine(Engine::Wavefront),
+                    base.clone().engine(Engine::Wavefront),
+                    base.pdf_walks(PdfWalks::adaptive(2, 8, 0.15)),
                 ],
             }
         })

@@ -462,7 +462,8 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
                 assert_eq!(sp, wp[k], "{name}: {kind:?} {walks:?} pdf {k}");
             }
             if walks == PdfWalks::DEFAULT {
-                for e in wp.iter().filter(|e| e.value > 0.0) {
+                for e in wp.iter().filter(|e| e.samples > 0) {
+                    assert!(e.samples >= walks.pilot(), "{name}: {e:?}");
                     counts[(e.samples > walks.pilot()) as usize] += 1;
                 }
             }

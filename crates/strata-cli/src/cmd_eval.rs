@@ -57,9 +57,9 @@ pub struct Args {
     #[arg(long, default_value = "approx")]
     pdf: strata_bsdf::PdfKind,
     /// Density walks per pdf: for approx, a fixed number in place of the
-    /// library's rounds (8 walks, up to 64 while the relative standard
-    /// error is above 0.15, as `strata sample` runs them); for unbiased,
-    /// default 4096.
+    /// library's pilot round (8 walks, then 8 to 64 fresh ones for a
+    /// relative standard error of 0.15, as `strata sample` runs them); for
+    /// unbiased, default 4096.
     #[arg(long, value_parser = crate::common::walks)]
     pdf_samples: Option<u64>,
     #[command(flatten)]

@@ -240,15 +240,16 @@ impl LayeredBsdf {
     }
 
     /// Sets the number of density walks per approximate `pdf` (at least 1):
-    /// a fixed cost, in place of the default rounds ([`PdfWalks::DEFAULT`]).
+    /// a fixed cost, in place of the default pilot round
+    /// ([`PdfWalks::DEFAULT`]).
     pub fn pdf_samples(mut self, n: u32) -> Self {
         self.pdf_walks = PdfWalks::fixed(n as u64);
         self
     }
 
     /// Sets how many density walks an approximate `pdf` runs: a fixed
-    /// number, or rounds until their relative standard error is small
-    /// enough (the default, [`PdfWalks::DEFAULT`]).
+    /// number, or a pilot round that sets the count for a relative standard
+    /// error (the default, [`PdfWalks::DEFAULT`]).
     pub fn pdf_walks(mut self, walks: PdfWalks) -> Self {
         self.pdf_walks = walks;
         self
@@ -1005,9 +1006,10 @@ impl LayeredBsdf {
         }
     }
 
-    /// The engine of a pdf call of `queries` queries: a density walk costs
+    /// The engine of a pdf call of `queries` queries, by the walks of its
+    /// first round (a pilot's, or a fixed count): a density walk costs
     /// several eval walks and one query's walks share a chunk, so the
-    /// wavefront answers from 4 query-walks on (a single pdf of 4 walks:
+    /// wavefront answers from 4 query-walks on (a single pdf of 4 walks was
     /// 1.2–2.1 times faster there on every representative stack,
     /// docs/performance.md).
     pub(super) fn pdf_engine(&self, queries: usize) -> Engine {

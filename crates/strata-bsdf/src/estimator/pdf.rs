@@ -43,11 +43,12 @@ pub fn mix_uniform(p: f64) -> f64 {
 /// variance `v`; the pdf is then the mean of `v / rel_stderr²` fresh walks
 /// (at least as many as the pilot, at most `max`), so that its relative
 /// standard error is about `rel_stderr`. The pilot's walks are not in the
-/// mean: a mean over walks whose spread chose their number leans (high where
-/// a few walks that happened to agree stop early), while fresh walks are an
-/// unbiased estimate whatever their number. A query whose pilot walks all
-/// found nothing is 0 (the uniform part answers). The walks of a query are
-/// numbered, pilot first, so both engines run the same walks.
+/// mean: a mean over walks whose spread chose their number is biased (walks
+/// that happened to agree stop early), while fresh walks are an unbiased
+/// estimate whatever their number. A pilot that found nothing has no
+/// spread to read; the pilot's count of fresh walks answers it. The walks of
+/// a query are numbered, pilot first, so both engines run the same walks.
+/// Counts are at most [`crate::MAX_WALKS`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PdfWalks {
     pilot: u64,
@@ -65,23 +66,24 @@ impl PdfWalks {
         rel_stderr: 0.15,
     };
 
-    /// Exactly `n` walks (at least one), no pilot.
-    pub const fn fixed(n: u64) -> Self {
+    /// Exactly `n` walks (1 to [`crate::MAX_WALKS`]), no pilot.
+    pub fn fixed(n: u64) -> Self {
         PdfWalks {
             pilot: 0,
-            max: if n == 0 { 1 } else { n },
+            max: n.clamp(1, crate::MAX_WALKS),
             rel_stderr: 0.0,
         }
     }
 
-    /// A pilot of `pilot` walks (at least one), then `pilot` to `max` walks
-    /// for a relative standard error of `rel_stderr` (one that is not
-    /// positive means `max`).
+    /// A pilot of `pilot` walks (at least two: one walk has no spread),
+    /// then `pilot` to `max` walks for a relative standard error of
+    /// `rel_stderr` (one that is not positive, or NaN, means `max`); both
+    /// counts at most [`crate::MAX_WALKS`].
     pub fn adaptive(pilot: u64, max: u64, rel_stderr: f64) -> Self {
-        let pilot = pilot.max(1);
+        let pilot = pilot.clamp(2, crate::MAX_WALKS);
         PdfWalks {
             pilot,
-            max: max.max(pilot),
+            max: max.clamp(pilot, crate::MAX_WALKS),
             rel_stderr: if rel_stderr > 0.0 { rel_stderr } else { 0.0 },
         }
     }
@@ -112,14 +114,11 @@ impl PdfWalks {
 
     /// The walks of the mean after a pilot round that summed to `pilot`.
     pub fn after_pilot(&self, pilot: &DensitySums) -> u64 {
-        if self.pilot == 0 {
+        if self.pilot == 0 || self.rel_stderr == 0.0 {
             return self.max;
         }
-        if pilot.sum == 0.0 {
-            return 0;
-        }
         let walks = (pilot.rel_variance() / (self.rel_stderr * self.rel_stderr)).ceil();
-        // A NaN (a walk of infinite density) casts to 0: the clamp's floor.
+        // A pilot that found nothing (0 / 0) casts to 0: the clamp's floor.
         (walks as u64).clamp(self.pilot, self.max)
     }
 }
@@ -176,7 +175,7 @@ pub struct PdfEstimate {
     pub value: f64,
     /// The standard error of `value` (0 for an exact one).
     pub stderr: f64,
-    /// Number of walks.
+    /// Number of walks in `value` (a pilot round's walks are not).
     pub samples: u64,
 }
 
@@ -201,9 +200,10 @@ impl DensitySums {
     fn mean_var(&self) -> (f64, f64) {
         let n = self.n.max(1) as f64;
         let mean = self.sum / n;
-        let var = match self.n > 1 {
-            true => ((self.sum_sq - n * mean * mean) / (n - 1.0)).max(0.0),
-            false => 0.0,
+        let var = if self.n > 1 {
+            ((self.sum_sq - n * mean * mean) / (n - 1.0)).max(0.0)
+        } else {
+            0.0
         };
         (mean, var)
     }
@@ -260,7 +260,8 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 
     /// A pdf of `wo` for `sample(wi)` from density walks: a count, or
-    /// [`PdfWalks`] (a pilot round, then the walks it sets).
+    /// [`PdfWalks`] (a pilot round, then the walks it sets). The unbiased
+    /// pdf's callers give a count: its standard error is that of the walks.
     pub fn pdf_estimate(
         &self,
         wi: [f64; 3],
@@ -300,7 +301,7 @@ impl<S: Scalar> ScalarEngine<S> {
         };
         let p = walks.pilot();
         let n = walks.after_pilot(&run(0..p));
-        run(p..p + n).finish(kind)
+        run(p..p.saturating_add(n)).finish(kind)
     }
 }
 
@@ -317,6 +318,7 @@ mod tests {
     #[test]
     fn a_fixed_count_has_no_pilot() {
         assert_eq!(PdfWalks::fixed(0), PdfWalks::fixed(1));
+        assert_eq!(PdfWalks::fixed(7).after_pilot(&sums(&[0.0; 3])), 7);
         let w = PdfWalks::fixed(5);
         assert_eq!((w.pilot(), w.first_round()), (0, 5));
         assert_eq!(w.after_pilot(&DensitySums::default()), 5);
@@ -332,12 +334,24 @@ mod tests {
         // At least the pilot's count, at most `max`.
         assert_eq!(w.after_pilot(&sums(&[1.0; 4])), 4);
         assert_eq!(w.after_pilot(&sums(&[100.0, 0.0, 0.0, 0.1])), 100);
-        // Nothing found: 0 walks (the uniform part answers).
-        assert_eq!(w.after_pilot(&sums(&[0.0; 4])), 0);
-        // A non-positive target means `max`; `max` is at least the pilot.
-        assert_eq!(PdfWalks::adaptive(4, 9, 0.0).after_pilot(&pilot), 9);
-        assert_eq!(PdfWalks::adaptive(8, 2, 0.1).max(), 8);
-        // A walk of infinite density: the fewest walks, not a panic.
+        // Nothing found, or no spread: the fewest walks.
+        assert_eq!(w.after_pilot(&sums(&[0.0; 4])), 4);
         assert_eq!(w.after_pilot(&sums(&[f64::INFINITY, 1.0])), 4);
+        // A target that is not positive means `max`, even without spread.
+        for t in [0.0, -1.0, f64::NAN] {
+            let w = PdfWalks::adaptive(4, 9, t);
+            assert_eq!(w.after_pilot(&pilot), 9);
+            assert_eq!(w.after_pilot(&sums(&[1.0; 4])), 9);
+        }
+        // The pilot is at least 2, `max` at least the pilot, both at most
+        // MAX_WALKS.
+        assert_eq!(PdfWalks::adaptive(0, 1, 0.1).pilot(), 2);
+        assert_eq!(PdfWalks::adaptive(8, 2, 0.1).max(), 8);
+        let huge = PdfWalks::adaptive(u64::MAX, u64::MAX, 1e-200);
+        assert_eq!(
+            (huge.pilot(), huge.max()),
+            (crate::MAX_WALKS, crate::MAX_WALKS)
+        );
+        assert_eq!(PdfWalks::fixed(u64::MAX).max(), crate::MAX_WALKS);
     }
 }

@@ -838,6 +838,8 @@ impl<W: Wide> Wavefront<W> {
         mut out: impl FnMut(usize, PdfEstimate),
     ) {
         let PdfScratch { pilot, sums, jobs } = scratch;
+        // The lanes' parameters where queries have sets (allocated only then).
+        let sets = &mut (Vec::new(), Vec::new());
         let valid = |i: &usize| q.valid[qs.start + i];
         for s in [&mut *pilot, &mut *sums] {
             s.clear();
@@ -845,18 +847,17 @@ impl<W: Wide> Wavefront<W> {
         }
         let p = walks.pilot();
         jobs.clear();
+        jobs.reserve(qs.len());
         if p > 0 {
             jobs.extend((0..qs.len()).filter(valid).map(|i| (i as u32, 0..p)));
-            self.pdf_round(q, qs.start, jobs, kind, pilot);
+            self.pdf_round(q, qs.start, jobs, kind, pilot, sets);
         }
         jobs.clear();
         for i in (0..qs.len()).filter(valid) {
             let n = walks.after_pilot(&pilot[i]);
-            if n > 0 {
-                jobs.push((i as u32, p..p + n));
-            }
+            jobs.push((i as u32, p..p.saturating_add(n)));
         }
-        self.pdf_round(q, qs.start, jobs, kind, sums);
+        self.pdf_round(q, qs.start, jobs, kind, sums, sets);
         for (s, qi) in sums.iter().zip(qs) {
             let e = if q.valid[qi] {
                 s.finish(kind)
@@ -869,6 +870,7 @@ impl<W: Wide> Wavefront<W> {
 
     /// For each job `(i, ks)`, walks `ks` of query `first_query + i`, added
     /// to `sums[i]`: the jobs' pairs in order, [`Wide::LANES`] at a time.
+    /// `sets` holds the lanes' gathered parameters where queries have sets.
     fn pdf_round(
         &self,
         q: &Queries,
@@ -876,6 +878,7 @@ impl<W: Wide> Wavefront<W> {
         jobs: &[PdfJob],
         kind: PdfKind,
         sums: &mut [DensitySums],
+        (ifaces, media): &mut (Vec<InterfaceLanes<W>>, Vec<MediumLanes<W>>),
     ) {
         let own = DensityWalk {
             ifaces: &self.ifaces,
@@ -883,8 +886,6 @@ impl<W: Wide> Wavefront<W> {
             settings: &self.settings,
             max_events: kind.max_events(),
         };
-        // With per-query sets: each chunk's lanes gather their sets' numbers.
-        let (mut ifaces, mut media) = (Vec::new(), Vec::new());
         let mut pairs = jobs.iter().flat_map(|(i, ks)| ks.clone().map(|k| (*i, k)));
         let (mut slot, mut index) = ([0u32; MAX_LANES], [0u64; MAX_LANES]);
         loop {
@@ -910,11 +911,12 @@ impl<W: Wide> Wavefront<W> {
             let p = match q.lane_sets(W::LANES, |j| lq[j]) {
                 None => own.run(wi, wo, |m| rng.uniform(m)),
                 Some(sets) => {
-                    sets.ifaces_into(&self.ifaces, &mut ifaces);
-                    sets.media_into(&self.media, &mut media);
+                    // Each chunk's lanes gather their sets' numbers.
+                    sets.ifaces_into(&self.ifaces, ifaces);
+                    sets.media_into(&self.media, media);
                     let walk = DensityWalk {
-                        ifaces: &ifaces,
-                        media: &media,
+                        ifaces,
+                        media,
                         ..own
                     };
                     walk.run(wi, wo, |m| rng.uniform(m))
