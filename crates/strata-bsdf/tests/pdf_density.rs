@@ -318,6 +318,15 @@ fn ring() -> Vec<(glam::Vec3, glam::Vec3)> {
     pairs
 }
 
+/// [`ring`] in f64, for the engines.
+fn ring_f64() -> Vec<([f64; 3], [f64; 3])> {
+    let f64s = |v: glam::Vec3| v.as_dvec3().to_array();
+    ring()
+        .into_iter()
+        .map(|(a, b)| (f64s(a), f64s(b)))
+        .collect()
+}
+
 /// Ratios of the approximate pdf of `b` to the unbiased one `u`, where the
 /// density is at least 5 % of its largest over the ring, sorted.
 fn ratios(b: &LayeredBsdf, u: &[strata_bsdf::PdfEstimate]) -> Vec<f64> {
@@ -444,16 +453,7 @@ fn medium_connection_changes_only_the_variance() {
 #[test]
 #[ignore]
 fn medium_connection_variance() {
-    use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
-    use strata_bsdf::lane::F32x8;
-    use strata_bsdf::{PdfKind, Settings};
-    let wi = dir(WI_DEG, 0.0).map(f64::from);
-    let mut pairs = vec![];
-    for t in (5..80).step_by(10) {
-        for p in (0..360).step_by(45) {
-            pairs.push((wi, dir(t as f64, p as f64).map(f64::from)));
-        }
-    }
+    let pairs = ring_f64();
     let keys: Vec<u64> = (0..pairs.len() as u64).collect();
     let builtins = strata_bsdf::materials::SCATTERING
         .iter()
@@ -531,10 +531,7 @@ fn approximate_pdf_ratios() {
         // wavefront's estimates of the pairs.
         let st = LayerStack::from_toml_str(toml).unwrap();
         let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
-        let wide: Vec<_> = pairs
-            .iter()
-            .map(|&(a, b)| (a.as_dvec3().to_array(), b.as_dvec3().to_array()))
-            .collect();
+        let wide = ring_f64();
         let keys: Vec<u64> = (0..wide.len() as u64).collect();
         let est = wf.pdf_batch(&wide, PdfWalks::DEFAULT, 7, &keys, PdfKind::Approximate);
         let mean_walks = est.iter().map(|e| e.samples).sum::<u64>() as f64 / est.len() as f64;
@@ -543,9 +540,10 @@ fn approximate_pdf_ratios() {
         for w in walks {
             let r = ratios(&b.clone().pdf_walks(w), &u);
             let within = r.iter().filter(|&&x| (0.7..=1.3).contains(&x)).count();
-            let ns = match w == PdfWalks::DEFAULT {
-                true => "default".to_string(),
-                false => w.max().to_string(),
+            let ns = if w == PdfWalks::DEFAULT {
+                "default".to_string()
+            } else {
+                w.max().to_string()
             };
             print!(
                 "  {ns}: {}/{} in [0.7,1.3], q05 {:.2} q50 {:.2} q95 {:.2};",

@@ -9,8 +9,7 @@
 //!   deterministic for a pair of directions (the walks are keyed by them).
 //!   What it neglects: paths longer than the bound, and the noise of its
 //!   walks (it is an unbiased estimate of the density of walks of at most
-//!   [`APPROX_EVENTS`] events, then mixed, except where the pilot found
-//!   nothing);
+//!   [`APPROX_EVENTS`] events, then mixed);
 //! * **unbiased**: the mean of many unbounded density walks, with its
 //!   standard error: the density of `sample()`'s directions, for references
 //!   and tests.

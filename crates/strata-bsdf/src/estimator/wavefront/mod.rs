@@ -273,7 +273,7 @@ struct CallBuffers {
     index: Vec<u64>,
     red: Vec<BlockReducer>,
     red2: Vec<(BlockReducer, BlockReducer)>,
-    /// Pdf: each query's sums of density walks.
+    /// Pdf: each query's sums of density walks, and a round's jobs.
     pdf: PdfScratch,
 }
 
