@@ -260,12 +260,13 @@ fn unbiased_pdf_is_the_density_of_sample() {
 }
 
 /// The approximate pdf (the default walks: a pilot round, then fresh walks
-/// as many as it says) is an unbiased estimate (over its keys) of the
-/// density of walks of at most `APPROX_EVENTS` events, mixed with the
-/// uniform part: its mean over many seeds, unmixed, agrees with the unbiased
-/// pdf within 4 combined standard errors, at the peak and off it. (With the
-/// pilot's walks in the mean, it read 22 % low on the three interfaces'
-/// mirror direction, where one walk in many carries the density.)
+/// as many as it says, the two means blended by a fixed weight) is an
+/// unbiased estimate (over its keys) of the density of walks of at most
+/// `APPROX_EVENTS` events, mixed with the uniform part: its mean over many
+/// seeds, unmixed, agrees with the unbiased pdf within 4 combined standard
+/// errors, at the peak and off it. (The mean of all the walks, pilot and
+/// fresh alike, read 22 % low on the three interfaces' mirror direction,
+/// where one walk in many carries the density.)
 #[test]
 fn approximate_pdf_follows_sample_on_average() {
     use strata_bsdf::estimator::pdf::UNIFORM_FRACTION;
@@ -535,7 +536,7 @@ fn approximate_pdf_ratios() {
         let keys: Vec<u64> = (0..wide.len() as u64).collect();
         let est = wf.pdf_batch(&wide, PdfWalks::DEFAULT, 7, &keys, PdfKind::Approximate);
         let mean_walks = est.iter().map(|e| e.samples).sum::<u64>() as f64 / est.len() as f64;
-        print!(" default: 8 + {mean_walks:.1} walks on average;");
+        print!(" default: {mean_walks:.1} walks on average, the pilot's included;");
         let walks = [PdfWalks::DEFAULT, 4.into(), 8.into(), 16.into(), 32.into()];
         for w in walks {
             let r = ratios(&b.clone().pdf_walks(w), &u);

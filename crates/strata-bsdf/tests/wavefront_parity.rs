@@ -462,9 +462,11 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
                 assert_eq!(sp, wp[k], "{name}: {kind:?} {walks:?} pdf {k}");
             }
             if walks == PdfWalks::DEFAULT {
+                // The pilot's walks and at least as many fresh ones.
+                let fewest = 2 * walks.pilot();
                 for e in wp.iter().filter(|e| e.samples > 0) {
-                    assert!(e.samples >= walks.pilot(), "{name}: {e:?}");
-                    counts[(e.samples > walks.pilot()) as usize] += 1;
+                    assert!(e.samples >= fewest, "{name}: {e:?}");
+                    counts[(e.samples > fewest) as usize] += 1;
                 }
             }
         }

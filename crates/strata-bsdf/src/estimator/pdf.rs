@@ -39,15 +39,16 @@ pub fn mix_uniform(p: f64) -> f64 {
 
 /// How many density walks an approximate pdf runs: a fixed number, or a
 /// pilot round that sets it. The pilot's walks give one walk's relative
-/// variance `v`; the pdf is then the mean of `v / rel_stderr²` fresh walks
-/// (at least as many as the pilot, at most `max`), so that its relative
-/// standard error is about `rel_stderr`. The pilot's walks are not in the
-/// mean: a mean over walks whose spread chose their number is biased (walks
-/// that happened to agree stop early), while fresh walks are an unbiased
-/// estimate whatever their number. A pilot that found nothing has no
-/// spread to read; the pilot's count of fresh walks answers it. The walks of
-/// a query are numbered, pilot first, so both engines run the same walks.
-/// Counts are at most [`crate::MAX_WALKS`].
+/// variance `v`; then `v / rel_stderr²` fresh walks run (at least as many
+/// as the pilot, at most `max`), so that the pdf's relative standard error
+/// is about `rel_stderr`. A mean over all the walks would be biased (walks
+/// that happened to agree stop early), so the pdf blends the pilot's mean
+/// and the fresh walks' mean with a weight fixed in advance
+/// ([`PdfWalks::pilot_weight`]): each mean is an unbiased estimate (the
+/// fresh walks' whatever their number), and so is the blend. A pilot that
+/// found nothing has no spread to read; the pilot's count of fresh walks
+/// answers it. The walks of a query are numbered, pilot first, so both
+/// engines run the same walks. Counts are at most [`crate::MAX_WALKS`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PdfWalks {
     pilot: u64,
@@ -111,7 +112,44 @@ impl PdfWalks {
         }
     }
 
-    /// The walks of the mean after a pilot round that summed to `pilot`.
+    /// The pilot mean's weight in the pdf, `pilot / (pilot + max / 2)`: fixed
+    /// before any walk runs, as the blend's unbiasedness needs. A blend of
+    /// weight `w` has a lower variance than the fresh walks' mean alone
+    /// wherever they number under `pilot (2 − w) / w`, which for this weight
+    /// is `pilot + max`; it gains the most where the pilot asked for few.
+    pub fn pilot_weight(&self) -> f64 {
+        if self.pilot == 0 {
+            return 0.0;
+        }
+        let p = self.pilot as f64;
+        p / (p + self.max as f64 / 2.0)
+    }
+
+    /// The pdf of `kind` from the pilot's sums and the fresh walks'.
+    pub fn finish(&self, pilot: &DensitySums, fresh: &DensitySums, kind: PdfKind) -> PdfEstimate {
+        let w = self.pilot_weight();
+        let fresh = fresh.estimate();
+        let e = if w == 0.0 {
+            fresh
+        } else {
+            let pilot = pilot.estimate();
+            PdfEstimate {
+                value: w * pilot.value + (1.0 - w) * fresh.value,
+                stderr: (w * pilot.stderr).hypot((1.0 - w) * fresh.stderr),
+                samples: pilot.samples + fresh.samples,
+            }
+        };
+        match kind {
+            PdfKind::Unbiased => e,
+            PdfKind::Approximate => PdfEstimate {
+                value: mix_uniform(e.value),
+                stderr: (1.0 - UNIFORM_FRACTION) * e.stderr,
+                samples: e.samples,
+            },
+        }
+    }
+
+    /// The fresh walks after a pilot round that summed to `pilot`.
     pub fn after_pilot(&self, pilot: &DensitySums) -> u64 {
         if self.pilot == 0 || self.rel_stderr == 0.0 {
             return self.max;
@@ -174,7 +212,7 @@ pub struct PdfEstimate {
     pub value: f64,
     /// The standard error of `value` (0 for an exact one).
     pub stderr: f64,
-    /// Number of walks in `value` (a pilot round's walks are not).
+    /// Number of walks in `value`, a pilot round's included.
     pub samples: u64,
 }
 
@@ -213,33 +251,13 @@ impl DensitySums {
         var / (mean * mean)
     }
 
-    /// Adds `x` to every walk's density (an exact part, no variance).
-    pub fn estimate_plus(&self, x: f64) -> PdfEstimate {
-        if self.n == 0 {
-            return PdfEstimate {
-                value: x,
-                ..PdfEstimate::default()
-            };
-        }
-        let n = self.n as f64;
+    /// The walks' mean and its standard error.
+    pub fn estimate(&self) -> PdfEstimate {
         let (mean, var) = self.mean_var();
         PdfEstimate {
-            value: x + mean,
-            stderr: (var / n).sqrt(),
+            value: mean,
+            stderr: (var / self.n.max(1) as f64).sqrt(),
             samples: self.n,
-        }
-    }
-
-    /// The pdf of this kind from these sums.
-    pub fn finish(&self, kind: PdfKind) -> PdfEstimate {
-        let e = self.estimate_plus(0.0);
-        match kind {
-            PdfKind::Unbiased => e,
-            PdfKind::Approximate => PdfEstimate {
-                value: mix_uniform(e.value),
-                stderr: (1.0 - UNIFORM_FRACTION) * e.stderr,
-                samples: e.samples,
-            },
         }
     }
 }
@@ -299,8 +317,9 @@ impl<S: Scalar> ScalarEngine<S> {
             sums
         };
         let p = walks.pilot();
-        let n = walks.after_pilot(&run(0..p));
-        run(p..p.saturating_add(n)).finish(kind)
+        let pilot = run(0..p);
+        let n = walks.after_pilot(&pilot);
+        walks.finish(&pilot, &run(p..p.saturating_add(n)), kind)
     }
 }
 
@@ -352,5 +371,31 @@ mod tests {
             (crate::MAX_WALKS, crate::MAX_WALKS)
         );
         assert_eq!(PdfWalks::fixed(u64::MAX).max(), crate::MAX_WALKS);
+    }
+
+    #[test]
+    fn the_pdf_blends_the_pilot_by_a_weight_fixed_in_advance() {
+        let w = PdfWalks::adaptive(8, 64, 0.15);
+        assert!((w.pilot_weight() - 0.2).abs() < 1e-15);
+        let (pilot, fresh) = (sums(&[2.0, 0.0]), sums(&[1.0, 3.0, 1.0, 3.0]));
+        let e = w.finish(&pilot, &fresh, PdfKind::Unbiased);
+        // Means 1 and 2; variances of the means 1 and 1/3.
+        assert!((e.value - (0.2 * 1.0 + 0.8 * 2.0)).abs() < 1e-12, "{e:?}");
+        let se = (0.2f64.powi(2) * 1.0 + 0.8f64.powi(2) / 3.0).sqrt();
+        assert!((e.stderr - se).abs() < 1e-12, "{e:?}");
+        assert_eq!(e.samples, 6);
+        // At every count of fresh walks the rule can choose, the blend's
+        // variance (per unit of one walk's) is below the fresh mean's.
+        let p = w.pilot() as f64;
+        let b = w.pilot_weight();
+        for n in w.pilot()..=w.max() {
+            let n = n as f64;
+            assert!(b * b / p + (1.0 - b).powi(2) / n < 1.0 / n, "{n} walks");
+        }
+        // A fixed count has no pilot: its mean alone, mixed for approx.
+        let f = PdfWalks::fixed(4);
+        assert_eq!(f.pilot_weight(), 0.0);
+        let e = f.finish(&DensitySums::default(), &fresh, PdfKind::Approximate);
+        assert_eq!((e.value, e.samples), (mix_uniform(2.0), 4));
     }
 }

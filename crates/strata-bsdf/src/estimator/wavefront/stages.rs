@@ -858,9 +858,9 @@ impl<W: Wide> Wavefront<W> {
             jobs.push((i as u32, p..p.saturating_add(n)));
         }
         self.pdf_round(q, qs.start, jobs, kind, sums, sets);
-        for (s, qi) in sums.iter().zip(qs) {
+        for ((s, pilot), qi) in sums.iter().zip(&*pilot).zip(qs) {
             let e = if q.valid[qi] {
-                s.finish(kind)
+                walks.finish(pilot, s, kind)
             } else {
                 PdfEstimate::default()
             };
