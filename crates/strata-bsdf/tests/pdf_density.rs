@@ -558,3 +558,52 @@ fn approximate_pdf_ratios() {
         println!();
     }
 }
+
+/// The approximate pdf's rules for its walks against each other, for
+/// docs/method.md §6: per stack, the share of the ring's directions within
+/// 0.7–1.3× of the unbiased pdf (three seeds) and the mean walks per pdf,
+/// the pilot's included: `cargo test --release -p strata-bsdf --test
+/// pdf_density -- --ignored --nocapture pdf_walk_rules`.
+#[test]
+#[ignore]
+fn pdf_walk_rules() {
+    let rules = [
+        PdfWalks::DEFAULT,
+        PdfWalks::adaptive(12, 64, 0.15),
+        PdfWalks::adaptive(16, 64, 0.15),
+        PdfWalks::adaptive(8, 96, 0.15),
+        PdfWalks::adaptive(8, 64, 0.13),
+        PdfWalks::fixed(32),
+        PdfWalks::fixed(64),
+    ];
+    let mut total = vec![(0, 0, 0.0); rules.len()];
+    for (name, toml) in STACKS {
+        let b = bsdf(toml);
+        let u = b.pdf_unbiased_batch(&ring(), 4096).unwrap();
+        let st = LayerStack::from_toml_str(toml).unwrap();
+        let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
+        let wide = ring_f64();
+        let keys: Vec<u64> = (0..wide.len() as u64).collect();
+        print!("{name:58}");
+        for (rule, t) in rules.iter().zip(&mut total) {
+            let (mut within, mut n) = (0, 0);
+            for seed in [7, 8, 9] {
+                let r = ratios(&b.clone().seed(seed).pdf_walks(*rule), &u);
+                within += r.iter().filter(|&&x| (0.7..=1.3).contains(&x)).count();
+                n += r.len();
+            }
+            let est = wf.pdf_batch(&wide, *rule, 7, &keys, PdfKind::Approximate);
+            let walks = est.iter().map(|e| e.samples).sum::<u64>() as f64 / est.len() as f64;
+            print!(" | {:.3} {walks:5.1}", within as f64 / n as f64);
+            *t = (t.0 + within, t.1 + n, t.2 + walks);
+        }
+        println!();
+    }
+    for (rule, t) in rules.iter().zip(&total) {
+        println!(
+            "{rule:?}: {:.3} within 0.7–1.3×, {:.1} walks per pdf (mean over the stacks)",
+            t.0 as f64 / t.1 as f64,
+            t.2 / STACKS.len() as f64
+        );
+    }
+}
