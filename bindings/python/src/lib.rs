@@ -611,6 +611,16 @@ struct Bsdf {
     inner: LayeredBsdf,
 }
 
+/// `pdf_samples` as Python gave it: the fixed count, or `None` for the
+/// library's rule.
+fn pdf_samples_repr(walks: PdfWalks) -> String {
+    if walks.pilot() == 0 {
+        walks.max().to_string()
+    } else {
+        "None".to_string()
+    }
+}
+
 fn build(
     stack: LayerStack,
     samples: u64,
@@ -1016,11 +1026,12 @@ impl Bsdf {
             .clone()
             .unwrap_or_else(|| format!("{} interfaces", self.inner.stack().len()));
         format!(
-            "Bsdf({what:?}, samples={}, seed={}, transport={:?}, estimator={:?})",
+            "Bsdf({what:?}, samples={}, seed={}, transport={:?}, estimator={:?}, pdf_samples={})",
             self.inner.samples_per_eval(),
             self.inner.seed_value(),
             self.inner.transport_mode().as_str(),
-            self.inner.estimator_choice().as_str()
+            self.inner.estimator_choice().as_str(),
+            pdf_samples_repr(self.inner.pdf_walks_value())
         )
     }
 }

@@ -226,6 +226,30 @@ def test_plugin_scalar_calls(tmp_path):
     assert rad[0] > 0 and abs(rad[0] * 2.25 - imp[0]) < 1e-5 * imp[0]
 
 
+def test_pdf_samples_property(materials):
+    """``pdf_samples`` fixes the density walks of the plugin's pdf: it is the
+    Python Bsdf's pdf with that count, bit for bit, and differs from the
+    default rule's; 0 is refused."""
+    use_variant("scalar_rgb")
+    from strata_bsdf import Bsdf
+
+    path = str(materials / "coated_copper.toml")
+    d = {"type": "strata", "filename": path}
+    default, fixed = mi.load_dict(d), mi.load_dict(dict(d, pdf_samples=4))
+    assert "pdf_samples=4" in str(fixed) and "pdf_samples=None" in str(default)
+    ctx = mi.BSDFContext()  # a camera path: strata's importance transport
+    wi, wo = (0.3, 0.2, math.sqrt(1 - 0.13)), (-0.6, 0.0, 0.8)
+    si = si_with(mi.Vector3f(*wi))
+    a, b = np.array([wi], np.float32), np.array([wo], np.float32)
+    for plugin, n in ((fixed, 4), (default, None)):
+        want = Bsdf.from_path(path, transport="importance", pdf_samples=n).pdf(a, b)[0]
+        got = plugin.pdf(ctx, si, mi.Vector3f(*wo))
+        assert got == float(want) and got > 0, (n, got, want)
+    assert fixed.pdf(ctx, si, mi.Vector3f(*wo)) != default.pdf(ctx, si, mi.Vector3f(*wo))
+    with pytest.raises(Exception, match="pdf_samples = 0"):
+        mi.load_dict(dict(d, pdf_samples=0))
+
+
 def test_delta_samples_are_flagged(materials):
     use_variant("scalar_rgb")
     cc = mi.load_dict({"type": "strata", "filename": str(materials / "clear_coat_lambertian.toml")})

@@ -311,6 +311,21 @@ int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
                                   uint32_t estimator);
 
 /**
+ * Sets how many density walks each approximate pdf runs (the pdf that
+ * `strata_pdf_batch` returns and that the samples carry): `n = 0` (the
+ * default) is the library's pilot round, 8 walks and then 8 to 64 fresh
+ * ones for a relative standard error of 0.15; `n ≥ 1` is exactly `n` walks,
+ * a fixed cost (docs/method.md §6 compares the two). Every `n` is valid.
+ * Configure a BSDF before sharing it: this call must not run while another
+ * thread uses `b`.
+ *
+ * # Safety
+ * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+ * thread uses during the call.
+ */
+int32_t strata_bsdf_set_pdf_samples(struct StrataBsdf *b, uint32_t n);
+
+/**
  * Runs the BSDF's large batches on a pool of `threads` threads of its own
  * (0: one per core; at most 1024). By default they run on a pool shared by
  * every BSDF of the process, one thread per core. Calls of a few walks

@@ -33,7 +33,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, Materials, SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
+    LayeredBsdf, Materials, PdfWalks, SampleRecord, SetError, SetPath, Transport, Vectors,
+    VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -639,6 +640,35 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
             }
         };
         b.inner = b.inner.clone().estimator(e);
+        Ok(())
+    })
+}
+
+/// Sets how many density walks each approximate pdf runs (the pdf that
+/// `strata_pdf_batch` returns and that the samples carry): `n = 0` (the
+/// default) is the library's pilot round, 8 walks and then 8 to 64 fresh
+/// ones for a relative standard error of 0.15; `n ≥ 1` is exactly `n` walks,
+/// a fixed cost (docs/method.md §6 compares the two). Every `n` is valid.
+/// Configure a BSDF before sharing it: this call must not run while another
+/// thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32) -> i32 {
+    guard("strata_bsdf_set_pdf_samples", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread, so this is the only reference to it.
+        let b = match unsafe { b.as_mut() } {
+            Some(b) => b,
+            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+        };
+        let walks = match n {
+            0 => PdfWalks::DEFAULT,
+            n => PdfWalks::fixed(u64::from(n)),
+        };
+        b.inner = b.inner.clone().pdf_walks(walks);
         Ok(())
     })
 }

@@ -414,6 +414,65 @@ fn a_samples_pdf_is_what_pdf_batch_gives_and_pdf_is_the_rust_apis() {
     assert!(checked > N / 2, "{checked} samples not absorbed");
 }
 
+/// `strata_bsdf_set_pdf_samples` is the Rust API's `pdf_samples` (n ≥ 1)
+/// and its default rule (n = 0), bit for bit, in the pdfs and in the pdfs
+/// the samples carry; a fixed count differs from the default; NULL is an
+/// error.
+#[test]
+fn pdf_samples_are_the_rust_apis() {
+    let wi = directions(N, 6, false);
+    let wo = directions(N, 7, false);
+    let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+    let pdfs = |c: &Capi| {
+        let mut pdf = vec![0.0f32; N];
+        // SAFETY: wi, wo hold 3 N floats, pdf N.
+        let status =
+            unsafe { strata_pdf_batch(c.0, N, wi_f.as_ptr(), wo_f.as_ptr(), pdf.as_mut_ptr()) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        let mut s = vec![StrataSample::default(); N];
+        // SAFETY: wi holds 3 N floats, s N records.
+        let status = unsafe { strata_sample_batch(c.0, N, wi_f.as_ptr(), null(), s.as_mut_ptr()) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        (pdf, s.iter().map(|s| s.pdf.to_bits()).collect::<Vec<_>>())
+    };
+    let rust_pdfs = |r: &LayeredBsdf| {
+        let mut pdf = vec![0.0f32; N];
+        r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut pdf)
+            .unwrap();
+        let mut s = vec![SampleRecord::default(); N];
+        r.sample_records(Vectors::Aos(&wi), None, &mut s).unwrap();
+        (pdf, s.iter().map(|s| s.pdf.to_bits()).collect::<Vec<_>>())
+    };
+    let mut seen = vec![];
+    for n in [0u32, 1, 3, 40] {
+        let c = Capi::toml(COATED_COPPER, 16, 5);
+        // SAFETY: `c.0` is a live BSDF used by this thread only.
+        assert_eq!(unsafe { strata_bsdf_set_pdf_samples(c.0, n) }, STRATA_OK);
+        let r = match n {
+            0 => rust(COATED_COPPER, 16, 5),
+            n => rust(COATED_COPPER, 16, 5).pdf_samples(n),
+        };
+        let (pdf, carried) = pdfs(&c);
+        let (want, want_carried) = rust_pdfs(&r);
+        assert_eq!(bits(&pdf), bits(&want), "n = {n}");
+        assert_eq!(carried, want_carried, "n = {n}");
+        assert!(pdf.iter().all(|&p| p > 0.0 && p.is_finite()), "n = {n}");
+        seen.push(bits(&pdf));
+    }
+    // The default is the pilot's rule, not a fixed count; counts differ.
+    let fresh = Capi::toml(COATED_COPPER, 16, 5);
+    assert_eq!(bits(&pdfs(&fresh).0), seen[0]);
+    for k in 1..seen.len() {
+        assert_ne!(seen[0], seen[k], "default and count {k}");
+    }
+    // SAFETY: NULL is an error, not a dereference.
+    assert_eq!(
+        unsafe { strata_bsdf_set_pdf_samples(null_mut(), 4) },
+        STRATA_ERR_NULL
+    );
+    assert_eq!(last_error(), "strata_bsdf_set_pdf_samples: b is NULL");
+}
+
 #[test]
 fn albedo_is_the_rust_apis_bit_for_bit() {
     let c = Capi::toml(GLASS, 16, 9);

@@ -66,6 +66,8 @@ int main(void) {
            "b is NULL", NULL);
     expect("estimator, NULL b", strata_bsdf_set_estimator(NULL, 0), STRATA_ERR_NULL,
            "b is NULL", NULL);
+    expect("pdf samples, NULL b", strata_bsdf_set_pdf_samples(NULL, 4), STRATA_ERR_NULL,
+           "b is NULL", NULL);
     expect("NULL b even with n = 0", strata_eval_batch(NULL, 0, NULL, NULL, NULL, NULL),
            STRATA_ERR_NULL, "b is NULL", NULL);
     expect("keyed, NULL b and keys", strata_eval_batch_keyed(NULL, 4, wi, wo, NULL, f, NULL),
