@@ -611,16 +611,6 @@ struct Bsdf {
     inner: LayeredBsdf,
 }
 
-/// `pdf_samples` as Python gave it: the fixed count, or `None` for the
-/// library's rule.
-fn pdf_samples_repr(walks: PdfWalks) -> String {
-    if walks.pilot() == 0 {
-        walks.max().to_string()
-    } else {
-        "None".to_string()
-    }
-}
-
 fn build(
     stack: LayerStack,
     samples: u64,
@@ -729,6 +719,14 @@ impl Bsdf {
     #[getter]
     fn estimator(&self) -> &'static str {
         self.inner.estimator_choice().as_str()
+    }
+
+    /// The fixed number of density walks per approximate pdf, or `None` for
+    /// the library's rule (a pilot round; the default).
+    #[getter]
+    fn pdf_samples(&self) -> Option<u64> {
+        let walks = self.inner.pdf_walks_value();
+        (walks.pilot() == 0).then(|| walks.max())
     }
 
     /// Whether `eval` runs the bidirectional estimator on this material.
@@ -1031,7 +1029,8 @@ impl Bsdf {
             self.inner.seed_value(),
             self.inner.transport_mode().as_str(),
             self.inner.estimator_choice().as_str(),
-            pdf_samples_repr(self.inner.pdf_walks_value())
+            self.pdf_samples()
+                .map_or("None".to_string(), |n| n.to_string())
         )
     }
 }

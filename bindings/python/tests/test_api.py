@@ -104,8 +104,14 @@ def test_fixed_pdf_samples_bit_identical_to_cli(strata_cli, materials):
     cli = run_cli(strata_cli, args, lines)
     fixed = Bsdf.from_path(path, samples=4, seed=seed, pdf_samples=4).pdf(wi, wo)
     np.testing.assert_array_equal(fixed, np.array([c["pdf"] for c in cli], dtype=np.float64).astype(np.float32))
-    default = Bsdf.from_path(path, samples=4, seed=seed).pdf(wi, wo)
+    rule = Bsdf.from_path(path, samples=4, seed=seed)
+    default = rule.pdf(wi, wo)
     assert np.all(default > 0) and np.any(default != fixed)
+    # The setting reads back, and survives the with_* copies.
+    four = Bsdf.from_path(path, pdf_samples=4)
+    assert rule.pdf_samples is None and four.pdf_samples == 4
+    assert four.with_transport("importance").with_estimator("uni").pdf_samples == 4
+    assert "pdf_samples=4" in repr(four) and "pdf_samples=None" in repr(rule)
     with pytest.raises(ValueError, match="pdf_samples = 0"):
         Bsdf.from_path(path, pdf_samples=0)
 

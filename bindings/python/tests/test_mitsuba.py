@@ -241,10 +241,13 @@ def test_pdf_samples_property(materials):
     wi, wo = (0.3, 0.2, math.sqrt(1 - 0.13)), (-0.6, 0.0, 0.8)
     si = si_with(mi.Vector3f(*wi))
     a, b = np.array([wi], np.float32), np.array([wo], np.float32)
+    # Camera paths run strata's importance transport, light paths its radiance.
+    modes = (("importance", ctx), ("radiance", mi.BSDFContext(mi.TransportMode.Importance)))
     for plugin, n in ((fixed, 4), (default, None)):
-        want = Bsdf.from_path(path, transport="importance", pdf_samples=n).pdf(a, b)[0]
-        got = plugin.pdf(ctx, si, mi.Vector3f(*wo))
-        assert got == float(want) and got > 0, (n, got, want)
+        for transport, c in modes:
+            want = Bsdf.from_path(path, transport=transport, pdf_samples=n).pdf(a, b)[0]
+            got = plugin.pdf(c, si, mi.Vector3f(*wo))
+            assert got == float(want) and got > 0, (n, transport, got, want)
     assert fixed.pdf(ctx, si, mi.Vector3f(*wo)) != default.pdf(ctx, si, mi.Vector3f(*wo))
     with pytest.raises(Exception, match="pdf_samples = 0"):
         mi.load_dict(dict(d, pdf_samples=0))

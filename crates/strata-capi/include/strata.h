@@ -86,6 +86,12 @@
 #define STRATA_ESTIMATOR_BIDIRECTIONAL 2
 
 /**
+ * `strata_bsdf_set_pdf_samples`'s `n` for the library's rule (a pilot
+ * round), the default; any other `n` is a fixed count.
+ */
+#define STRATA_PDF_SAMPLES_RULE 0
+
+/**
  * `StrataSample::flags` bit: the walk left on the side it entered.
  */
 #define STRATA_SAMPLE_REFLECTION 1
@@ -312,10 +318,12 @@ int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
 
 /**
  * Sets how many density walks each approximate pdf runs (the pdf that
- * `strata_pdf_batch` returns and that the samples carry): `n = 0` (the
- * default) is the library's pilot round, 8 walks and then 8 to 64 fresh
- * ones for a relative standard error of 0.15; `n ≥ 1` is exactly `n` walks,
- * a fixed cost (docs/method.md §6 compares the two). Every `n` is valid.
+ * `strata_pdf_batch` returns and that the samples carry):
+ * `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
+ * 8 walks and then 8 to 64 fresh ones for a relative standard error of
+ * 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
+ * compares the two). Every `n` is valid. (The Rust API's `pdf_samples(0)`
+ * is one walk; here 0 names the rule.)
  * Configure a BSDF before sharing it: this call must not run while another
  * thread uses `b`.
  *

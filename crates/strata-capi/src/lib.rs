@@ -76,6 +76,10 @@ pub const STRATA_ESTIMATOR_UNIDIRECTIONAL: u32 = 1;
 /// Estimator of eval: the bidirectional walks, always.
 pub const STRATA_ESTIMATOR_BIDIRECTIONAL: u32 = 2;
 
+/// `strata_bsdf_set_pdf_samples`'s `n` for the library's rule (a pilot
+/// round), the default; any other `n` is a fixed count.
+pub const STRATA_PDF_SAMPLES_RULE: u32 = 0;
+
 /// `StrataSample::flags` bit: the walk left on the side it entered.
 pub const STRATA_SAMPLE_REFLECTION: u32 = 1;
 /// `StrataSample::flags` bit: the walk left on the other side.
@@ -311,6 +315,20 @@ unsafe fn bsdf_ref<'a>(b: *const StrataBsdf) -> Result<&'a LayeredBsdf, Failure>
     // `StrataBsdf`, which nothing mutates during a batch call.
     match unsafe { b.as_ref() } {
         Some(b) => Ok(&b.inner),
+        None => Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
+    }
+}
+
+/// The BSDF behind `b` to configure, or an error if it is NULL.
+///
+/// # Safety
+/// `b` is NULL or a pointer from `strata_bsdf_from_*` not yet freed, which
+/// no other thread uses during the call.
+unsafe fn bsdf_mut<'a>(b: *mut StrataBsdf) -> Result<&'a mut LayeredBsdf, Failure> {
+    // SAFETY: the caller guarantees that a non-NULL `b` is live and not used
+    // by another thread, so this is the only reference to it.
+    match unsafe { b.as_mut() } {
+        Some(b) => Ok(&mut b.inner),
         None => Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
     }
 }
@@ -589,11 +607,8 @@ pub unsafe extern "C" fn strata_bsdf_from_path(
 pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32) -> i32 {
     guard("strata_bsdf_set_transport", || {
         // SAFETY: the caller guarantees that a non-NULL `b` is live and not
-        // used by another thread, so this is the only reference to it.
-        let b = match unsafe { b.as_mut() } {
-            Some(b) => b,
-            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
-        };
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
         let t = match mode {
             STRATA_TRANSPORT_RADIANCE => Transport::Radiance,
             STRATA_TRANSPORT_IMPORTANCE => Transport::Importance,
@@ -604,7 +619,7 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
                 )))
             }
         };
-        b.inner = b.inner.clone().transport(t);
+        *b = b.clone().transport(t);
         Ok(())
     })
 }
@@ -623,11 +638,8 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
 pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator: u32) -> i32 {
     guard("strata_bsdf_set_estimator", || {
         // SAFETY: the caller guarantees that a non-NULL `b` is live and not
-        // used by another thread, so this is the only reference to it.
-        let b = match unsafe { b.as_mut() } {
-            Some(b) => b,
-            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
-        };
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
         let e = match estimator {
             STRATA_ESTIMATOR_AUTO => Estimator::Auto,
             STRATA_ESTIMATOR_UNIDIRECTIONAL => Estimator::Unidirectional,
@@ -639,16 +651,18 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
                 )))
             }
         };
-        b.inner = b.inner.clone().estimator(e);
+        *b = b.clone().estimator(e);
         Ok(())
     })
 }
 
 /// Sets how many density walks each approximate pdf runs (the pdf that
-/// `strata_pdf_batch` returns and that the samples carry): `n = 0` (the
-/// default) is the library's pilot round, 8 walks and then 8 to 64 fresh
-/// ones for a relative standard error of 0.15; `n ≥ 1` is exactly `n` walks,
-/// a fixed cost (docs/method.md §6 compares the two). Every `n` is valid.
+/// `strata_pdf_batch` returns and that the samples carry):
+/// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
+/// 8 walks and then 8 to 64 fresh ones for a relative standard error of
+/// 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
+/// compares the two). Every `n` is valid. (The Rust API's `pdf_samples(0)`
+/// is one walk; here 0 names the rule.)
 /// Configure a BSDF before sharing it: this call must not run while another
 /// thread uses `b`.
 ///
@@ -659,16 +673,13 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
 pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32) -> i32 {
     guard("strata_bsdf_set_pdf_samples", || {
         // SAFETY: the caller guarantees that a non-NULL `b` is live and not
-        // used by another thread, so this is the only reference to it.
-        let b = match unsafe { b.as_mut() } {
-            Some(b) => b,
-            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
-        };
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
         let walks = match n {
-            0 => PdfWalks::DEFAULT,
+            STRATA_PDF_SAMPLES_RULE => PdfWalks::DEFAULT,
             n => PdfWalks::fixed(u64::from(n)),
         };
-        b.inner = b.inner.clone().pdf_walks(walks);
+        *b = b.clone().pdf_walks(walks);
         Ok(())
     })
 }
@@ -690,13 +701,9 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32)
 pub unsafe extern "C" fn strata_bsdf_set_threads(b: *mut StrataBsdf, threads: usize) -> i32 {
     guard("strata_bsdf_set_threads", || {
         // SAFETY: the caller guarantees that a non-NULL `b` is live and not
-        // used by another thread, so this is the only reference to it.
-        let b = match unsafe { b.as_mut() } {
-            Some(b) => b,
-            None => return Err(Failure::new(STRATA_ERR_NULL, "b is NULL")),
-        };
-        b.inner = b
-            .inner
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
+        *b = b
             .clone()
             .threads(threads)
             .map_err(|e| Failure::invalid(e.to_string()))?;

@@ -444,9 +444,11 @@ fn pdf_samples_are_the_rust_apis() {
         (pdf, s.iter().map(|s| s.pdf.to_bits()).collect::<Vec<_>>())
     };
     let mut seen = vec![];
-    for n in [0u32, 1, 3, 40] {
+    for n in [STRATA_PDF_SAMPLES_RULE, 1, 3, 40] {
         let c = Capi::toml(COATED_COPPER, 16, 5);
-        // SAFETY: `c.0` is a live BSDF used by this thread only.
+        // SAFETY: `c.0` is a live BSDF used by this thread only. A count
+        // set first must not survive the rule.
+        assert_eq!(unsafe { strata_bsdf_set_pdf_samples(c.0, 7) }, STRATA_OK);
         assert_eq!(unsafe { strata_bsdf_set_pdf_samples(c.0, n) }, STRATA_OK);
         let r = match n {
             0 => rust(COATED_COPPER, 16, 5),
@@ -462,8 +464,8 @@ fn pdf_samples_are_the_rust_apis() {
     // The default is the pilot's rule, not a fixed count; counts differ.
     let fresh = Capi::toml(COATED_COPPER, 16, 5);
     assert_eq!(bits(&pdfs(&fresh).0), seen[0]);
-    for k in 1..seen.len() {
-        assert_ne!(seen[0], seen[k], "default and count {k}");
+    for (k, n) in [1, 3, 40].into_iter().enumerate() {
+        assert_ne!(seen[0], seen[k + 1], "the rule and {n} walks");
     }
     // SAFETY: NULL is an error, not a dereference.
     assert_eq!(

@@ -97,6 +97,9 @@ class Bsdf:
     @property
     def estimator(self) -> Estimator: ...
     @property
+    def pdf_samples(self) -> Optional[int]:
+        """The fixed number of density walks per approximate pdf, or None for the library's rule."""
+    @property
     def bidirectional(self) -> bool: ...
     @property
     def exact_sampling(self) -> bool: ...

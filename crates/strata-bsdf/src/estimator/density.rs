@@ -64,9 +64,9 @@
 //! The chain itself is `sample()`'s: the same kernels, hero channel, Russian
 //! roulette and settings, on its own random stream. So each walk's sum is an
 //! unbiased estimate of the density of `sample()` (the "unbiased, slow" pdf);
-//! averaged over walks (as many as a pilot round says), bounded in length and
-//! mixed with a small uniform density it is the approximate pdf `sample()`
-//! returns ([`super::pdf`]).
+//! averaged over walks (as many as a pilot round says, its mean blended in),
+//! bounded in length and mixed with a small uniform density it is the
+//! approximate pdf `sample()` returns ([`super::pdf`]).
 //!
 //! The walk is written once over lanes: the scalar engine runs it on one lane,
 //! the wavefront on one query-walk pair per lane. Lanes draw uniforms only

@@ -1,10 +1,11 @@
 //! The pdfs of `sample()` (method.md §6), both from the density walk of
 //! [`super::density`]:
 //!
-//! * **approximate** (what `pdf()` and `sample()` return): the mean of
-//!   density walks, each stopped after [`APPROX_EVENTS`] events, as many as
-//!   a pilot round says a relative standard error of 0.15 needs
-//!   ([`PdfWalks`]), mixed with a uniform density, `pdf = (1 − f) p + f / 4π`
+//! * **approximate** (what `pdf()` and `sample()` return): density walks,
+//!   each stopped after [`APPROX_EVENTS`] events, as many as a pilot round
+//!   says a relative standard error of 0.15 needs, the pilot's mean and the
+//!   fresh walks' blended by a weight fixed in advance ([`PdfWalks`]), mixed
+//!   with a uniform density, `pdf = (1 − f) p + f / 4π`
 //!   ([`UNIFORM_FRACTION`]), so that it is positive wherever `f` can be. It is
 //!   deterministic for a pair of directions (the walks are keyed by them).
 //!   What it neglects: paths longer than the bound, and the noise of its

@@ -932,8 +932,8 @@ impl<W: Wide> Wavefront<W> {
 /// A pdf round's job: walks `ks` of the `i`th query of a range.
 type PdfJob = (u32, std::ops::Range<u64>);
 
-/// A pdf call's working memory: each query's sums of pilot and of counted
-/// walks, and a round's jobs.
+/// A pdf call's working memory: each query's sums of its pilot walks and of
+/// its fresh walks, and a round's jobs.
 #[derive(Default)]
 pub(crate) struct PdfScratch {
     pilot: Vec<DensitySums>,
