@@ -616,16 +616,24 @@ fn build(
     samples: u64,
     seed: u64,
     transport: &str,
-    pdf_samples: Option<u32>,
+    pdf_samples: Option<i64>,
     estimator: &str,
 ) -> PyResult<Bsdf> {
     check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    if pdf_samples == Some(0) {
-        return Err(PyValueError::new_err(
-            "pdf_samples = 0: at least one walk per pdf is needed",
-        ));
-    }
-    let pdf_walks = pdf_samples.map_or(PdfWalks::DEFAULT, |n| PdfWalks::fixed(n as u64));
+    let pdf_walks = match pdf_samples {
+        None => PdfWalks::DEFAULT,
+        Some(n @ 1..=0xffff_ffff) => PdfWalks::fixed(n as u64),
+        Some(0) => {
+            return Err(PyValueError::new_err(
+                "pdf_samples = 0: at least one walk per pdf is needed",
+            ))
+        }
+        Some(n) => {
+            return Err(PyValueError::new_err(format!(
+                "pdf_samples = {n}: expected None or 1 to 4294967295 walks"
+            )))
+        }
+    };
     let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
     let estimator: Estimator = estimator.parse().map_err(PyValueError::new_err)?;
     Ok(Bsdf {
@@ -645,9 +653,9 @@ impl Bsdf {
     /// `samples` is the number of walks per `eval` query, `seed` seeds every
     /// random stream, `transport` is "radiance" (light flows from `wi` to
     /// `wo`) or "importance" (the adjoint), `pdf_samples` a fixed number of
-    /// density walks per approximate `pdf` (by default, the library's
-    /// pilot round: 8 walks, then 8 to 64 fresh ones for a relative standard error of 0.15), `estimator` the
-    /// estimator of `eval`: "auto" (a closed form where the stack has one,
+    /// density walks per approximate `pdf` (by default, the library's pilot
+    /// round: 8 walks, then 8 to 64 fresh ones for a relative standard error
+    /// of 0.15), `estimator` the estimator of `eval`: "auto" (a closed form where the stack has one,
     /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), "uni" or "bidir". Raises
     /// `MaterialError` (a ValueError) naming the layer, the field and the
@@ -659,7 +667,7 @@ impl Bsdf {
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: Option<u32>,
+        pdf_samples: Option<i64>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
@@ -674,7 +682,7 @@ impl Bsdf {
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: Option<u32>,
+        pdf_samples: Option<i64>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
@@ -690,7 +698,7 @@ impl Bsdf {
         samples: u64,
         seed: u64,
         transport: &str,
-        pdf_samples: Option<u32>,
+        pdf_samples: Option<i64>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;

@@ -114,6 +114,9 @@ def test_fixed_pdf_samples_bit_identical_to_cli(strata_cli, materials):
     assert "pdf_samples=4" in repr(four) and "pdf_samples=None" in repr(rule)
     with pytest.raises(ValueError, match="pdf_samples = 0"):
         Bsdf.from_path(path, pdf_samples=0)
+    for bad in (-3, 2**32):
+        with pytest.raises(ValueError, match=f"pdf_samples = {bad}: expected None or 1 to"):
+            Bsdf.from_path(path, pdf_samples=bad)
 
 
 @pytest.mark.parametrize("material", ["coated_copper.toml", "three_interfaces.toml"])

@@ -1009,9 +1009,8 @@ impl LayeredBsdf {
     /// The engine of a pdf call of `queries` queries, by the walks of its
     /// first round (a pilot's, or a fixed count): a density walk costs
     /// several eval walks and one query's walks share a chunk, so the
-    /// wavefront answers from 4 query-walks on (a single pdf of 4 walks was
-    /// 1.2–2.1 times faster there on every representative stack,
-    /// docs/performance.md).
+    /// wavefront answers from 4 query-walks on (docs/performance.md measures
+    /// the crossing).
     pub(super) fn pdf_engine(&self, queries: usize) -> Engine {
         self.engine
             .resolve(queries, 2 * self.pdf_walks.first_round())

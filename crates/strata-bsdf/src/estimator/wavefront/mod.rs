@@ -1113,8 +1113,8 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// A pdf of every `(wi, wo)` pair (see [`crate::estimator::pdf`]) from
-    /// `walks` density walks each (a count, or [`PdfWalks`]: a pilot round, then the walks it sets), one
-    /// query-walk pair per lane.
+    /// `walks` density walks each (a count, or [`PdfWalks`]: a pilot round,
+    /// then the walks it sets), one query-walk pair per lane.
     pub fn pdf_batch(
         &self,
         pairs: &[([f64; 3], [f64; 3])],

@@ -837,11 +837,11 @@ impl<W: Wide> Wavefront<W> {
         scratch: &mut PdfScratch,
         mut out: impl FnMut(usize, PdfEstimate),
     ) {
-        let PdfScratch { pilot, sums, jobs } = scratch;
+        let PdfScratch { pilot, fresh, jobs } = scratch;
         // The lanes' parameters where queries have sets (allocated only then).
         let sets = &mut (Vec::new(), Vec::new());
         let valid = |i: &usize| q.valid[qs.start + i];
-        for s in [&mut *pilot, &mut *sums] {
+        for s in [&mut *pilot, &mut *fresh] {
             s.clear();
             s.resize(qs.len(), DensitySums::default());
         }
@@ -857,8 +857,8 @@ impl<W: Wide> Wavefront<W> {
             let n = walks.after_pilot(&pilot[i]);
             jobs.push((i as u32, p..p.saturating_add(n)));
         }
-        self.pdf_round(q, qs.start, jobs, kind, sums, sets);
-        for ((s, pilot), qi) in sums.iter().zip(&*pilot).zip(qs) {
+        self.pdf_round(q, qs.start, jobs, kind, fresh, sets);
+        for ((s, pilot), qi) in fresh.iter().zip(&*pilot).zip(qs) {
             let e = if q.valid[qi] {
                 walks.finish(pilot, s, kind)
             } else {
@@ -937,7 +937,7 @@ type PdfJob = (u32, std::ops::Range<u64>);
 #[derive(Default)]
 pub(crate) struct PdfScratch {
     pilot: Vec<DensitySums>,
-    sums: Vec<DensitySums>,
+    fresh: Vec<DensitySums>,
     jobs: Vec<PdfJob>,
 }
 
