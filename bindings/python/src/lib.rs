@@ -56,6 +56,27 @@ fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
     err
 }
 
+/// An integer argument as `u64`, or a message naming it and its value: the
+/// arguments are taken as any Python int (`i128`), so that a negative or a
+/// huge one gets this message, not pyo3's bare OverflowError.
+fn u64_arg(argument: &str, n: i128, expected: &str) -> Result<u64, String> {
+    u64::try_from(n).map_err(|_| format!("{argument} = {n}: expected {expected}"))
+}
+
+/// A count of walks (`samples`, `n`): 1 to `MAX_WALKS`.
+fn walks_arg(argument: &'static str, n: i128) -> Result<u64, String> {
+    let n = u64_arg(argument, n, &format!("1 to {MAX_WALKS} walks"))?;
+    check_walks(argument, n).map_err(|e| e.to_string())?;
+    Ok(n)
+}
+
+/// A `QueryError` for an argument of the whole call (`.index` None).
+fn call_err(py: Python<'_>, message: String) -> PyErr {
+    let err = QueryError::new_err(message);
+    let _ = err.value(py).setattr("index", None::<i64>);
+    err
+}
+
 fn material_err(e: StackMaterialError) -> PyErr {
     MaterialError::new_err(e.to_string())
 }
@@ -613,13 +634,14 @@ struct Bsdf {
 
 fn build(
     stack: LayerStack,
-    samples: u64,
-    seed: u64,
+    samples: i128,
+    seed: i128,
     transport: &str,
-    pdf_samples: Option<i64>,
+    pdf_samples: Option<i128>,
     estimator: &str,
 ) -> PyResult<Bsdf> {
-    check_walks("samples", samples).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let samples = walks_arg("samples", samples).map_err(PyValueError::new_err)?;
+    let seed = u64_arg("seed", seed, "0 to 2^64 − 1").map_err(PyValueError::new_err)?;
     let pdf_walks = match pdf_samples {
         None => PdfWalks::DEFAULT,
         Some(n @ 1..=0xffff_ffff) => PdfWalks::fixed(n as u64),
@@ -664,10 +686,10 @@ impl Bsdf {
     #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_toml(
         text: &str,
-        samples: u64,
-        seed: u64,
+        samples: i128,
+        seed: i128,
         transport: &str,
-        pdf_samples: Option<i64>,
+        pdf_samples: Option<i128>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
@@ -679,10 +701,10 @@ impl Bsdf {
     #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_json(
         text: &str,
-        samples: u64,
-        seed: u64,
+        samples: i128,
+        seed: i128,
         transport: &str,
-        pdf_samples: Option<i64>,
+        pdf_samples: Option<i128>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
@@ -695,10 +717,10 @@ impl Bsdf {
     #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_path(
         path: std::path::PathBuf,
-        samples: u64,
-        seed: u64,
+        samples: i128,
+        seed: i128,
         transport: &str,
-        pdf_samples: Option<i64>,
+        pdf_samples: Option<i128>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;
@@ -887,9 +909,10 @@ impl Bsdf {
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
-        samples: u64,
+        samples: i128,
         params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
+        let samples = walks_arg("samples", samples).map_err(|e| call_err(py, e))?;
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let n = wi.len();
@@ -914,7 +937,7 @@ impl Bsdf {
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
-        n: u64,
+        n: i128,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(
@@ -923,6 +946,7 @@ impl Bsdf {
         Bound<'py, PyAny>,
         Bound<'py, PyAny>,
     )> {
+        let n = walks_arg("n", n).map_err(|e| call_err(py, e))?;
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
         let m = wi.len();

@@ -379,6 +379,20 @@ def test_bad_keys_and_counts():
         bsdf().albedo(GOOD, 0)
     with pytest.raises(ValueError, match="samples = 0"):
         Bsdf.from_toml(LAMBERT, samples=0)
+    # Negative and huge integers are named with their value, as 0 is, not
+    # left to a bare OverflowError.
+    for bad in (-3, 2**64, 2**40 + 1):
+        with pytest.raises(ValueError, match=f"^samples = {bad}: "):
+            Bsdf.from_toml(LAMBERT, samples=bad)
+        with pytest.raises(QueryError, match=f"^n = {bad}: ") as e:
+            bsdf().albedo(GOOD, bad)
+        assert e.value.index is None
+        with pytest.raises(QueryError, match=f"^samples = {bad}: "):
+            bsdf().pdf_unbiased(GOOD, GOOD, bad)
+    for bad in (-1, 2**64):
+        with pytest.raises(ValueError, match=f"^seed = {bad}: expected 0 to 2\\^64 − 1$"):
+            Bsdf.from_toml(LAMBERT, seed=bad)
+    assert Bsdf.from_toml(LAMBERT, seed=2**64 - 1).seed == 2**64 - 1
     with pytest.raises(ValueError, match="unknown transport mode"):
         Bsdf.from_toml(LAMBERT, transport="light")
 
