@@ -126,7 +126,10 @@ impl PdfWalks {
         p / (p + self.max as f64 / 2.0)
     }
 
-    /// The pdf of `kind` from the pilot's sums and the fresh walks'.
+    /// The pdf of `kind` from the pilot's sums and the fresh walks'. Each
+    /// mean's standard error is from its own round's variance: the fresh
+    /// walks' is independent of their count, while a variance pooled over
+    /// both rounds is not (the pilot's spread set the count) and reads low.
     pub fn finish(&self, pilot: &DensitySums, fresh: &DensitySums, kind: PdfKind) -> PdfEstimate {
         let w = self.pilot_weight();
         let fresh = fresh.estimate();
