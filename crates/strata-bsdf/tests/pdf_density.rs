@@ -639,3 +639,42 @@ fn pdf_walk_rules() {
         );
     }
 }
+
+/// Where one density walk's variance comes from on the smooth coat over a
+/// rough inner interface over rough copper, for docs/method.md §6: the
+/// unbiased pdf of `sample()` capped at `max_depth` events (the density of
+/// the capped walk) at an in-lobe direction and two off-peak ones, with one
+/// walk's relative variance: `cargo test --release -p strata-bsdf --test
+/// pdf_density -- --ignored --nocapture copper_variance_by_depth`.
+#[test]
+#[ignore]
+fn copper_variance_by_depth() {
+    use strata_bsdf::estimator::scalar::ScalarEngine;
+    let st = LayerStack::from_toml_str(STACKS[3].1).unwrap();
+    let wi = dir(WI_DEG, 0.0).map(f64::from);
+    let walks = 20_000;
+    println!("events | θ 35° φ 180° (in lobe) | θ 55° φ 0° | θ 75° φ 0°   (pdf, one walk's relative variance)");
+    for cap in [
+        Some(6),
+        Some(8),
+        Some(12),
+        Some(16),
+        Some(24),
+        Some(64),
+        None,
+    ] {
+        let settings = Settings {
+            max_depth: cap,
+            ..Settings::default()
+        };
+        let eng = ScalarEngine::<f32>::new(&st, settings);
+        print!("{:>6}", cap.map_or("all".to_string(), |c| c.to_string()));
+        for (t, p) in [(35.0, 180.0), (55.0, 0.0), (75.0, 0.0)] {
+            let wo = dir(t, p).map(f64::from);
+            let e = eng.pdf_estimate(wi, wo, walks, 5, 0, PdfKind::Unbiased);
+            let v = (e.stderr / e.value).powi(2) * walks as f64;
+            print!(" | {:.4} {v:5.2}", e.value);
+        }
+        println!();
+    }
+}
