@@ -276,6 +276,11 @@ impl<L: Lane> DensityWalk<'_, L> {
         super::layout::iface_at(self.ifaces, i)
     }
 
+    /// Whether interface `i` (per lane) is smooth.
+    fn smooth_at(&self, i: L) -> L::Mask {
+        super::layout::iface_smooth_at(self.ifaces, i)
+    }
+
     /// The thickness of layer `l` (per lane) in depth units.
     fn thickness(&self, l: L) -> L {
         super::layout::thickness_at(self.media, l)
@@ -516,7 +521,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         // draw nothing either, so the walk is the same).
         let leave = |l: L, up: bool, t: V3<L>, n_t: L, r_t: L, ok: L::Mask, stop: L| {
             let first = if up { l } else { l + L::one() };
-            let ok = ok & (self.at(first).smooth | first.eq(stop));
+            let ok = ok & (self.smooth_at(first) | first.eq(stop));
             let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, r_t, ok);
             let (pv, w, pw) = v.density(u);
             let s = State {
@@ -663,7 +668,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                 // The candidate heading for the exit (one that heads away
                 // and reflects back is left to the walk).
                 let first = L::select(top, l, l + one);
-                let ok = here & (self.at(first).smooth | first.eq(g.e_out));
+                let ok = here & (self.smooth_at(first) | first.eq(g.e_out));
                 let (u, jac, ok) = self.candidate(l, top, t, n_t, r_t, ok);
                 if ok.any() {
                     // x's arrival: the phase function depends on d'·u alone,
@@ -806,7 +811,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             return self.candidate_tilted(l, up, t, r_t, m);
         }
         let zero = L::zero();
-        let n_l = self.at(l.max(zero)).n_below;
+        let n_l = super::layout::iface_number_at(self.ifaces, l.max(zero), |it| it.n_below);
         let r = L::div_or_zero(n_t, n_l, m & n_l.gt(zero));
         let (tx, ty) = (t.x * r, t.y * r);
         let c2 = L::one() - tx * tx - ty * ty;

@@ -231,6 +231,44 @@ pub fn iface_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> InterfaceLanes<L
     it
 }
 
+/// One number of interface `i[j]` on lane `j` (`pick` reads it): what
+/// [`iface_at`] gives, without gathering the whole interface where only
+/// this is needed.
+#[inline]
+pub fn iface_number_at<L: Lane>(
+    ifaces: &[InterfaceLanes<L>],
+    i: L,
+    pick: impl Fn(&InterfaceLanes<L>) -> L,
+) -> L {
+    let n = ifaces.len();
+    let i0 = i.lane(0);
+    if i.eq(L::splat(i0)).all() {
+        return pick(&ifaces[(i0.max(0.0) as usize).min(n - 1)]);
+    }
+    let mut v = pick(&ifaces[0]);
+    for (k, t) in ifaces.iter().enumerate().skip(1) {
+        v = L::select(i.eq(L::splat(k as f64)), pick(t), v);
+    }
+    v
+}
+
+/// Whether interface `i[j]` is smooth, on lane `j`: [`iface_at`]`(..).smooth`
+/// without gathering the rest.
+#[inline]
+pub fn iface_smooth_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> L::Mask {
+    let n = ifaces.len();
+    let i0 = i.lane(0);
+    if i.eq(L::splat(i0)).all() {
+        return ifaces[(i0.max(0.0) as usize).min(n - 1)].smooth;
+    }
+    let mut s = ifaces[0].smooth;
+    for (k, t) in ifaces.iter().enumerate().skip(1) {
+        let here = i.eq(L::splat(k as f64));
+        s = (here & t.smooth) | (!here & s);
+    }
+    s
+}
+
 /// The thickness of layer `l[j]` of `media` on lane `j`, in depth units.
 #[inline]
 pub fn thickness_at<L: Lane>(media: &[MediumLanes<L>], l: L) -> L {
