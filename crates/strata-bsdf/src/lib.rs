@@ -78,7 +78,8 @@ pub mod stack;
 pub use api::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Direction, Engine, Estimator,
     EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags,
-    SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut, MAX_THREADS, MAX_WALKS,
+    SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut, MAX_QUERIES,
+    MAX_THREADS, MAX_WALKS,
 };
 pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
 pub use estimator::{Albedo, Estimate, Settings};

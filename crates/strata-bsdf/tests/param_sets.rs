@@ -458,6 +458,62 @@ fn sets_that_do_not_fit_are_errors() {
     assert_eq!(e.error, QueryError::ForeignSets);
 }
 
+/// Columns that cannot make materials are errors, never panics: a query
+/// count past what materials can be numbered by, a width times a count that
+/// overflows; and a fault of the whole column (a path the material lacks, a
+/// path twice, a width its field refuses) is told apart from one query's
+/// invalid values (`ColumnsError::column`, which the C and Python bindings
+/// name the column by).
+#[test]
+fn bad_columns_are_errors_and_name_their_column() {
+    use strata_bsdf::{Column, ColumnsError, MAX_QUERIES};
+    let bsdf = LayeredBsdf::new(stack(
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
+         medium = { thickness = 1, sigma_t = 0.5 }\n\
+         [[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.8 }\n",
+    ));
+    let e = Materials::per_query(&bsdf, usize::MAX, &[]).unwrap_err();
+    assert_eq!(
+        e,
+        ColumnsError::TooManyQueries {
+            queries: usize::MAX
+        }
+    );
+    assert!(e.to_string().contains(&MAX_QUERIES.to_string()), "{e}");
+    assert_eq!(Materials::identity(3), [0, 1, 2]);
+    let thickness = "layers[0].medium.thickness".parse().unwrap();
+    let two = [1.0f32, 2.0];
+    let col = |path, width, values| Column {
+        path,
+        width,
+        values,
+    };
+    // Far fewer values than width × queries (a product that is checked).
+    let e = Materials::per_query(&bsdf, MAX_QUERIES, &[col(&thickness, 3, &two)]);
+    assert!(matches!(e, Err(ColumnsError::Length { .. })));
+    // A query's invalid value: its own fault, no column at fault.
+    let bad = [0.5f32, -1.0];
+    let cols = [col(&thickness, 1, &bad)];
+    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
+    assert!(matches!(e, ColumnsError::Query { query: 1, .. }), "{e}");
+    assert_eq!(e.column(&cols), None);
+    // A path the material does not have, after a good column.
+    let eta = "layers[1].interface.eta".parse().unwrap();
+    let cols = [col(&thickness, 1, &two), col(&eta, 1, &two)];
+    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
+    assert_eq!(e.column(&cols), Some(1), "{e}");
+    // A triple for a field of one number, finite values: the width's fault.
+    let six = [1.0f32; 6];
+    let cols = [col(&thickness, 3, &six)];
+    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
+    assert_eq!(e.column(&cols), Some(0), "{e}");
+    // The same path twice: the second.
+    let cols = [col(&thickness, 1, &two), col(&thickness, 1, &two)];
+    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
+    assert!(e.to_string().contains("given twice"), "{e}");
+    assert_eq!(e.column(&cols), Some(1));
+}
+
 /// A heterogeneous batch: materials of five shapes (five of each) in one
 /// call, queries interleaved; each answers what its material alone answers
 /// with the template's configuration.

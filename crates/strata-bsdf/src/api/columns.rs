@@ -49,6 +49,44 @@ pub enum ColumnsError {
         /// What is wrong.
         error: SetError,
     },
+    /// More queries than materials can be numbered ([`MAX_QUERIES`]).
+    TooManyQueries {
+        /// The number of queries.
+        queries: usize,
+    },
+}
+
+/// The most queries [`Materials::per_query`] takes: their materials are
+/// numbered by `u32`.
+pub const MAX_QUERIES: usize = u32::MAX as usize;
+
+impl ColumnsError {
+    /// The index in `columns` of the column at fault when the fault is the
+    /// whole column's, whatever its values: a path this material does not
+    /// have, a path given twice, or a width its field does not take (finite
+    /// values the field's parser refuses). `None` for a row of values that
+    /// makes an invalid material (that query's fault) and for the other
+    /// variants (which name what is wrong already).
+    pub fn column(&self, columns: &[Column]) -> Option<usize> {
+        let ColumnsError::Query { query, error } = self else {
+            return None;
+        };
+        let at = |path: &str| columns.iter().position(|c| c.path.to_string() == path);
+        match error {
+            SetError::Path { path, .. } | SetError::Missing { path, .. } => at(path),
+            // The second of the two.
+            SetError::Duplicate { path } => {
+                (columns.iter()).rposition(|c| c.path.to_string() == *path)
+            }
+            SetError::Value { path, .. } => {
+                let i = at(path)?;
+                let c = &columns[i];
+                let row = c.values.get(query * c.width..(query + 1) * c.width)?;
+                row.iter().all(|x| x.is_finite()).then_some(i)
+            }
+            SetError::Invalid { .. } => None,
+        }
+    }
 }
 
 impl fmt::Display for ColumnsError {
@@ -70,6 +108,9 @@ impl fmt::Display for ColumnsError {
                 "`{path}`: width {width}; a column has 1 value per query, or 3 (an RGB triple, a normal)"
             ),
             ColumnsError::Query { query, error } => write!(f, "query {query}: {error}"),
+            ColumnsError::TooManyQueries { queries } => {
+                write!(f, "{queries} queries: at most {MAX_QUERIES}")
+            }
         }
     }
 }
@@ -115,8 +156,12 @@ impl Materials {
         queries: usize,
         columns: &[Column],
     ) -> Result<Materials, ColumnsError> {
+        if queries > MAX_QUERIES {
+            return Err(ColumnsError::TooManyQueries { queries });
+        }
         for c in columns {
-            if !(c.width == 1 || c.width == 3) || c.values.len() != c.width * queries {
+            let fits = c.width.checked_mul(queries) == Some(c.values.len());
+            if !(c.width == 1 || c.width == 3) || !fits {
                 return Err(ColumnsError::Length {
                     path: c.path.to_string(),
                     width: c.width,
@@ -149,9 +194,10 @@ impl Materials {
     }
 
     /// `0, 1, …, n − 1`: the material indices of a batch whose query `k`
-    /// runs on material `k` (as [`Materials::per_query`] builds them).
+    /// runs on material `k` (as [`Materials::per_query`] builds them; at
+    /// most [`MAX_QUERIES`] of them, the rest left out).
     pub fn identity(n: usize) -> Vec<u32> {
-        (0..n as u32).collect()
+        (0..n.min(MAX_QUERIES) as u32).collect()
     }
 }
 

@@ -20,7 +20,7 @@ pub mod slices;
 mod strategy;
 mod transport;
 
-pub use columns::{Column, ColumnsError};
+pub use columns::{Column, ColumnsError, MAX_QUERIES};
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };

@@ -54,6 +54,9 @@ impl ParamSets {
     }
 
     /// Set `s`'s stack.
+    ///
+    /// # Panics
+    /// If `s` is not below [`ParamSets::len`] (as a slice's index).
     pub fn stack(&self, s: usize) -> &LayerStack {
         &self.stacks[s]
     }

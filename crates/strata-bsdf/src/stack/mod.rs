@@ -542,6 +542,9 @@ impl LayerStack {
         &self.interfaces
     }
     /// Interface `i`.
+    ///
+    /// # Panics
+    /// If `i` is not below [`LayerStack::len`] (as a slice's index).
     pub fn interface(&self, i: usize) -> &Interface {
         &self.interfaces[i]
     }
