@@ -275,7 +275,10 @@ fn set_last_error(message: &str) {
     // A C string cannot hold NUL: show it escaped (it can only come from
     // material text quoted in a parser's message).
     let c = CString::new(message.replace('\0', "\\0")).unwrap_or_default();
-    LAST_ERROR.with(|e| *e.borrow_mut() = c);
+    // `try_with`: a call made while the thread's locals are torn down (from
+    // a destructor) loses its message instead of panicking outside the
+    // guard, which would abort the process.
+    let _ = LAST_ERROR.try_with(|e| *e.borrow_mut() = c);
 }
 
 /// Runs the body of `function`, catching panics: the status, with the last
@@ -929,6 +932,15 @@ impl Columns<'_> {
         match Materials::per_query(bsdf, n, &columns) {
             Ok(m) => Ok(Target::PerQuery(m)),
             Err(e) => {
+                // A fault of the whole column (its path, its width): named
+                // as the argument it is, not by its first query.
+                if let (Some(i), ColumnsError::Query { error, .. }) = (e.column(&columns), &e) {
+                    let c = &columns[i];
+                    return Err(Failure::invalid(format!(
+                        "columns[{i}] (`{}`, width {}): {error}",
+                        c.path, c.width
+                    )));
+                }
                 let code = match &e {
                     ColumnsError::Query {
                         error: SetError::Invalid { .. },

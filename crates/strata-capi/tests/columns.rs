@@ -550,12 +550,14 @@ fn bad_columns_are_errors_naming_the_column_query_path_and_value() {
         contains_all(&m, &["columns[0]", path, want]);
     }
 
-    // A path the material does not have: named, with the query.
+    // A path the material does not have: the column's fault, named as the
+    // argument, not by its first query.
     let eta0 = CString::new("layers[0].interface.eta").unwrap();
     let c = one(eta0.as_ptr(), 1, good.as_ptr());
     let (s, m) = eval_with(&b, c.as_ptr(), 1);
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT, "{m}");
-    contains_all(&m, &["query 0", "layers[0].interface.eta"]);
+    contains_all(&m, &["columns[0] (`layers[0].interface.eta`, width 1)"]);
+    assert!(!m.contains("query"), "{m}");
 
     // An invalid value at query 2: the query, the path, the value, and
     // the layer and field of the invalid material.
@@ -583,21 +585,32 @@ fn bad_columns_are_errors_naming_the_column_query_path_and_value() {
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT, "{m}");
     contains_all(&m, &["query 1", "layers[0].medium.sigma_t", "NaN"]);
 
-    // A triple where the field takes one or two numbers.
+    // A triple where the field takes one or two numbers: the column's
+    // width is at fault, whatever its values.
     let rough = CString::new("layers[1].interface.roughness").unwrap();
     let c = one(rough.as_ptr(), 3, triples.as_ptr());
     let (s, m) = eval_with(&b, c.as_ptr(), 1);
-    assert_ne!(s, STRATA_OK);
-    contains_all(&m, &["query 0", "layers[1].interface.roughness"]);
+    assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT, "{m}");
+    contains_all(
+        &m,
+        &["columns[0] (`layers[1].interface.roughness`, width 3)"],
+    );
+    assert!(!m.contains("query"), "{m}");
 
-    // The same path twice.
+    // The same path twice: the second is at fault.
     let c = [
         one(thickness.as_ptr(), 1, good.as_ptr())[0],
         one(thickness.as_ptr(), 1, good.as_ptr())[0],
     ];
     let (s, m) = eval_with(&b, c.as_ptr(), 2);
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT, "{m}");
-    contains_all(&m, &["layers[0].medium.thickness", "given twice"]);
+    contains_all(
+        &m,
+        &[
+            "columns[1] (`layers[0].medium.thickness`, width 1)",
+            "given twice",
+        ],
+    );
 }
 
 #[test]
