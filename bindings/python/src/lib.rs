@@ -197,19 +197,23 @@ fn borrow<'py, T: numpy::Element, D: numpy::ndarray::Dimension>(
         .map_err(|e| PyValueError::new_err(format!("{name} cannot be read: {e}")))
 }
 
-/// Parses a vector argument: an `(N, 3)` float32 array or three `(N,)` ones.
+/// Parses a vector argument: an `(N, 3)` float32 array or a tuple of three
+/// `(N,)` ones. A list is refused rather than read either way: a list of
+/// three rows and a list of three columns look alike (three arrays of shape
+/// `(3,)`), and reading rows as columns would answer other queries silently.
 fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> {
-    let parts: Option<Vec<Bound<'py, PyAny>>> = if let Ok(t) = obj.cast::<PyTuple>() {
-        Some(t.iter().collect())
-    } else if let Ok(l) = obj.cast::<PyList>() {
-        Some(l.iter().collect())
-    } else {
-        None
-    };
+    if obj.cast::<PyList>().is_ok() {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be {VECTORS_EXPECTED}; got a list (np.asarray({name}, np.float32) for rows, \
+             tuple({name}) for x, y and z columns)"
+        )));
+    }
+    let parts: Option<Vec<Bound<'py, PyAny>>> =
+        obj.cast::<PyTuple>().ok().map(|t| t.iter().collect());
     if let Some(parts) = parts {
         if parts.len() != 3 {
             return Err(PyValueError::new_err(format!(
-                "{name} must be {VECTORS_EXPECTED}; got a sequence of {} items",
+                "{name} must be {VECTORS_EXPECTED}; got a tuple of {} items",
                 parts.len()
             )));
         }
@@ -219,7 +223,7 @@ fn vectors_in<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<VecIn<'py>> 
             let a = p.cast::<PyUntypedArray>().map_err(|_| {
                 PyTypeError::new_err(format!(
                     "{label} must be a contiguous float32 numpy array of shape (N,) \
-                     ({name} was given as a sequence of three items, read as its x, y and z \
+                     ({name} was given as a tuple of three items, read as its x, y and z \
                      components); got {}",
                     type_name(p)
                 ))
@@ -250,7 +254,10 @@ fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyAr
         return Ok(None);
     };
     let a = obj.cast::<PyUntypedArray>().map_err(|_| {
-        PyTypeError::new_err("keys must be None or a uint64 numpy array of shape (N,)")
+        PyTypeError::new_err(format!(
+            "keys must be None or a uint64 numpy array of shape (N,); got {}",
+            type_name(obj)
+        ))
     })?;
     checked::<u64>("keys", a, "uint64", 1, "(N,)")?;
     Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
@@ -361,39 +368,39 @@ impl From<BatchError> for CallError {
 }
 
 impl CallError {
-    /// The Python exception, `params` being the call's parameters.
-    fn into_py(self, py: Python<'_>, params: &[Param<'_>]) -> PyErr {
+    /// The Python exception, `columns` being the call's parameters.
+    fn into_py(self, py: Python<'_>, columns: &[Column<'_>]) -> PyErr {
+        let at_fault = match &self {
+            CallError::Columns(e) => e.column(columns).map(|i| &columns[i]),
+            CallError::Batch(_) => None,
+        };
         match self {
             CallError::Batch(e) => batch_err(py, e),
             // Finite numbers the field's deserializer refuses: a triple for a
             // field of one number (or the reverse), whatever the values.
             CallError::Columns(ColumnsError::Query {
-                query,
                 error: error @ SetError::Value { .. },
-            }) if shape_fault(params, &error, query).is_some() => {
-                let p = shape_fault(params, &error, query).expect("checked");
-                let shape = shape_text(p.values.shape());
-                let per = if p.width == 3 {
-                    "a triple per query"
+                ..
+            }) if at_fault.is_some() => {
+                let c = at_fault.expect("checked");
+                let n = c.values.len() / c.width;
+                let (shape, per) = if c.width == 3 {
+                    (shape_text(&[n, 3]), "a triple per query")
                 } else {
-                    "one number per query"
+                    (shape_text(&[n]), "one number per query")
                 };
                 PyValueError::new_err(format!(
                     "params[\"{}\"] has shape {shape} ({per}), which this field does not take: \
                      {error}",
-                    p.path
+                    c.path
                 ))
             }
             // A path this material does not have (a layer, a field of its
             // interface's kind, a medium), or one path twice: the whole
             // call's fault, whatever the values.
-            CallError::Columns(ColumnsError::Query {
-                error:
-                    error @ (SetError::Path { .. }
-                    | SetError::Missing { .. }
-                    | SetError::Duplicate { .. }),
-                ..
-            }) => PyValueError::new_err(format!("params: {error}")),
+            CallError::Columns(ColumnsError::Query { error, .. }) if at_fault.is_some() => {
+                PyValueError::new_err(format!("params: {error}"))
+            }
             // A row that makes an invalid material: that query's fault.
             CallError::Columns(ColumnsError::Query { query, error }) => {
                 let err = QueryError::new_err(format!("query {query}: {error}"));
@@ -403,22 +410,6 @@ impl CallError {
             CallError::Columns(e) => PyValueError::new_err(format!("params: {e}")),
         }
     }
-}
-
-/// The parameter of a [`SetError::Value`] at `query` if that query's values
-/// of it are finite (then the width is at fault, not the values).
-fn shape_fault<'a, 'py>(
-    params: &'a [Param<'py>],
-    error: &SetError,
-    query: usize,
-) -> Option<&'a Param<'py>> {
-    let SetError::Value { path, .. } = error else {
-        return None;
-    };
-    let p = params.iter().find(|p| p.path.to_string() == *path)?;
-    let values = p.values.as_slice().ok()?;
-    let row = values.get(query * p.width..(query + 1) * p.width)?;
-    row.iter().all(|x| x.is_finite()).then_some(p)
 }
 
 /// The batch calls, on either kind of answerer: the library's slice calls
@@ -522,7 +513,7 @@ impl Bsdf {
             };
             Ok(call(&answerer)?)
         })
-        .map_err(|e: CallError| e.into_py(py, params))
+        .map_err(|e: CallError| e.into_py(py, &columns))
     }
 }
 

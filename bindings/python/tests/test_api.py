@@ -332,7 +332,10 @@ GOOD = np.array([[0, 0, 1], [0.6, 0, 0.8], [0, 0.6, 0.8]], np.float32)
         (np.zeros((3, 6), np.float32)[:, ::2], ValueError, ["wi", "C-contiguous", "(3, 3)"]),
         (np.frombuffer(bytearray(37), dtype=np.float32, offset=1, count=9).reshape(3, 3), ValueError,
          ["wi", "aligned", "(3, 3)"]),
-        ([[0, 0, 1]] * 3, TypeError, ["wi.x", "float32", "list"]),
+        ([[0, 0, 1]] * 3, TypeError, ["wi", "(N, 3)", "got a list", "np.asarray"]),
+        # Three rows in a list look like three columns: refused, not transposed.
+        (list(GOOD), TypeError, ["wi", "got a list", "tuple(wi)"]),
+        ((np.zeros(3, np.float32), [0, 0, 1], np.zeros(3, np.float32)), TypeError, ["wi.y", "float32", "list"]),
         ("up", TypeError, ["wi", "(N, 3)", "str"]),
         ((np.zeros(3, np.float32), np.zeros(3, np.float32)), ValueError, ["wi", "2 items"]),
         ((np.zeros(3, np.float32), np.zeros(3, np.float32), np.zeros(2, np.float32)), ValueError,
@@ -371,6 +374,8 @@ def test_bad_keys_and_counts():
     with pytest.raises(QueryError) as e:
         bsdf().eval(GOOD, GOOD, np.arange(2, dtype=np.uint64))
     assert "keys has 2 entries for 3 queries" in str(e.value) and e.value.index is None
+    with pytest.raises(TypeError, match="keys must be None or a uint64 numpy array of shape \\(N,\\); got list"):
+        bsdf().eval(GOOD, GOOD, [1, 2, 3])
     with pytest.raises(TypeError, match="keys must have dtype uint64; got int64"):
         bsdf().sample(GOOD, np.arange(3))
     with pytest.raises(ValueError, match="wo has 2 entries for 3 queries"):
