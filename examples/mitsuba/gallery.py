@@ -9,7 +9,7 @@ of a strata one-interface stack (rough conductor, GGX alpha 0.3) beside
 Mitsuba's own roughconductor with the same parameters. Prints the time of
 each render.
 
-With --textured, instead: two spatially varying materials, their textures
+With --textured, instead: three spatially varying materials, their textures
 made here with numpy (nothing read from disk) and handed to the plugin as
 ``param:`` properties (per-query parameters): a clear coat with an amber
 absorber whose thickness follows a bitmap of bands (textured_thickness.png),

@@ -39,9 +39,10 @@ impl std::str::FromStr for EvalStart {
 
 /// The largest roughness (GGX or Beckmann α) of a near-specular coat and
 /// conductor for which `Estimator::Auto` runs the bidirectional estimator
-/// on a two-interface stack ([`Estimator::bidirectional_pays`]): measured
-/// 20× the unidirectional estimator's efficiency at α 0.01 over 0.02, 1.4×
-/// at 0.05 over 0.1, 0.80× at 0.1 over 0.2 (docs/results.md).
+/// on a two-interface stack ([`Estimator::bidirectional_pays`]): it sits
+/// where docs/results.md measured the bidirectional estimator's advantage
+/// fading on near-specular coats over conductors, so that `Auto` takes it
+/// only where it clearly wins.
 pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 
 /// The largest optical depth of a scattering layer for which
@@ -97,8 +98,7 @@ impl Estimator {
     ///   and is heavy-tailed (its standard errors then understate its
     ///   error); the bidirectional one also draws that connection from the
     ///   viewer's side. Over a smooth conductor under pbrt-v4's rough coat
-    ///   (α 0.1), over pbrt-v4's 21 direction pairs, its efficiency was a
-    ///   median 97× pbrt-v4's against the unidirectional one's 5.4×
+    ///   (α 0.1) it is far more efficient over pbrt-v4's direction pairs
     ///   (docs/performance.md, *Against pbrt-v4*); at the specular peak
     ///   the unidirectional walks still win, and `Auto` keeps them there
     ///   ([`Estimator::is_bidirectional_at`]).
