@@ -357,7 +357,8 @@ enum Answerer<'a> {
 
 /// Why a call with `params` did not run.
 enum CallError {
-    Columns(ColumnsError),
+    /// Boxed: a `SetError` makes it large, and errors are rare.
+    Columns(Box<ColumnsError>),
     Batch(BatchError),
 }
 
@@ -370,45 +371,46 @@ impl From<BatchError> for CallError {
 impl CallError {
     /// The Python exception, `columns` being the call's parameters.
     fn into_py(self, py: Python<'_>, columns: &[Column<'_>]) -> PyErr {
-        let at_fault = match &self {
-            CallError::Columns(e) => e.column(columns).map(|i| &columns[i]),
-            CallError::Batch(_) => None,
-        };
         match self {
             CallError::Batch(e) => batch_err(py, e),
-            // Finite numbers the field's deserializer refuses: a triple for a
-            // field of one number (or the reverse), whatever the values.
-            CallError::Columns(ColumnsError::Query {
-                error: error @ SetError::Value { .. },
-                ..
-            }) if at_fault.is_some() => {
-                let c = at_fault.expect("checked");
-                let n = c.values.len() / c.width;
-                let (shape, per) = if c.width == 3 {
-                    (shape_text(&[n, 3]), "a triple per query")
-                } else {
-                    (shape_text(&[n]), "one number per query")
-                };
-                PyValueError::new_err(format!(
-                    "params[\"{}\"] has shape {shape} ({per}), which this field does not take: \
-                     {error}",
-                    c.path
-                ))
-            }
-            // A path this material does not have (a layer, a field of its
-            // interface's kind, a medium), or one path twice: the whole
-            // call's fault, whatever the values.
-            CallError::Columns(ColumnsError::Query { error, .. }) if at_fault.is_some() => {
-                PyValueError::new_err(format!("params: {error}"))
-            }
-            // A row that makes an invalid material: that query's fault.
-            CallError::Columns(ColumnsError::Query { query, error }) => {
-                let err = QueryError::new_err(format!("query {query}: {error}"));
-                let _ = err.value(py).setattr("index", query as i64);
-                err
-            }
-            CallError::Columns(e) => PyValueError::new_err(format!("params: {e}")),
+            CallError::Columns(e) => columns_err(py, *e, columns),
         }
+    }
+}
+
+/// The Python exception for columns that cannot make the queries' materials.
+fn columns_err(py: Python<'_>, e: ColumnsError, columns: &[Column<'_>]) -> PyErr {
+    match e {
+        // A width the field's parser refuses: a triple for a field of one
+        // number (or the reverse), whatever the values.
+        ColumnsError::Column {
+            column,
+            error: error @ SetError::Value { .. },
+        } => {
+            let c = &columns[column];
+            let n = c.values.len() / c.width;
+            let (shape, per) = if c.width == 3 {
+                (shape_text(&[n, 3]), "a triple per query")
+            } else {
+                (shape_text(&[n]), "one number per query")
+            };
+            PyValueError::new_err(format!(
+                "params[\"{}\"] has shape {shape} ({per}), which this field does not take: \
+                     {error}",
+                c.path
+            ))
+        }
+        // A path this material does not have (a layer, a field of its
+        // interface's kind, a medium), or one path twice: the whole
+        // call's fault, whatever the values.
+        ColumnsError::Column { error, .. } => PyValueError::new_err(format!("params: {error}")),
+        // A row that makes an invalid material: that query's fault.
+        ColumnsError::Query { query, error } => {
+            let err = QueryError::new_err(format!("query {query}: {error}"));
+            let _ = err.value(py).setattr("index", query as i64);
+            err
+        }
+        e => PyValueError::new_err(format!("params: {e}")),
     }
 }
 
@@ -507,8 +509,8 @@ impl Bsdf {
             } else {
                 // Equal rows (a texture's repeated texels) share one
                 // material: `per_query` builds each distinct row once.
-                let materials =
-                    Materials::per_query(bsdf, n, &columns).map_err(CallError::Columns)?;
+                let materials = Materials::per_query(bsdf, n, &columns)
+                    .map_err(|e| CallError::Columns(Box::new(e)))?;
                 Answerer::PerQuery(materials, Materials::identity(n))
             };
             Ok(call(&answerer)?)

@@ -184,6 +184,26 @@ def test_bad_params_name_the_path_and_shape(p, exc, words):
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_an_empty_batch_checks_its_params_against_the_material(method):
+    b = Bsdf.from_toml(toml())
+    e3, e1, e13 = np.zeros((0, 3), np.float32), np.zeros(0, np.float32), np.zeros((0, 3), np.float32)
+    run = {
+        "eval": lambda p: b.eval(e3, e3, params=p),
+        "sample": lambda p: b.sample(e3, params=p),
+        "pdf": lambda p: b.pdf(e3, e3, params=p),
+        "pdf_unbiased": lambda p: b.pdf_unbiased(e3, e3, 4, params=p),
+        "albedo": lambda p: b.albedo(e3, 4, params=p),
+    }[method]
+    with pytest.raises(ValueError, match=r"params: set `layers\[5\].medium.thickness`: there is no layer 5"):
+        run({"layers[5].medium.thickness": e1})
+    with pytest.raises(ValueError, match=r'params\["layers\[0\].medium.thickness"\] has shape \(0, 3\)'):
+        run({TH: e13})
+    out = run({TH: e1})  # good params, no queries: empty results
+    first = out[0] if isinstance(out, tuple) else out
+    assert len(first) == 0
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_triple_for_a_number_names_path_and_shape(method):
     with pytest.raises(ValueError) as e:
         call(method, {TH: np.ones((4, 3), np.float32)})

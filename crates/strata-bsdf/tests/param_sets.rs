@@ -459,11 +459,12 @@ fn sets_that_do_not_fit_are_errors() {
 }
 
 /// Columns that cannot make materials are errors, never panics: a query
-/// count past what materials can be numbered by, a width times a count that
-/// overflows; and a fault of the whole column (a path the material lacks, a
-/// path twice, a width its field refuses) is told apart from one query's
-/// invalid values (`ColumnsError::column`, which the C and Python bindings
-/// name the column by).
+/// count past what materials can be numbered by, a length that is not
+/// width × queries; and a fault of the whole column (a path the material
+/// lacks, a path twice, a width its field refuses) is its own error
+/// (`ColumnsError::Column`, which the C and Python bindings name the column
+/// by), found before any row, so in an empty batch too; one query's invalid
+/// values are that query's.
 #[test]
 fn bad_columns_are_errors_and_name_their_column() {
     use strata_bsdf::{Column, ColumnsError, MAX_QUERIES};
@@ -493,25 +494,41 @@ fn bad_columns_are_errors_and_name_their_column() {
     assert!(matches!(e, Err(ColumnsError::Length { .. })));
     // A query's invalid value: its own fault, no column at fault.
     let bad = [0.5f32, -1.0];
-    let cols = [col(&thickness, 1, &bad)];
-    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
+    let e = Materials::per_query(&bsdf, 2, &[col(&thickness, 1, &bad)]).unwrap_err();
     assert!(matches!(e, ColumnsError::Query { query: 1, .. }), "{e}");
-    assert_eq!(e.column(&cols), None);
-    // A path the material does not have, after a good column.
+    let column = |e: ColumnsError| match e {
+        ColumnsError::Column { column, error } => (column, error.to_string()),
+        e => panic!("not a column's fault: {e}"),
+    };
+    // A path the material does not have, after a good column; in an empty
+    // batch too.
     let eta = "layers[1].interface.eta".parse().unwrap();
     let cols = [col(&thickness, 1, &two), col(&eta, 1, &two)];
-    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
-    assert_eq!(e.column(&cols), Some(1), "{e}");
-    // A triple for a field of one number, finite values: the width's fault.
+    let (i, m) = column(Materials::per_query(&bsdf, 2, &cols).unwrap_err());
+    assert!(
+        i == 1 && m.contains("diffuse, which has no `eta`"),
+        "{i} {m}"
+    );
+    let empty = [col(&thickness, 1, &[]), col(&eta, 1, &[])];
+    assert_eq!(
+        column(Materials::per_query(&bsdf, 0, &empty).unwrap_err()).0,
+        1
+    );
+    // A triple for a field of one number: the width's fault.
     let six = [1.0f32; 6];
-    let cols = [col(&thickness, 3, &six)];
-    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
-    assert_eq!(e.column(&cols), Some(0), "{e}");
+    let (i, m) = column(Materials::per_query(&bsdf, 2, &[col(&thickness, 3, &six)]).unwrap_err());
+    assert!(i == 0 && m.contains("layers[0].medium.thickness"), "{m}");
     // The same path twice: the second.
     let cols = [col(&thickness, 1, &two), col(&thickness, 1, &two)];
-    let e = Materials::per_query(&bsdf, 2, &cols).unwrap_err();
-    assert!(e.to_string().contains("given twice"), "{e}");
-    assert_eq!(e.column(&cols), Some(1));
+    let (i, m) = column(Materials::per_query(&bsdf, 2, &cols).unwrap_err());
+    assert!(i == 1 && m.contains("given twice"), "{i} {m}");
+    // Good columns in an empty batch: no materials, no error.
+    assert_eq!(
+        Materials::per_query(&bsdf, 0, &[col(&thickness, 1, &[])])
+            .unwrap()
+            .len(),
+        0
+    );
 }
 
 /// A heterogeneous batch: materials of five shapes (five of each) in one

@@ -931,16 +931,16 @@ impl Columns<'_> {
             .collect();
         match Materials::per_query(bsdf, n, &columns) {
             Ok(m) => Ok(Target::PerQuery(m)),
+            // A fault of the whole column (its path, its width): named as
+            // the argument it is.
+            Err(ColumnsError::Column { column, error }) => {
+                let c = &columns[column];
+                Err(Failure::invalid(format!(
+                    "columns[{column}] (`{}`, width {}): {error}",
+                    c.path, c.width
+                )))
+            }
             Err(e) => {
-                // A fault of the whole column (its path, its width): named
-                // as the argument it is, not by its first query.
-                if let (Some(i), ColumnsError::Query { error, .. }) = (e.column(&columns), &e) {
-                    let c = &columns[i];
-                    return Err(Failure::invalid(format!(
-                        "columns[{i}] (`{}`, width {}): {error}",
-                        c.path, c.width
-                    )));
-                }
                 let code = match &e {
                     ColumnsError::Query {
                         error: SetError::Invalid { .. },

@@ -49,6 +49,16 @@ pub enum ColumnsError {
         /// What is wrong.
         error: SetError,
     },
+    /// Column `column` cannot be set on this material, whatever its values:
+    /// a path the material does not have, a path given twice, or a width its
+    /// field does not take. Found before any row is read, so an empty batch
+    /// finds it too.
+    Column {
+        /// The column's index.
+        column: usize,
+        /// What is wrong.
+        error: SetError,
+    },
     /// More queries than materials can be numbered ([`MAX_QUERIES`]).
     TooManyQueries {
         /// The number of queries.
@@ -59,35 +69,6 @@ pub enum ColumnsError {
 /// The most queries [`Materials::per_query`] takes: their materials are
 /// numbered by `u32`.
 pub const MAX_QUERIES: usize = u32::MAX as usize;
-
-impl ColumnsError {
-    /// The index in `columns` of the column at fault when the fault is the
-    /// whole column's, whatever its values: a path this material does not
-    /// have, a path given twice, or a width its field does not take (finite
-    /// values the field's parser refuses). `None` for a row of values that
-    /// makes an invalid material (that query's fault) and for the other
-    /// variants (which name what is wrong already).
-    pub fn column(&self, columns: &[Column]) -> Option<usize> {
-        let ColumnsError::Query { query, error } = self else {
-            return None;
-        };
-        let at = |path: &str| columns.iter().position(|c| c.path.to_string() == path);
-        match error {
-            SetError::Path { path, .. } | SetError::Missing { path, .. } => at(path),
-            // The second of the two.
-            SetError::Duplicate { path } => {
-                (columns.iter()).rposition(|c| c.path.to_string() == *path)
-            }
-            SetError::Value { path, .. } => {
-                let i = at(path)?;
-                let c = &columns[i];
-                let row = c.values.get(query * c.width..(query + 1) * c.width)?;
-                row.iter().all(|x| x.is_finite()).then_some(i)
-            }
-            SetError::Invalid { .. } => None,
-        }
-    }
-}
 
 impl fmt::Display for ColumnsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -108,6 +89,7 @@ impl fmt::Display for ColumnsError {
                 "`{path}`: width {width}; a column has 1 value per query, or 3 (an RGB triple, a normal)"
             ),
             ColumnsError::Query { query, error } => write!(f, "query {query}: {error}"),
+            ColumnsError::Column { column, error } => write!(f, "column {column}: {error}"),
             ColumnsError::TooManyQueries { queries } => {
                 write!(f, "{queries} queries: at most {MAX_QUERIES}")
             }
@@ -170,6 +152,7 @@ impl Materials {
                 });
             }
         }
+        check_columns(template.stack(), columns)?;
         // Equal rows (bit for bit: a texture's texels repeat) share one
         // material, built once.
         let mut first: HashMap<Vec<u32>, u32> = HashMap::new();
@@ -199,6 +182,33 @@ impl Materials {
     pub fn identity(n: usize) -> Vec<u32> {
         (0..n.min(MAX_QUERIES) as u32).collect()
     }
+}
+
+/// Checks every column against `base` before any row: its path is in the
+/// material, it is given once, and its field takes its width. A probe of
+/// that width (the first row, 1 for a number that is not finite, or ones in
+/// an empty batch: the message then shows the caller's values) is set on a
+/// copy of the material's description, which runs the field's parser; the
+/// material is not validated (that is each row's check).
+fn check_columns(base: &LayerStack, columns: &[Column]) -> Result<(), ColumnsError> {
+    let mut desc = base.desc().clone();
+    for (i, c) in columns.iter().enumerate() {
+        let at = |error| ColumnsError::Column { column: i, error };
+        if columns[..i].iter().any(|d| d.path == c.path) {
+            let path = c.path.to_string();
+            return Err(at(SetError::Duplicate { path }));
+        }
+        let first = (0..c.width).map(|j| c.values.get(j).copied().unwrap_or(1.0));
+        let probe: Vec<f64> = first
+            .map(|x| if x.is_finite() { x as f64 } else { 1.0 })
+            .collect();
+        let probe = match probe[..] {
+            [x] => Value::from(x),
+            _ => Value::from(probe),
+        };
+        desc.apply_set(c.path, &probe).map_err(at)?;
+    }
+    Ok(())
 }
 
 /// `base` with query `k`'s row of every column.
