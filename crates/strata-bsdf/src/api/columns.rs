@@ -113,6 +113,9 @@ impl Materials {
     /// their own, so they are answered by the walks (which agree in
     /// expectation, not bit for bit, with what their material file
     /// answers); columns of the base's albedo keep it.
+    /// A column that cannot be set on this material whatever its values (a
+    /// path it does not have, a path twice, a width its field refuses) is
+    /// [`ColumnsError::Column`], found before any row, in an empty batch too.
     /// Every row is checked before anything runs: the first query whose
     /// values are invalid is an error naming it, and no material is built
     /// (a renderer clamps its textures, or drops the query and retries the
