@@ -46,14 +46,19 @@ create_exception!(
      value (the message names the layer, the field and the value)."
 );
 
-/// A `QueryError` exception from a batch error, with `.index` set.
-fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
-    let err = QueryError::new_err(e.to_string());
-    let index = e.index.map(|i| i as i64);
+/// A `QueryError` exception with `.index` set: the query at fault, or None
+/// for an argument of the whole call.
+fn query_err(py: Python<'_>, message: String, index: Option<usize>) -> PyErr {
+    let err = QueryError::new_err(message);
     // Setting an attribute on a fresh exception instance cannot fail in
     // practice; if it did, the message alone still says everything.
-    let _ = err.value(py).setattr("index", index);
+    let _ = err.value(py).setattr("index", index.map(|i| i as i64));
     err
+}
+
+/// A `QueryError` exception from a batch error.
+fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
+    query_err(py, e.to_string(), e.index)
 }
 
 /// An integer argument as `u64`, or a message naming it and its value: the
@@ -68,13 +73,6 @@ fn walks_arg(argument: &'static str, n: i128) -> Result<u64, String> {
     let n = u64_arg(argument, n, &format!("1 to {MAX_WALKS} walks"))?;
     check_walks(argument, n).map_err(|e| e.to_string())?;
     Ok(n)
-}
-
-/// A `QueryError` for an argument of the whole call (`.index` None).
-fn call_err(py: Python<'_>, message: String) -> PyErr {
-    let err = QueryError::new_err(message);
-    let _ = err.value(py).setattr("index", None::<i64>);
-    err
 }
 
 fn material_err(e: StackMaterialError) -> PyErr {
@@ -406,9 +404,7 @@ fn columns_err(py: Python<'_>, e: ColumnsError, columns: &[Column<'_>]) -> PyErr
         ColumnsError::Column { error, .. } => PyValueError::new_err(format!("params: {error}")),
         // A row that makes an invalid material: that query's fault.
         ColumnsError::Query { query, error } => {
-            let err = QueryError::new_err(format!("query {query}: {error}"));
-            let _ = err.value(py).setattr("index", query as i64);
-            err
+            query_err(py, format!("query {query}: {error}"), Some(query))
         }
         e => PyValueError::new_err(format!("params: {e}")),
     }
@@ -905,7 +901,7 @@ impl Bsdf {
         samples: i128,
         params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
-        let samples = walks_arg("samples", samples).map_err(|e| call_err(py, e))?;
+        let samples = walks_arg("samples", samples).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let n = wi.len();
@@ -939,7 +935,7 @@ impl Bsdf {
         Bound<'py, PyAny>,
         Bound<'py, PyAny>,
     )> {
-        let n = walks_arg("n", n).map_err(|e| call_err(py, e))?;
+        let n = walks_arg("n", n).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
         let m = wi.len();

@@ -811,7 +811,8 @@ impl<L: Lane> DensityWalk<'_, L> {
             return self.candidate_tilted(l, up, t, r_t, m);
         }
         let zero = L::zero();
-        let n_l = super::layout::iface_number_at(self.ifaces, l.max(zero), |it| it.n_below);
+        let n_l =
+            super::layout::iface_field_at(self.ifaces, l.max(zero), |it| it.n_below, L::select);
         let r = L::div_or_zero(n_t, n_l, m & n_l.gt(zero));
         let (tx, ty) = (t.x * r, t.y * r);
         let c2 = L::one() - tx * tx - ty * ty;

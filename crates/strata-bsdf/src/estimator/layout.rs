@@ -212,34 +212,17 @@ impl Layout {
     }
 }
 
-/// Interface `i[j]` of `ifaces` on lane `j` (one lookup when every lane's is
-/// the same, as on the scalar engine).
+/// What `pick` reads of interface `i[j]`, on lane `j`: one lookup when every
+/// lane's interface is the same (as on the scalar engine), else a `select`
+/// per interface that some lane is at. The lookups below read only what
+/// their callers need: a whole interface costs many selects.
 #[inline]
-pub fn iface_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> InterfaceLanes<L> {
-    let n = ifaces.len();
-    let i0 = i.lane(0);
-    if i.eq(L::splat(i0)).all() {
-        return ifaces[(i0.max(0.0) as usize).min(n - 1)];
-    }
-    let mut it = ifaces[0];
-    for (k, t) in ifaces.iter().enumerate().skip(1) {
-        let here = i.eq(L::splat(k as f64));
-        if here.any() {
-            it = InterfaceLanes::select(here, t, &it);
-        }
-    }
-    it
-}
-
-/// One number of interface `i[j]` on lane `j` (`pick` reads it): what
-/// [`iface_at`] gives, without gathering the whole interface where only
-/// this is needed.
-#[inline]
-pub fn iface_number_at<L: Lane>(
+pub fn iface_field_at<L: Lane, T>(
     ifaces: &[InterfaceLanes<L>],
     i: L,
-    pick: impl Fn(&InterfaceLanes<L>) -> L,
-) -> L {
+    pick: impl Fn(&InterfaceLanes<L>) -> T,
+    select: impl Fn(L::Mask, T, T) -> T,
+) -> T {
     let n = ifaces.len();
     let i0 = i.lane(0);
     if i.eq(L::splat(i0)).all() {
@@ -247,26 +230,29 @@ pub fn iface_number_at<L: Lane>(
     }
     let mut v = pick(&ifaces[0]);
     for (k, t) in ifaces.iter().enumerate().skip(1) {
-        v = L::select(i.eq(L::splat(k as f64)), pick(t), v);
+        let here = i.eq(L::splat(k as f64));
+        if here.any() {
+            v = select(here, pick(t), v);
+        }
     }
     v
 }
 
-/// Whether interface `i[j]` is smooth, on lane `j`: [`iface_at`]`(..).smooth`
-/// without gathering the rest.
+/// Interface `i[j]` of `ifaces` on lane `j`.
+#[inline]
+pub fn iface_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> InterfaceLanes<L> {
+    iface_field_at(
+        ifaces,
+        i,
+        |it| *it,
+        |m, a, b| InterfaceLanes::select(m, &a, &b),
+    )
+}
+
+/// Whether interface `i[j]` is smooth, on lane `j`.
 #[inline]
 pub fn iface_smooth_at<L: Lane>(ifaces: &[InterfaceLanes<L>], i: L) -> L::Mask {
-    let n = ifaces.len();
-    let i0 = i.lane(0);
-    if i.eq(L::splat(i0)).all() {
-        return ifaces[(i0.max(0.0) as usize).min(n - 1)].smooth;
-    }
-    let mut s = ifaces[0].smooth;
-    for (k, t) in ifaces.iter().enumerate().skip(1) {
-        let here = i.eq(L::splat(k as f64));
-        s = (here & t.smooth) | (!here & s);
-    }
-    s
+    iface_field_at(ifaces, i, |it| it.smooth, |m, a, b| (m & a) | (!m & b))
 }
 
 /// The thickness of layer `l[j]` of `media` on lane `j`, in depth units.
