@@ -125,6 +125,55 @@ struct Goal<L: Lane> {
     j_w: L,
 }
 
+impl<L: Lane> Goal<L> {
+    /// Lane by lane, `a` where `m` is set and `b` elsewhere.
+    fn select(m: L::Mask, a: &Self, b: &Self) -> Self {
+        let v = |x: L, y: L| L::select(m, x, y);
+        let d = |x: V3<L>, y: V3<L>| V3::select(m, x, y);
+        let it = |x: &InterfaceLanes<L>, y: &InterfaceLanes<L>| InterfaceLanes::select(m, x, y);
+        Goal {
+            wo: d(a.wo, b.wo),
+            exit: it(&a.exit, &b.exit),
+            e_out: v(a.e_out, b.e_out),
+            n_out: v(a.n_out, b.n_out),
+            outside: v(a.outside, b.outside),
+            layer: v(a.layer, b.layer),
+            k: v(a.k, b.k),
+            inner: it(&a.inner, &b.inner),
+            z_k: v(a.z_k, b.z_k),
+            inner_on: (m & a.inner_on) | (!m & b.inner_on),
+            u_w: d(a.u_w, b.u_w),
+            j_w: v(a.j_w, b.j_w),
+        }
+    }
+}
+
+/// Density walks on lanes between two interface events
+/// ([`DensityWalk::step`]): what a scheduler keeps to step them and to
+/// start new walks on the lanes whose walk ended ([`DensityWalk::start`]).
+pub struct WalkLanes<L: Lane> {
+    /// Each lane's estimate so far; its walk's once it has ended.
+    pub p: L,
+    /// The lanes whose walk goes on.
+    pub alive: L::Mask,
+    st: State<L>,
+    /// Collisions so far.
+    order: L,
+    /// The walk's density of its direction since its last non-delta vertex,
+    /// carried through delta events in their solid angle (0 before the
+    /// first one): the weight of its own arrival at a rough exit, or at k,
+    /// against the connections.
+    rho: L,
+    /// For the walk's own arrival at a rough exit, the medium connection's
+    /// ratio `K` of its last collision, if that was its last non-delta
+    /// vertex.
+    k_b: L,
+    /// The interface the walk arrives at, and its arrival direction.
+    i: L,
+    a: V3<L>,
+    goal: Goal<L>,
+}
+
 /// A non-delta vertex of the walk.
 enum Vertex<'a, L: Lane> {
     /// An event at interface `i`, arriving from `a`.
@@ -321,84 +370,126 @@ impl<L: Lane> DensityWalk<'_, L> {
     /// stack): its estimate of the density of `wo` (see the module docs).
     /// `draw(m)` returns a uniform for every lane of `m`.
     pub fn run(&self, wi: V3<L>, wo: V3<L>, mut draw: impl FnMut(L::Mask) -> L) -> L {
-        let n = self.n();
+        let mut w = self.begin(wi, wo, &mut draw);
+        while w.alive.any() {
+            self.step(&mut w, &mut draw);
+        }
+        w.p
+    }
+
+    /// A walk per lane from `wi` towards `wo`, before its first event.
+    pub fn begin(&self, wi: V3<L>, wo: V3<L>, draw: impl FnMut(L::Mask) -> L) -> WalkLanes<L> {
         let zero = L::zero();
-        let last = L::splat(n as f64 - 1.0);
         let goal = self.goal(wo);
-        let layout = Layout { n };
+        let mut w = WalkLanes {
+            p: zero,
+            alive: L::Mask::splat(false),
+            st: State {
+                beta: Rgb::one(),
+                ratios: Rgb::one(),
+                hero: zero,
+                events: zero,
+            },
+            order: zero,
+            rho: zero,
+            k_b: zero,
+            i: zero,
+            a: wi,
+            goal,
+        };
+        self.start(&mut w, wi, wo, L::Mask::splat(true), draw);
+        w
+    }
+
+    /// Lanes `m` of `w` start a new walk from `wi` towards `wo` (their
+    /// density back at 0); the other lanes keep theirs. Lane `j` then runs
+    /// the walk it would run alone: a scheduler refills the lanes whose walk
+    /// ended without changing any walk's draws.
+    pub fn start(
+        &self,
+        w: &mut WalkLanes<L>,
+        wi: V3<L>,
+        wo: V3<L>,
+        m: L::Mask,
+        mut draw: impl FnMut(L::Mask) -> L,
+    ) {
+        let zero = L::zero();
+        let last = L::splat(self.n() as f64 - 1.0);
+        let s0 = events::WalkStart::<L>::new(draw(m));
+        w.goal = Goal::select(m, &self.goal(wo), &w.goal);
+        w.p = L::select(m, zero, w.p);
+        w.alive = w.alive | m;
+        w.st = State {
+            beta: Rgb::select(m, s0.beta, w.st.beta),
+            ratios: Rgb::select(m, s0.ratios, w.st.ratios),
+            hero: L::select(m, s0.hero, w.st.hero),
+            events: L::select(m, s0.events, w.st.events),
+        };
+        w.order = L::select(m, s0.order, w.order);
+        w.rho = L::select(m, zero, w.rho);
+        w.k_b = L::select(m, zero, w.k_b);
+        w.i = L::select(m, L::select(wi.z.gt(zero), zero, last), w.i);
+        w.a = V3::select(m, wi, w.a);
+    }
+
+    /// One interface event of every live walk of `w`, and its crossing of
+    /// the layer beyond.
+    pub fn step(&self, w: &mut WalkLanes<L>, mut draw: impl FnMut(L::Mask) -> L) {
+        let zero = L::zero();
+        let layout = Layout { n: self.n() };
         // sample()'s specular flag: the density walk has no use for it.
         let mut specular = L::Mask::splat(false);
-
-        let mut p = zero;
-        let mut alive = L::Mask::splat(true);
-        let s0 = events::WalkStart::<L>::new(draw(alive));
-        let mut st = State {
-            beta: s0.beta,
-            ratios: s0.ratios,
-            hero: s0.hero,
-            events: s0.events,
-        };
-        let mut order = s0.order;
-        // The walk's density of its current direction since its last
-        // non-delta vertex, carried through delta events in their solid
-        // angle (0 before the first one): the weight of its own arrival at a
-        // rough exit, or at k, against the connections.
-        let mut rho = zero;
+        let goal = &w.goal;
+        let wo = goal.wo;
+        let (i, a) = (w.i, w.a);
+        let (mut p, mut alive, mut st, mut order) = (w.p, w.alive, w.st, w.order);
+        let (mut rho, mut k_b) = (w.rho, w.k_b);
+        let it = self.at(i);
+        let rough = alive & !it.smooth;
+        // Arriving at a rough exit: its density of wo, weighted against
+        // the connection that sampled this direction from wo.
+        let direct = rough & i.eq(goal.e_out);
+        if direct.any() {
+            let v = it.pdf(a, wo, L::Mask::splat(false)).max(zero);
+            let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
+            let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
+            let k = L::select(q.gt(zero), k_b, zero);
+            // Against the medium connection: 1 / (1 + K²).
+            let w_b = events::power_heuristic(L::one(), k);
+            p += L::select(direct, v * w * w_b, zero);
+        }
+        if rough.any() {
+            let v = Vertex::Surface { it: &it, a, i };
+            p += self.connect(goal, &v, st, rho, rough, &mut draw);
+        }
+        // The interface event of sample()'s walk (the same steps as the
+        // engines' walks, in `events`).
+        let u = (draw(alive), draw(alive), draw(alive));
+        let no = L::Mask::splat(false);
+        let (s, ok) = events::interface_scatter(
+            &it,
+            a,
+            u,
+            no,
+            alive,
+            &mut st.beta,
+            &mut specular,
+            &mut st.events,
+        );
+        alive = ok;
+        let d = s.b;
+        rho = L::select(s.delta, rho * refraction_jacobian(&it, a, d), s.pdf);
         // Lanes whose direction was sampled by a non-delta vertex in the
         // layer they cross, with no event since: a collision on the way is
-        // one the medium connection could also make. And, for the walk's
-        // own arrival at a rough exit, the medium connection's ratio `K` of
-        // its last collision, if that was its last non-delta vertex.
-        let mut straight;
-        let mut k_b = zero;
-        let mut i = L::select(wi.z.gt(zero), zero, last);
-        let mut a = wi;
-        while alive.any() {
-            let it = self.at(i);
-            let rough = alive & !it.smooth;
-            // Arriving at a rough exit: its density of wo, weighted against
-            // the connection that sampled this direction from wo.
-            let direct = rough & i.eq(goal.e_out);
-            if direct.any() {
-                let v = it.pdf(a, wo, L::Mask::splat(false)).max(zero);
-                let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
-                let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
-                let k = L::select(q.gt(zero), k_b, zero);
-                // Against the medium connection: 1 / (1 + K²).
-                let w_b = events::power_heuristic(L::one(), k);
-                p += L::select(direct, v * w * w_b, zero);
-            }
-            if rough.any() {
-                let v = Vertex::Surface { it: &it, a, i };
-                p += self.connect(&goal, &v, st, rho, rough, &mut draw);
-            }
-            // The interface event of sample()'s walk (the same steps as the
-            // engines' walks, in `events`).
-            let u = (draw(alive), draw(alive), draw(alive));
-            let no = L::Mask::splat(false);
-            let (s, ok) = events::interface_scatter(
-                &it,
-                a,
-                u,
-                no,
-                alive,
-                &mut st.beta,
-                &mut specular,
-                &mut st.events,
-            );
-            alive = ok;
-            let d = s.b;
-            rho = L::select(s.delta, rho * refraction_jacobian(&it, a, d), s.pdf);
-            straight = !s.delta;
-            k_b = L::select(s.delta, k_b, zero);
-            let up = d.z.gt(zero);
-            let (l, out) = layout.enter(i, up);
-            alive = alive & !out;
-            alive = alive & self.survive(&mut st, alive, draw(alive));
-            if !alive.any() {
-                break;
-            }
-            // Cross the layer until the walk reaches one of its interfaces.
+        // one the medium connection could also make.
+        let mut straight = !s.delta;
+        k_b = L::select(s.delta, k_b, zero);
+        let up = d.z.gt(zero);
+        let (l, out) = layout.enter(i, up);
+        alive = alive & !out;
+        alive = alive & self.survive(&mut st, alive, draw(alive));
+        // Cross the layer until the walk reaches one of its interfaces.
+        if alive.any() {
             let mut z = L::select(up, self.thickness(l), zero);
             let mut d = V3::select(alive, d, V3::z_axis());
             let mut flying = alive;
@@ -445,7 +536,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                             e,
                             p_in,
                         };
-                        p += self.connect(&goal, &v, st, rho, hit, &mut draw);
+                        p += self.connect(goal, &v, st, rho, hit, &mut draw);
                         let u = events::phase_uniforms(med, || draw(hit));
                         let dn = events::phase_scatter(med, d, u, hit, &mut specular);
                         // The arrival density, for the next vertex's MIS weight.
@@ -469,10 +560,11 @@ impl<L: Lane> DensityWalk<'_, L> {
                 }
                 flying = flying & alive;
             }
-            i = L::select(alive, layout.arrive(l, d.z.gt(zero)), zero);
-            a = -d;
+            w.i = L::select(alive, layout.arrive(l, d.z.gt(zero)), zero);
+            w.a = -d;
         }
-        p
+        (w.p, w.alive, w.st, w.order) = (p, alive, st, order);
+        (w.rho, w.k_b) = (rho, k_b);
     }
 
     /// Every connection of a non-delta vertex (lanes `m`, walk state `st`,

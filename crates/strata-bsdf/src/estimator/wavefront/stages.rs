@@ -9,7 +9,7 @@
 use super::deferred::Deferred;
 use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
-use crate::estimator::density::DensityWalk;
+use crate::estimator::density::{DensityWalk, WalkLanes};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::events::{ChainStack, Flight};
 use crate::estimator::layout::{toward_exit, LayerKind, MediumLanes, Next};
@@ -869,8 +869,13 @@ impl<W: Wide> Wavefront<W> {
     }
 
     /// For each job `(i, ks)`, walks `ks` of query `first_query + i`, added
-    /// to `sums[i]`: the jobs' pairs in order, [`Wide::LANES`] at a time.
-    /// `sets` holds the lanes' gathered parameters where queries have sets.
+    /// to `sums[i]` in walk order. The jobs' pairs take the lanes in order,
+    /// and lanes whose walks have ended take the next pairs while the
+    /// others walk on (the density walks' lengths vary: a chunk run until
+    /// its longest walk ends leaves lanes idle). Each lane still runs its
+    /// pair's walk exactly ([`DensityWalk::start`]); walks end out of order,
+    /// and [`InOrder`] adds their values in order. `sets` holds the lanes'
+    /// gathered parameters where queries have sets.
     fn pdf_round(
         &self,
         q: &Queries,
@@ -880,51 +885,128 @@ impl<W: Wide> Wavefront<W> {
         sums: &mut [DensitySums],
         (ifaces, media): &mut (Vec<InterfaceLanes<W>>, Vec<MediumLanes<W>>),
     ) {
-        let own = DensityWalk {
-            ifaces: &self.ifaces,
-            media: &self.media,
-            settings: &self.settings,
-            max_events: kind.max_events(),
-        };
         let mut pairs = jobs.iter().flat_map(|(i, ks)| ks.clone().map(|k| (*i, k)));
+        // Per lane: its pair (query slot, walk index) and the pair's place
+        // in the round (`IDLE`: none).
+        const IDLE: u64 = u64::MAX;
         let (mut slot, mut index) = ([0u32; MAX_LANES], [0u64; MAX_LANES]);
+        let mut place = [IDLE; MAX_LANES];
+        let mut in_order = InOrder::new();
+        let mut rng = LaneRng::<W>::from_states(|_| [0; 4]);
+        let mut lanes: Option<WalkLanes<W>> = None;
         loop {
-            let mut lanes = 0;
-            for (j, (i, k)) in pairs.by_ref().take(W::LANES).enumerate() {
-                (slot[j], index[j], lanes) = (i, k, j + 1);
+            let ended = !lanes.as_ref().map_or(0, |w| W::bitmask(w.alive));
+            for j in (0..W::LANES).filter(|&j| ended & (1 << j) != 0) {
+                if let (Some(w), true) = (&lanes, place[j] != IDLE) {
+                    in_order.hand_in(place[j], slot[j], w.p.lane(j), sums);
+                    place[j] = IDLE;
+                }
             }
-            if lanes == 0 {
+            // Idle lanes take the next pairs, once they are half the lanes
+            // (starting walks has a cost of its own: the lanes' goals, their
+            // random states).
+            let mut fresh = 0u32;
+            if (ended & lane_bits(W::LANES)).count_ones() as usize * 2 >= W::LANES {
+                for j in (0..W::LANES).filter(|&j| ended & (1 << j) != 0) {
+                    let Some((i, k)) = in_order.has_room().then(|| pairs.next()).flatten() else {
+                        break;
+                    };
+                    (slot[j], index[j], place[j]) = (i, k, in_order.take());
+                    fresh |= 1 << j;
+                }
+            }
+            if fresh == 0 && lanes.as_ref().is_none_or(|w| !w.alive.any()) {
                 return;
-            }
-            // Lanes past the last pair repeat it (their results are dropped).
-            for j in lanes..W::LANES {
-                (slot[j], index[j]) = (slot[lanes - 1], index[lanes - 1]);
             }
             let ids: [u32; MAX_LANES] = std::array::from_fn(|j| first_query as u32 + slot[j]);
             let lq = &ids[..W::LANES];
-            let g = |col: &[f32]| W::gather(col, lq);
-            let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
-            let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
-            let mut rng = LaneRng::<W>::from_states(|j| {
-                seed_state_from(q.prefix[lq[j] as usize], index[j], Stream::Pdf)
-            });
-            let p = match q.lane_sets(W::LANES, |j| lq[j]) {
-                None => own.run(wi, wo, |m| rng.uniform(m)),
-                Some(sets) => {
-                    // Each chunk's lanes gather their sets' numbers.
+            if fresh != 0 {
+                if let Some(sets) = q.lane_sets(W::LANES, |j| lq[j]) {
+                    // The lanes gather their sets' numbers.
                     sets.ifaces_into(&self.ifaces, ifaces);
                     sets.media_into(&self.media, media);
-                    let walk = DensityWalk {
-                        ifaces,
-                        media,
-                        ..own
-                    };
-                    walk.run(wi, wo, |m| rng.uniform(m))
                 }
-            };
-            for j in 0..lanes {
-                sums[slot[j] as usize].push(p.lane(j));
             }
+            let walk = DensityWalk {
+                ifaces: if q.varying { ifaces } else { &self.ifaces },
+                media: if q.varying { media } else { &self.media },
+                settings: &self.settings,
+                max_events: kind.max_events(),
+            };
+            if fresh != 0 {
+                let g = |col: &[f32]| W::gather(col, lq);
+                let wi = V3::new(g(&q.wi[0]), g(&q.wi[1]), g(&q.wi[2]));
+                let wo = V3::new(g(&q.wo[0]), g(&q.wo[1]), g(&q.wo[2]));
+                rng = LaneRng::from_states(|j| {
+                    if fresh & (1 << j) != 0 {
+                        seed_state_from(q.prefix[lq[j] as usize], index[j], Stream::Pdf)
+                    } else {
+                        rng.lane_state(j)
+                    }
+                });
+                let m = W::mask_from_bitmask(fresh);
+                match &mut lanes {
+                    None => {
+                        let mut w = walk.begin(wi, wo, |m| rng.uniform(m));
+                        w.alive = m;
+                        lanes = Some(w);
+                    }
+                    Some(w) => walk.start(w, wi, wo, m, |m| rng.uniform(m)),
+                }
+            }
+            if let Some(w) = &mut lanes {
+                walk.step(w, |m| rng.uniform(m));
+            }
+        }
+    }
+}
+
+/// How many of a pdf round's walks may have ended ahead of the first that
+/// has not ([`Wavefront::pdf_round`]).
+const PDF_WINDOW: usize = 256;
+
+/// A pdf round's walk values, which end out of order, added to their
+/// queries' sums in the order of their places in the round (the scalar
+/// engine's order, so that the sums agree bit for bit).
+struct InOrder {
+    /// Per place modulo [`PDF_WINDOW`]: the walk's query slot, its value,
+    /// whether it has ended.
+    window: [(u32, f64, bool); PDF_WINDOW],
+    /// Places handed out, and places added.
+    taken: u64,
+    added: u64,
+}
+
+impl InOrder {
+    fn new() -> Self {
+        InOrder {
+            window: [(0, 0.0, false); PDF_WINDOW],
+            taken: 0,
+            added: 0,
+        }
+    }
+
+    /// Whether another walk may start: the window holds every place from
+    /// the first not added.
+    fn has_room(&self) -> bool {
+        self.taken < self.added + PDF_WINDOW as u64
+    }
+
+    /// The next place.
+    fn take(&mut self) -> u64 {
+        self.taken += 1;
+        self.taken - 1
+    }
+
+    /// The value `p` of the walk at `place`, of query slot `i`; adds every
+    /// value now in order to `sums`.
+    fn hand_in(&mut self, place: u64, i: u32, p: f64, sums: &mut [DensitySums]) {
+        let at = |place: u64| (place % PDF_WINDOW as u64) as usize;
+        self.window[at(place)] = (i, p, true);
+        while let (i, p, true) = self.window[at(self.added)] {
+            sums[i as usize].push(p);
+            self.window[at(self.added)].2 = false;
+            self.added += 1;
         }
     }
 }
@@ -954,4 +1036,36 @@ fn lane_bits(n: usize) -> u32 {
 #[inline(always)]
 fn toward<W: Wide>(d: V3<W>, e: usize) -> W::Mask {
     toward_exit(d, W::Mask::splat(e == 0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Walks that end out of order reach their sums in the order of their
+    /// places (values whose sum depends on the order show it), and no walk
+    /// starts past the window.
+    #[test]
+    fn in_order_adds_in_place_order_within_the_window() {
+        let value = |place: u64| if place % 3 == 0 { 1e16 } else { 1.0 + place as f64 };
+        let slot = |place: u64| (place % 2) as u32;
+        let mut want = [DensitySums::default(); 2];
+        for place in 0..PDF_WINDOW as u64 {
+            want[slot(place) as usize].push(value(place));
+        }
+        let mut got = [DensitySums::default(); 2];
+        let mut w = InOrder::new();
+        let places: Vec<u64> = (0..PDF_WINDOW).map(|_| w.take()).collect();
+        assert!(!w.has_room());
+        // The first place ends last: nothing is added before it.
+        for &place in places.iter().skip(1).rev() {
+            w.hand_in(place, slot(place), value(place), &mut got);
+        }
+        assert_eq!(got, [DensitySums::default(); 2]);
+        assert!(!w.has_room());
+        w.hand_in(0, slot(0), value(0), &mut got);
+        assert_eq!(got, want);
+        assert!(w.has_room());
+        assert_eq!(w.take(), PDF_WINDOW as u64);
+    }
 }
