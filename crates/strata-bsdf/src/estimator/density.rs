@@ -174,6 +174,30 @@ pub struct WalkLanes<L: Lane> {
     goal: Goal<L>,
 }
 
+impl<L: Lane> WalkLanes<L> {
+    /// Lane by lane, `a` where `m` is set and `b` elsewhere.
+    fn select(m: L::Mask, a: &Self, b: &Self) -> Self {
+        let v = |x: L, y: L| L::select(m, x, y);
+        let rgb = |x: Rgb<L>, y: Rgb<L>| Rgb::select(m, x, y);
+        WalkLanes {
+            p: v(a.p, b.p),
+            alive: (m & a.alive) | (!m & b.alive),
+            st: State {
+                beta: rgb(a.st.beta, b.st.beta),
+                ratios: rgb(a.st.ratios, b.st.ratios),
+                hero: v(a.st.hero, b.st.hero),
+                events: v(a.st.events, b.st.events),
+            },
+            order: v(a.order, b.order),
+            rho: v(a.rho, b.rho),
+            k_b: v(a.k_b, b.k_b),
+            i: v(a.i, b.i),
+            a: V3::select(m, a.a, b.a),
+            goal: Goal::select(m, &a.goal, &b.goal),
+        }
+    }
+}
+
 /// A non-delta vertex of the walk.
 enum Vertex<'a, L: Lane> {
     /// An event at interface `i`, arriving from `a`.
@@ -370,66 +394,56 @@ impl<L: Lane> DensityWalk<'_, L> {
     /// stack): its estimate of the density of `wo` (see the module docs).
     /// `draw(m)` returns a uniform for every lane of `m`.
     pub fn run(&self, wi: V3<L>, wo: V3<L>, mut draw: impl FnMut(L::Mask) -> L) -> L {
-        let mut w = self.begin(wi, wo, &mut draw);
+        let mut w = self.begin(wi, wo, L::Mask::splat(true), &mut draw);
         while w.alive.any() {
             self.step(&mut w, &mut draw);
         }
         w.p
     }
 
-    /// A walk per lane from `wi` towards `wo`, before its first event.
-    pub fn begin(&self, wi: V3<L>, wo: V3<L>, draw: impl FnMut(L::Mask) -> L) -> WalkLanes<L> {
+    /// A walk from `wi` towards `wo` on each lane of `m`, before its first
+    /// event (the other lanes have none).
+    pub fn begin(
+        &self,
+        wi: V3<L>,
+        wo: V3<L>,
+        m: L::Mask,
+        mut draw: impl FnMut(L::Mask) -> L,
+    ) -> WalkLanes<L> {
         let zero = L::zero();
-        let goal = self.goal(wo);
-        let mut w = WalkLanes {
+        let last = L::splat(self.n() as f64 - 1.0);
+        let s0 = events::WalkStart::<L>::new(draw(m));
+        WalkLanes {
             p: zero,
-            alive: L::Mask::splat(false),
+            alive: m,
             st: State {
-                beta: Rgb::one(),
-                ratios: Rgb::one(),
-                hero: zero,
-                events: zero,
+                beta: s0.beta,
+                ratios: s0.ratios,
+                hero: s0.hero,
+                events: s0.events,
             },
-            order: zero,
+            order: s0.order,
             rho: zero,
             k_b: zero,
-            i: zero,
+            i: L::select(wi.z.gt(zero), zero, last),
             a: wi,
-            goal,
-        };
-        self.start(&mut w, wi, wo, L::Mask::splat(true), draw);
-        w
+            goal: self.goal(wo),
+        }
     }
 
-    /// Lanes `m` of `w` start a new walk from `wi` towards `wo` (their
-    /// density back at 0); the other lanes keep theirs. Lane `j` then runs
-    /// the walk it would run alone: a scheduler refills the lanes whose walk
-    /// ended without changing any walk's draws.
+    /// Lanes `m` of `w` start a new walk from `wi` towards `wo`; the other
+    /// lanes walk on. Lane `j` then runs the walk it would run alone: a
+    /// scheduler refills the lanes whose walk ended without changing any
+    /// walk's draws.
     pub fn start(
         &self,
         w: &mut WalkLanes<L>,
         wi: V3<L>,
         wo: V3<L>,
         m: L::Mask,
-        mut draw: impl FnMut(L::Mask) -> L,
+        draw: impl FnMut(L::Mask) -> L,
     ) {
-        let zero = L::zero();
-        let last = L::splat(self.n() as f64 - 1.0);
-        let s0 = events::WalkStart::<L>::new(draw(m));
-        w.goal = Goal::select(m, &self.goal(wo), &w.goal);
-        w.p = L::select(m, zero, w.p);
-        w.alive = w.alive | m;
-        w.st = State {
-            beta: Rgb::select(m, s0.beta, w.st.beta),
-            ratios: Rgb::select(m, s0.ratios, w.st.ratios),
-            hero: L::select(m, s0.hero, w.st.hero),
-            events: L::select(m, s0.events, w.st.events),
-        };
-        w.order = L::select(m, s0.order, w.order);
-        w.rho = L::select(m, zero, w.rho);
-        w.k_b = L::select(m, zero, w.k_b);
-        w.i = L::select(m, L::select(wi.z.gt(zero), zero, last), w.i);
-        w.a = V3::select(m, wi, w.a);
+        *w = WalkLanes::select(m, &self.begin(wi, wo, m, draw), w);
     }
 
     /// One interface event of every live walk of `w`, and its crossing of

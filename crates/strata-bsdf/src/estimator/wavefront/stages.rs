@@ -946,11 +946,7 @@ impl<W: Wide> Wavefront<W> {
                 });
                 let m = W::mask_from_bitmask(fresh);
                 match &mut lanes {
-                    None => {
-                        let mut w = walk.begin(wi, wo, |m| rng.uniform(m));
-                        w.alive = m;
-                        lanes = Some(w);
-                    }
+                    None => lanes = Some(walk.begin(wi, wo, m, |m| rng.uniform(m))),
                     Some(w) => walk.start(w, wi, wo, m, |m| rng.uniform(m)),
                 }
             }
@@ -1047,7 +1043,13 @@ mod tests {
     /// starts past the window.
     #[test]
     fn in_order_adds_in_place_order_within_the_window() {
-        let value = |place: u64| if place % 3 == 0 { 1e16 } else { 1.0 + place as f64 };
+        let value = |place: u64| {
+            if place % 3 == 0 {
+                1e16
+            } else {
+                1.0 + place as f64
+            }
+        };
         let slot = |place: u64| (place % 2) as u32;
         let mut want = [DensitySums::default(); 2];
         for place in 0..PDF_WINDOW as u64 {
