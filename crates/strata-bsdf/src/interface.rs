@@ -235,50 +235,65 @@ impl<L: Lane> InterfaceLanes<L> {
     /// `a` or `b` lies on the other side of the shading normal.
     #[inline(always)]
     pub fn eval(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
-        if !self.tilted {
-            return self.eval_local(a, b);
-        }
-        self.eval_tilted(a, b)
-    }
-
-    /// [`InterfaceLanes::eval`] of a tilted interface, out of line.
-    #[inline(never)]
-    fn eval_tilted(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
-        let (f, flat) = self.shading();
-        let (al, front) = Self::to_shading(&f, flat, a);
-        let (bl, agree) = Self::to_shading(&f, flat, b);
-        let ok = front & agree;
-        let c = L::div_or_zero(bl.z.abs(), b.z.abs(), ok & b.z.abs().gt(L::zero()));
-        let c = if self.adjoint {
-            c * self.veach(a, b)
-        } else {
-            c
-        };
-        let c = L::select(flat, L::one(), c);
-        Rgb::select(ok, self.eval_local(al, bl).scale(c), Rgb::zero())
+        self.kernels::<true, false>(a, b, L::Mask::splat(false)).0
     }
 
     /// The density with which [`InterfaceLanes::sample`] (from `a`, with the
     /// same `transmit_only` mask) produces `b`; 0 for delta lobes.
     #[inline(always)]
     pub fn pdf(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
-        if !self.tilted {
-            return self.pdf_local(a, b, transmit_only);
-        }
-        self.pdf_tilted(a, b, transmit_only)
+        self.kernels::<false, true>(a, b, transmit_only).1
     }
 
-    /// [`InterfaceLanes::pdf`] of a tilted interface, out of line.
+    /// [`InterfaceLanes::eval`] and [`InterfaceLanes::pdf`] (sampled from
+    /// `a` with both lobes) of one pair, for less than the two apart.
+    #[inline(always)]
+    pub fn eval_pdf(&self, a: V3<L>, b: V3<L>) -> (Rgb<L>, L) {
+        self.kernels::<true, true>(a, b, L::Mask::splat(false))
+    }
+
+    /// `eval` (if `EVAL`) and `pdf` (if `PDF`) of the pair; 0 for what is
+    /// not asked.
+    #[inline(always)]
+    fn kernels<const EVAL: bool, const PDF: bool>(
+        &self,
+        a: V3<L>,
+        b: V3<L>,
+        transmit_only: L::Mask,
+    ) -> (Rgb<L>, L) {
+        if !self.tilted {
+            return self.local::<EVAL, PDF>(a, b, transmit_only);
+        }
+        self.tilted::<EVAL, PDF>(a, b, transmit_only)
+    }
+
+    /// [`InterfaceLanes::kernels`] of a tilted interface, out of line (the
+    /// untilted walks then inline one copy of each kernel, not two).
     #[inline(never)]
-    fn pdf_tilted(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
+    fn tilted<const EVAL: bool, const PDF: bool>(
+        &self,
+        a: V3<L>,
+        b: V3<L>,
+        transmit_only: L::Mask,
+    ) -> (Rgb<L>, L) {
         let (f, flat) = self.shading();
         let (al, front) = Self::to_shading(&f, flat, a);
         let (bl, agree) = Self::to_shading(&f, flat, b);
-        L::select(
-            front & agree,
-            self.pdf_local(al, bl, transmit_only),
-            L::zero(),
-        )
+        let ok = front & agree;
+        let (v, p) = self.local::<EVAL, PDF>(al, bl, transmit_only);
+        let v = if EVAL {
+            let c = L::div_or_zero(bl.z.abs(), b.z.abs(), ok & b.z.abs().gt(L::zero()));
+            let c = if self.adjoint {
+                c * self.veach(a, b)
+            } else {
+                c
+            };
+            let c = L::select(flat, L::one(), c);
+            Rgb::select(ok, v.scale(c), Rgb::zero())
+        } else {
+            v
+        };
+        (v, L::select(ok, p, L::zero()))
     }
 
     /// `f(b → a) / f(a → b)` of these lanes, without the η² of refraction:
@@ -460,9 +475,23 @@ impl<L: Lane> InterfaceLanes<L> {
         (h, ok)
     }
 
-    /// The radiance BSDF `f(a → b)` in the interface's own frame.
+    /// The density of `b` given `a` in the interface's own frame.
     #[inline]
-    fn eval_local(&self, a: V3<L>, b: V3<L>) -> Rgb<L> {
+    fn pdf_local(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
+        self.local::<false, true>(a, b, transmit_only).1
+    }
+
+    /// `f(a → b)` (if `EVAL`) and the density of `b` given `a` (if `PDF`)
+    /// in the interface's own frame, 0 for what is not asked: one kernel,
+    /// so that a caller that needs both computes the half vector, the
+    /// normal distribution and the Fresnel terms once.
+    #[inline]
+    fn local<const EVAL: bool, const PDF: bool>(
+        &self,
+        a: V3<L>,
+        b: V3<L>,
+        transmit_only: L::Mask,
+    ) -> (Rgb<L>, L) {
         let zero = L::zero();
         let rough = !self.smooth;
         let reflection = (a.z * b.z).gt(zero);
@@ -470,87 +499,75 @@ impl<L: Lane> InterfaceLanes<L> {
         let cos_b = b.z.abs();
         let cos_ok = cos_a.gt(zero) & cos_b.gt(zero);
         let mut f = Rgb::zero();
+        let mut p = zero;
 
         if self.run_all || (self.dielectric & rough).any() {
             let (h, ok) = self.half_vector(a, b, reflection);
-            let ok = ok & self.dielectric & rough & cos_ok;
             let d = self.mf.d(h);
-            let g = self.mf.g(a, b);
             let (fr, ft) = fresnel::dielectric_rt(a.dot(h), self.eta());
             let (n_a, n_b) = self.sides(a);
             let ah = a.dot(h);
             let bh = b.dot(h);
             let den = n_a * ah + n_b * bh;
             let den2 = den * den;
-            let fr_val = L::div_or_zero(d * g * fr, L::splat(4.0) * cos_a * cos_b, ok);
-            let ft_ok = ok & den2.gt(zero);
-            let ft_val = L::div_or_zero(
-                d * g * ft * (ah * bh).abs() * n_b * n_b,
-                cos_a * cos_b * den2,
-                ft_ok,
-            );
-            let v = L::select(reflection, fr_val, ft_val);
-            f = Rgb::select(ok, Rgb::splat(v), f);
+            if EVAL {
+                let ok = ok & self.dielectric & rough & cos_ok;
+                let g = self.mf.g(a, b);
+                let fr_val = L::div_or_zero(d * g * fr, L::splat(4.0) * cos_a * cos_b, ok);
+                let ft_ok = ok & den2.gt(zero);
+                let ft_val = L::div_or_zero(
+                    d * g * ft * (ah * bh).abs() * n_b * n_b,
+                    cos_a * cos_b * den2,
+                    ft_ok,
+                );
+                let v = L::select(reflection, fr_val, ft_val);
+                f = Rgb::select(ok, Rgb::splat(v), f);
+            }
+            if PDF {
+                let ok = ok & self.dielectric & rough & !(reflection & transmit_only);
+                let pm = self.mf.pdf_of(a, h, d);
+                let pr = L::div_or_zero(pm * fr, L::splat(4.0) * ah.abs(), ok);
+                let sel_t = L::select(transmit_only, L::one(), ft);
+                let pt =
+                    L::div_or_zero(pm * sel_t * n_b * n_b * bh.abs(), den2, ok & den2.gt(zero));
+                p = L::select(ok, L::select(reflection, pr, pt), p);
+            }
         }
 
         if self.run_all || (self.conductor & rough).any() {
-            let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero);
             let h = (a + b).normalize_or_z();
             let d = self.mf.d(h);
-            let g = self.mf.g(a, b);
-            let fr = fresnel::conductor(a.dot(h), self.eta, self.k);
-            let s = L::div_or_zero(d * g, L::splat(4.0) * cos_a * cos_b, ok);
-            f = Rgb::select(ok, fr.scale(s), f);
+            if EVAL {
+                let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero);
+                let g = self.mf.g(a, b);
+                let fr = fresnel::conductor(a.dot(h), self.eta, self.k);
+                let s = L::div_or_zero(d * g, L::splat(4.0) * cos_a * cos_b, ok);
+                f = Rgb::select(ok, fr.scale(s), f);
+            }
+            if PDF {
+                let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
+                let ah = a.dot(h);
+                let v = L::div_or_zero(
+                    self.mf.pdf_of(a, h, d),
+                    L::splat(4.0) * ah,
+                    ok & ah.gt(zero),
+                );
+                p = L::select(ok, v, p);
+            }
         }
 
         if self.run_all || self.diffuse.any() {
             let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero);
-            let v = self.albedo.scale(L::splat(std::f64::consts::FRAC_1_PI));
-            f = Rgb::select(ok, v, f);
+            if EVAL {
+                let v = self.albedo.scale(L::splat(std::f64::consts::FRAC_1_PI));
+                f = Rgb::select(ok, v, f);
+            }
+            if PDF {
+                let ok = ok & !transmit_only;
+                p = L::select(ok, b.z * L::splat(std::f64::consts::FRAC_1_PI), p);
+            }
         }
-        f
-    }
-
-    /// The density of `b` given `a` in the interface's own frame.
-    #[inline]
-    fn pdf_local(&self, a: V3<L>, b: V3<L>, transmit_only: L::Mask) -> L {
-        let zero = L::zero();
-        let rough = !self.smooth;
-        let reflection = (a.z * b.z).gt(zero);
-        let mut p = zero;
-
-        if self.run_all || (self.dielectric & rough).any() {
-            let (h, ok) = self.half_vector(a, b, reflection);
-            let ok = ok & self.dielectric & rough & !(reflection & transmit_only);
-            let pm = self.mf.pdf(a, h);
-            let (fr, ft) = fresnel::dielectric_rt(a.dot(h), self.eta());
-            let (n_a, n_b) = self.sides(a);
-            let ah = a.dot(h);
-            let bh = b.dot(h);
-            let den = n_a * ah + n_b * bh;
-            let pr = L::div_or_zero(pm * fr, L::splat(4.0) * ah.abs(), ok);
-            let sel_t = L::select(transmit_only, L::one(), ft);
-            let pt = L::div_or_zero(
-                pm * sel_t * n_b * n_b * bh.abs(),
-                den * den,
-                ok & (den * den).gt(zero),
-            );
-            p = L::select(ok, L::select(reflection, pr, pt), p);
-        }
-
-        if self.run_all || (self.conductor & rough).any() {
-            let ok = self.conductor & rough & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
-            let h = (a + b).normalize_or_z();
-            let ah = a.dot(h);
-            let v = L::div_or_zero(self.mf.pdf(a, h), L::splat(4.0) * ah, ok & ah.gt(zero));
-            p = L::select(ok, v, p);
-        }
-
-        if self.run_all || self.diffuse.any() {
-            let ok = self.diffuse & a.z.gt(zero) & b.z.gt(zero) & !transmit_only;
-            p = L::select(ok, b.z * L::splat(std::f64::consts::FRAC_1_PI), p);
-        }
-        p
+        (f, p)
     }
 }
 
@@ -588,6 +605,50 @@ mod tests {
                     assert_eq!(a.pdf(w, v, t), b.pdf(w, v, t));
                 }
                 assert_eq!(a.eval(w, v), b.eval(w, v));
+            }
+        }
+    }
+
+    /// `eval_pdf` is `eval` and `pdf` bit for bit, tilted or not, in both
+    /// transports: the density walk takes it in their place.
+    #[test]
+    fn eval_pdf_is_eval_and_pdf() {
+        let tilt = ", normal = [0.3, -0.2, 0.93]";
+        let stacks = [
+            "interface = { kind = \"dielectric\", ior = 1.5, roughness = 0.3 NORMAL }",
+            "interface = { kind = \"dielectric\", ior = 1.33, roughness = 0.05, distribution = \"beckmann\" NORMAL }",
+            "interface = { kind = \"conductor\", preset = \"Au\", roughness = [0.1, 0.4] NORMAL }",
+            "interface = { kind = \"diffuse\", albedo = 0.7 NORMAL }",
+            "interface = { kind = \"dielectric\", ior = 1.5 NORMAL }",
+        ];
+        let mut rng = WalkRng::new(4, 5, 6, Stream::Walk);
+        for toml in stacks {
+            for normal in ["", tilt] {
+                let toml = format!("[[layers]]\n{}", toml.replace("NORMAL", normal));
+                let st = crate::LayerStack::from_toml_str(&toml).unwrap();
+                let it = st.interface_lanes::<f32>(0);
+                for it in [
+                    it,
+                    InterfaceLanes {
+                        adjoint: true,
+                        ..it
+                    },
+                ] {
+                    for _ in 0..2000 {
+                        let mut u = || rng.uniform() - 0.5;
+                        let (w, v) = (
+                            V3::new(u(), u(), u()).normalize_or_z(),
+                            V3::new(u(), u(), u()).normalize_or_z(),
+                        );
+                        let (f, p) = it.eval_pdf(w, v);
+                        let no = false;
+                        assert_eq!(
+                            (f, p.to_bits()),
+                            (it.eval(w, v), it.pdf(w, v, no).to_bits()),
+                            "{toml}"
+                        );
+                    }
+                }
             }
         }
     }

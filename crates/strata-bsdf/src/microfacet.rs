@@ -224,7 +224,12 @@ impl<L: Lane> Microfacet<L> {
     /// The density of [`Microfacet::sample`] producing `m`, seen from `w`.
     #[inline(always)]
     pub fn pdf(&self, w: V3<L>, m: V3<L>) -> L {
-        let d = self.d(m);
+        self.pdf_of(w, m, self.d(m))
+    }
+
+    /// [`Microfacet::pdf`] from `d = D(m)`, for a caller that has it.
+    #[inline(always)]
+    pub fn pdf_of(&self, w: V3<L>, m: V3<L>, d: L) -> L {
         let wz = w.z.abs();
         let wm = w.dot(m) * w.z.sign();
         // G1(w) / |w.z| = 2 / (c + S): no division by w.z.

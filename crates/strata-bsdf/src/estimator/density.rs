@@ -231,9 +231,9 @@ impl<L: Lane> Vertex<'_, L> {
     fn density(&self, u: V3<L>) -> (L, Rgb<L>, L) {
         match self {
             Vertex::Surface { it, a, .. } => {
-                let pv = it.pdf(*a, u, L::Mask::splat(false));
+                let (f, pv) = it.eval_pdf(*a, u);
                 let ok = pv.gt(L::zero());
-                let w = it.eval(*a, u).scale(L::div_or_zero(u.z.abs(), pv, ok));
+                let w = f.scale(L::div_or_zero(u.z.abs(), pv, ok));
                 (pv, w, pv)
             }
             Vertex::Collision { med, d, e, .. } => {
