@@ -610,7 +610,12 @@ mod tests {
     }
 
     /// `eval_pdf` is `eval` and `pdf` bit for bit, tilted or not, in both
-    /// transports: the density walk takes it in their place.
+    /// transports: the density walk takes it in their place. All three are
+    /// the one kernel `local`, so this checks only that asking for both
+    /// computes what each alone does (a value shared between the two wrongly
+    /// fails it); the kernel's physics is checked against sampling
+    /// histograms and closed forms (`tests/kernels_chi2.rs`,
+    /// `tests/kernels_closed_forms.rs`).
     #[test]
     fn eval_pdf_is_eval_and_pdf() {
         let tilt = ", normal = [0.3, -0.2, 0.93]";
