@@ -277,6 +277,16 @@ impl<L: Lane> Target<L> {
         draw: &mut impl FnMut(L::Mask) -> L,
     ) -> Self {
         let zero = L::zero();
+        if !m.any() {
+            return Target {
+                t: V3::z_axis(),
+                n_t: zero,
+                region: zero,
+                q: zero,
+                pe: zero,
+                ok: m,
+            };
+        }
         let (u0, u1, u2) = (draw(m), draw(m), draw(m));
         let s = it.sample(leave, u0, u1, u2, transmit_only);
         let b = s.b; // the arrival, pointing away from the interface
