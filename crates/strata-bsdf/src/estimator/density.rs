@@ -61,6 +61,14 @@
 //! sides, so the weights still sum to 1). It runs where the phase function
 //! is peaked enough to pay for it (`PEAKED`).
 //!
+//! The two sampled targets (the rough exit's and `k`'s arrival) are drawn
+//! once per walk, before its first event, and every vertex of the walk
+//! connects to them: each vertex's term is still an unbiased estimate (the
+//! targets are independent of the path); fresh targets at every vertex
+//! would make the terms independent too, but cost more than their lower
+//! variance gives back (docs/performance.md, *One pair of targets per
+//! walk*).
+//!
 //! The chain itself is `sample()`'s: the same kernels, hero channel, Russian
 //! roulette and settings, on its own random stream. So each walk's sum is an
 //! unbiased estimate of the density of `sample()` (the "unbiased, slow" pdf);
@@ -123,6 +131,10 @@ struct Goal<L: Lane> {
     inner_on: L::Mask,
     u_w: V3<L>,
     j_w: L,
+    /// The walk's targets: the rough exit's (from `wo`) and `k`'s (from
+    /// `u_w`), drawn once per walk.
+    exit_target: Target<L>,
+    inner_target: Target<L>,
 }
 
 impl<L: Lane> Goal<L> {
@@ -144,6 +156,8 @@ impl<L: Lane> Goal<L> {
             inner_on: (m & a.inner_on) | (!m & b.inner_on),
             u_w: d(a.u_w, b.u_w),
             j_w: v(a.j_w, b.j_w),
+            exit_target: Target::select(m, &a.exit_target, &b.exit_target),
+            inner_target: Target::select(m, &a.inner_target, &b.inner_target),
         }
     }
 }
@@ -261,18 +275,37 @@ struct Target<L: Lane> {
     region: L,
     q: L,
     pe: L,
+    /// The interface's BSDF value for the arrival towards `leave`, where
+    /// asked for (the inner connection goes on through it).
+    f: Rgb<L>,
     ok: L::Mask,
 }
 
 impl<L: Lane> Target<L> {
+    /// Lane by lane, `a` where `m` is set and `b` elsewhere.
+    fn select(m: L::Mask, a: &Self, b: &Self) -> Self {
+        let v = |x: L, y: L| L::select(m, x, y);
+        Target {
+            t: V3::select(m, a.t, b.t),
+            n_t: v(a.n_t, b.n_t),
+            region: v(a.region, b.region),
+            q: v(a.q, b.q),
+            pe: v(a.pe, b.pe),
+            f: Rgb::select(m, a.f, b.f),
+            ok: (m & a.ok) | (!m & b.ok),
+        }
+    }
+
     /// A rough interface `it`'s connection from the travel direction `leave`
     /// (leaving it): the arrival sampled by its lobe from `leave`, and its
-    /// density of `leave` for that arrival.
+    /// density of `leave` for that arrival; with `value`, also its BSDF
+    /// value for that pair (one kernel computes both).
     fn sample(
         it: &InterfaceLanes<L>,
         i: L,
         leave: V3<L>,
         transmit_only: L::Mask,
+        value: bool,
         m: L::Mask,
         draw: &mut impl FnMut(L::Mask) -> L,
     ) -> Self {
@@ -284,6 +317,7 @@ impl<L: Lane> Target<L> {
                 region: zero,
                 q: zero,
                 pe: zero,
+                f: Rgb::zero(),
                 ok: m,
             };
         }
@@ -291,12 +325,17 @@ impl<L: Lane> Target<L> {
         let s = it.sample(leave, u0, u1, u2, transmit_only);
         let b = s.b; // the arrival, pointing away from the interface
         let ok = m & s.valid & s.pdf.gt(zero);
+        let (f, pe) = match value {
+            true => it.eval_pdf(b, leave),
+            false => (Rgb::zero(), it.pdf(b, leave, L::Mask::splat(false))),
+        };
         Target {
             t: -b,
             n_t: L::select(b.z.gt(zero), it.n_above, it.n_below),
             region: L::select(b.z.gt(zero), i - L::one(), i),
             q: L::select(ok, s.pdf, zero),
-            pe: L::select(ok, it.pdf(b, leave, L::Mask::splat(false)), zero),
+            pe: L::select(ok, pe, zero),
+            f,
             ok,
         }
     }
@@ -369,7 +408,9 @@ impl<L: Lane> DensityWalk<'_, L> {
         super::layout::thickness_at(self.media, l)
     }
 
-    fn goal(&self, wo: V3<L>) -> Goal<L> {
+    /// Where the walks of lanes `m` send their density out towards `wo`,
+    /// with their targets drawn.
+    fn goal(&self, wo: V3<L>, m: L::Mask, draw: &mut impl FnMut(L::Mask) -> L) -> Goal<L> {
         let n = self.n();
         let zero = L::zero();
         let last = L::splat(n as f64 - 1.0);
@@ -384,7 +425,13 @@ impl<L: Lane> DensityWalk<'_, L> {
         let on = L::Mask::splat(two) & exit.smooth & !inner.smooth;
         let outside = L::select(top, -L::one(), last);
         let (u_w, j_w, ok) = self.candidate(layer, top, wo, n_out, outside, on);
+        let no = L::Mask::splat(false);
+        let yes = L::Mask::splat(true);
+        let exit_target = Target::sample(&exit, e_out, wo, yes, false, m & !exit.smooth, draw);
+        let inner_target = Target::sample(&inner, k, u_w, no, true, m & ok, draw);
         Goal {
+            exit_target,
+            inner_target,
             wo,
             exit,
             e_out,
@@ -437,7 +484,7 @@ impl<L: Lane> DensityWalk<'_, L> {
             k_b: zero,
             i: L::select(wi.z.gt(zero), zero, last),
             a: wi,
-            goal: self.goal(wo),
+            goal: self.goal(wo, m, &mut draw),
         }
     }
 
@@ -609,17 +656,8 @@ impl<L: Lane> DensityWalk<'_, L> {
         let last = L::splat(self.n() as f64 - 1.0);
         let top = g.wo.z.gt(zero);
         let rough_exit = m & !g.exit.smooth;
-        let exit_target = Target::sample(
-            &g.exit,
-            g.e_out,
-            g.wo,
-            L::Mask::splat(true),
-            rough_exit,
-            draw,
-        );
+        let (exit_target, inner_target) = (&g.exit_target, &g.inner_target);
         let inner_on = m & g.inner_on;
-        let inner_target =
-            Target::sample(&g.inner, g.k, g.u_w, L::Mask::splat(false), inner_on, draw);
         // The sides a candidate can leave the vertex by: the layer, the
         // depth it starts from, the lanes where it exists.
         let sides = match v {
@@ -696,7 +734,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                 if ok.any() {
                     // k's event towards u_w, then on to wo.
                     let pe = inner_target.pe;
-                    let wk = (g.inner.eval(-t, g.u_w)).scale(L::div_or_zero(g.u_w.z.abs(), pe, ok));
+                    let wk = inner_target.f.scale(L::div_or_zero(g.u_w.z.abs(), pe, ok));
                     s1.beta *= wk;
                     let (p2, _) =
                         self.delta_exit(g.layer, g.z_k, g.u_w, s1, g.e_out, g.wo.z, ok, draw);
@@ -705,7 +743,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                 }
             }
         }
-        p + self.connect_medium(g, v, st, m, &exit_target, draw)
+        p + self.connect_medium(g, v, st, m, exit_target, draw)
     }
 
     /// The lanes where the medium connection runs in the layer of `med`
