@@ -335,7 +335,7 @@ impl<L: Lane> Target<L> {
             region: L::select(b.z.gt(zero), i - L::one(), i),
             q: L::select(ok, s.pdf, zero),
             pe: L::select(ok, pe, zero),
-            f,
+            f: Rgb::select(ok, f, Rgb::zero()),
             ok,
         }
     }
@@ -640,9 +640,9 @@ impl<L: Lane> DensityWalk<'_, L> {
 
     /// Every connection of a non-delta vertex (lanes `m`, walk state `st`,
     /// its arrival density `rho`): to the exit through smooth interfaces
-    /// (towards `wo`, or towards a direction sampled by a rough exit), and
-    /// the inner connection through `k`; one candidate heading up and one
-    /// heading down each.
+    /// (towards `wo`, or towards the walk's target at a rough exit), and
+    /// the inner connection through `k` (to its target there); one
+    /// candidate heading up and one heading down each.
     fn connect(
         &self,
         g: &Goal<L>,
