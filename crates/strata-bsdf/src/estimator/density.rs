@@ -672,10 +672,14 @@ impl<L: Lane> DensityWalk<'_, L> {
         // the walk's state after the vertex samples it, the lanes.
         // A candidate whose first interface is rough, and not where it
         // stops, has no delta-only path: skipped before any work (it would
-        // draw nothing either, so the walk is the same).
+        // draw nothing either, so the walk is the same), as is a connection
+        // no lane makes.
         let leave = |l: L, up: bool, t: V3<L>, n_t: L, r_t: L, ok: L::Mask, stop: L| {
             let first = if up { l } else { l + L::one() };
             let ok = ok & (self.smooth_at(first) | first.eq(stop));
+            if !ok.any() {
+                return (V3::z_axis(), zero, zero, st, ok, zero);
+            }
             let (u, jac, ok) = self.candidate(l, L::Mask::splat(up), t, n_t, r_t, ok);
             let (pv, w, pw) = v.density(u);
             let s = State {
