@@ -252,8 +252,10 @@ fn bidirectional_agrees_with_unidirectional() {
 /// lane code on one lane and on eight; this checks the scheduling, not the
 /// physics: on the stacks with scattering layers or three interfaces the
 /// wavefront regroups traced walks by their subpath lengths before
-/// connecting them, 300 walks making a full unit and a partial one), and
-/// equal estimates from the wavefront's parallel blocks.
+/// connecting them, and refills a lane as soon as its subpath ends: 300
+/// walks make a full unit and a partial one, and 5 walks leave lanes
+/// without a walk), and equal estimates from the wavefront's parallel
+/// blocks.
 #[test]
 fn wavefront_replays_the_scalar_walks() {
     use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
@@ -286,15 +288,17 @@ fn wavefront_replays_the_scalar_walks() {
         let wave = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
         let ps = pairs(st.transmissive());
         for (q, &(wi, wo)) in ps.iter().enumerate() {
-            let a = eng.eval_bidir_walk_values(wi, wo, 300, 5, q as u64);
-            let b = wave.eval_bidir_walk_values(wi, wo, 300, 5, q as u64);
-            assert_eq!(a.len(), b.len());
-            for (k, (x, y)) in a.iter().zip(&b).enumerate() {
-                assert_eq!(x, y, "{name}, pair {q}, walk {k}");
-                assert!(
-                    x.iter().all(|v| v.is_finite() && *v >= 0.0),
-                    "{name}: {x:?}"
-                );
+            for walks in [300, 5] {
+                let a = eng.eval_bidir_walk_values(wi, wo, walks, 5, q as u64);
+                let b = wave.eval_bidir_walk_values(wi, wo, walks, 5, q as u64);
+                assert_eq!(a.len(), b.len());
+                for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+                    assert_eq!(x, y, "{name}, pair {q}, walk {k} of {walks}");
+                    assert!(
+                        x.iter().all(|v| v.is_finite() && *v >= 0.0),
+                        "{name}: {x:?}"
+                    );
+                }
             }
         }
         let keys: Vec<u64> = (0..ps.len() as u64).collect();

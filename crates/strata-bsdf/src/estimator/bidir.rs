@@ -36,9 +36,10 @@
 //! path, as every weight must be.
 //!
 //! **Subpaths.** Both are random walks of `sample()`'s kind: one vertex per
-//! step (sample a direction at the vertex, then a free flight or a crossing
-//! to the next vertex), so that lanes stay in step vertex by vertex and a
-//! subpath's vertices are rows of lanes (structure of arrays). Russian
+//! step ([`BidirWalk::step`]: sample a direction at the vertex, then a free
+//! flight or a crossing to the next vertex), so that a subpath's vertices
+//! are rows of lanes (structure of arrays) and a lane whose subpath ended
+//! can begin another ([`BidirWalk::begin`]) while the others go on. Russian
 //! roulette ends them; there is no depth cap beyond the settings' optional
 //! one. The eye subpath samples interfaces from the side light leaves by and
 //! weights each step with the light-sense value (`f(b → a)` rather than `f(a
@@ -105,6 +106,52 @@ pub struct Vertex<L: Lane> {
     pub order: L,
 }
 
+/// Subpaths being traced, one per lane: the vertex each is at (`v.exists`:
+/// the lanes whose subpath goes on) and its walk's state.
+#[derive(Clone, Copy, Debug)]
+pub struct Tracing<L: Lane> {
+    v: Vertex<L>,
+    hero: L,
+    ratios: Rgb<L>,
+    events: L,
+    order: L,
+    /// Lanes whose vertex is their subpath's first.
+    first: L::Mask,
+}
+
+impl<L: Lane> Tracing<L> {
+    /// No subpath on any lane ([`BidirWalk::begin`] starts them).
+    pub fn idle() -> Self {
+        let (zero, one, no) = (L::zero(), L::one(), L::Mask::splat(false));
+        Tracing {
+            v: Vertex {
+                exists: no,
+                surface: no,
+                delta: no,
+                idx: zero,
+                z: zero,
+                a: V3::z_axis(),
+                beta: Rgb::one(),
+                own: one,
+                other: one,
+                land: one,
+                land_rev: one,
+                order: zero,
+            },
+            hero: zero,
+            ratios: Rgb::one(),
+            events: zero,
+            order: zero,
+            first: no,
+        }
+    }
+
+    /// The lanes whose subpath goes on.
+    pub fn active(&self) -> L::Mask {
+        self.v.exists
+    }
+}
+
 /// Working memory of a walk: the two subpaths' vertices.
 #[derive(Clone, Debug, Default)]
 pub struct Buffers<L: Lane> {
@@ -113,52 +160,72 @@ pub struct Buffers<L: Lane> {
 }
 
 impl<L: Lane> Buffers<L> {
-    /// The number of vertices of lane `j`'s light and eye subpaths (a
-    /// subpath's vertices are a prefix of its rows).
-    pub fn lengths(&self, j: usize) -> (usize, usize) {
-        let len = |rows: &[Vertex<L>]| rows.iter().take_while(|v| v.exists.lane(j)).count();
-        (len(&self.light), len(&self.eye))
-    }
-
-    /// Fills these buffers with other walks' subpaths: lane `j` gets lane
-    /// `lane` of `src(j) = (buffers, lane)`, in `rows = (light, eye)` rows,
-    /// the longest of those subpaths (a lane's rows past its own subpath
-    /// are marked absent). Walks then run their connections in the company
-    /// of walks as long as they are ([`BidirWalk::connect`]).
+    /// Fills these buffers with other walks' subpaths: lane `j` gets the
+    /// light subpath `light(j) = (rows, lane)` (lane `lane` of those rows)
+    /// and the eye subpath `eye(j)`, in `rows = (light, eye)` rows, the
+    /// longest of those subpaths (a lane's rows past its own subpath are
+    /// marked absent). Walks then run their connections in the company of
+    /// walks as long as they are ([`BidirWalk::connect`]).
     pub fn gather<'b>(
         &mut self,
         rows: (usize, usize),
-        src: impl Fn(usize) -> (&'b Buffers<L>, usize),
+        light: impl Fn(usize) -> (&'b [Vertex<L>], usize),
+        eye: impl Fn(usize) -> (&'b [Vertex<L>], usize),
     ) where
         L: 'b,
     {
-        let src: [_; MAX_LANES] = std::array::from_fn(|j| src(j.min(L::LANES - 1)));
-        let src = &src[..L::LANES];
-        gather_rows(&mut self.light, rows.0, |j| (&src[j].0.light[..], src[j].1));
-        gather_rows(&mut self.eye, rows.1, |j| (&src[j].0.eye[..], src[j].1));
+        gather_rows(&mut self.light, rows.0, light);
+        gather_rows(&mut self.eye, rows.1, eye);
     }
 }
 
-/// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)`, as in
-/// [`Buffers::gather`]. (Arrays, not vectors: a warm walk allocates
-/// nothing.)
+/// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)` (at
+/// least one row), as in [`Buffers::gather`]. (Arrays, not vectors: a warm
+/// walk allocates nothing.)
 fn gather_rows<'b, L: Lane + 'b>(
     out: &mut Vec<Vertex<L>>,
     len: usize,
     src: impl Fn(usize) -> (&'b [Vertex<L>], usize),
 ) {
+    let src: [_; MAX_LANES] = std::array::from_fn(|j| src(j.min(L::LANES - 1)));
+    // A lane's rows past its subpath hold the idle vertex's plain values:
+    // the connections compute on every lane, and a subpath's last vertex
+    // repeated there slowed them (docs/performance.md).
+    let none = Tracing::<L>::idle().v;
     out.clear();
     for r in 0..len {
         let row: [_; MAX_LANES] = std::array::from_fn(|j| {
-            let (rows, lane) = src(j.min(L::LANES - 1));
-            let v = &rows[r.min(rows.len() - 1)];
-            (v, lane, r < rows.len() && v.exists.lane(lane))
+            let (rows, lane) = src[j.min(L::LANES - 1)];
+            match rows.get(r) {
+                Some(v) => (v, lane, v.exists.lane(lane)),
+                None => (&none, lane, false),
+            }
         });
         out.push(Vertex::gather(&row[..L::LANES]));
     }
 }
 
 impl<L: Lane> Vertex<L> {
+    /// `t` on the lanes of `m`, `f` elsewhere.
+    pub fn select(m: L::Mask, t: &Self, f: &Self) -> Self {
+        let mask = |a: L::Mask, b: L::Mask| (m & a) | (!m & b);
+        let num = |a: L, b: L| L::select(m, a, b);
+        Vertex {
+            exists: mask(t.exists, f.exists),
+            surface: mask(t.surface, f.surface),
+            delta: mask(t.delta, f.delta),
+            idx: num(t.idx, f.idx),
+            z: num(t.z, f.z),
+            a: V3::select(m, t.a, f.a),
+            beta: Rgb::select(m, t.beta, f.beta),
+            own: num(t.own, f.own),
+            other: num(t.other, f.other),
+            land: num(t.land, f.land),
+            land_rev: num(t.land_rev, f.land_rev),
+            order: num(t.order, f.order),
+        }
+    }
+
     /// Lane `j` of the result is lane `lane` of `v` for `src[j] = (v, lane,
     /// exists)`.
     fn gather(src: &[(&Vertex<L>, usize, bool)]) -> Self {
@@ -386,13 +453,14 @@ impl<L: Lane> BidirWalk<'_, L> {
     /// Samples a direction `o` leaving vertex `v` (lanes `m`): `o`, the
     /// value over the density (an interface's BSDF without its cosine, in
     /// the light's sense; 1 at a collision), the densities of [`End`], and
-    /// the lanes where a direction was made.
+    /// the lanes where a direction was made (`endpoint`: the lanes at a
+    /// subpath's first vertex, which samples transmission only).
     #[allow(clippy::type_complexity)]
     fn sample_end(
         &self,
         v: &Vertex<L>,
         eye: bool,
-        endpoint: bool,
+        endpoint: L::Mask,
         m: L::Mask,
         draw: &mut impl FnMut(L::Mask) -> L,
     ) -> (V3<L>, Rgb<L>, L, L, L::Mask) {
@@ -406,7 +474,7 @@ impl<L: Lane> BidirWalk<'_, L> {
         let u = (draw(s_m), draw(s_m), draw(s_m));
         if s_m.any() {
             let it = self.at(v.idx);
-            let s = it.sample(v.a, u.0, u.1, u.2, L::Mask::splat(endpoint));
+            let s = it.sample(v.a, u.0, u.1, u.2, endpoint);
             let good = s_m & s.valid;
             let weight = if eye {
                 eye_weight(&it, v.a, &s)
@@ -440,28 +508,24 @@ impl<L: Lane> BidirWalk<'_, L> {
         (o, w, own, other, ok)
     }
 
-    /// Traces a subpath from `w` (pointing away from the stack): the light
-    /// subpath from `wi`, or (`eye`) the eye subpath from `wo`. One vertex
-    /// per step, every lane in step.
-    fn trace(
+    /// Starts subpaths from `w` (pointing away from the stack) on lanes
+    /// `m` of `t`, drawing their first uniform (the hero channel's); the
+    /// other lanes keep their subpaths.
+    pub fn begin(
         &self,
         w: V3<L>,
-        eye: bool,
-        out: &mut Vec<Vertex<L>>,
+        m: L::Mask,
+        t: &mut Tracing<L>,
         draw: &mut impl FnMut(L::Mask) -> L,
     ) {
         let zero = L::zero();
         let last = L::splat(self.n() as f64 - 1.0);
-        let yes = L::Mask::splat(true);
-        out.clear();
-        let start = events::WalkStart::<L>::new(draw(yes));
-        let (hero, mut ratios, mut events) = (start.hero, start.ratios, start.events);
+        let start = events::WalkStart::<L>::new(draw(m));
         let i0 = L::select(w.z.gt(zero), zero, last);
-        let it0 = self.at(i0);
-        let mut v = Vertex {
-            exists: yes,
-            surface: yes,
-            delta: it0.smooth,
+        let v = Vertex {
+            exists: m,
+            surface: m,
+            delta: self.at(i0).smooth,
             idx: i0,
             z: zero,
             a: w,
@@ -472,81 +536,109 @@ impl<L: Lane> BidirWalk<'_, L> {
             land_rev: L::one(),
             order: zero,
         };
-        let mut order = zero;
-        let mut alive = yes;
-        loop {
-            let endpoint = out.is_empty();
-            let (d, wv, own, other, ok) = self.sample_end(&v, eye, endpoint, alive, draw);
-            v.own = L::select(ok, own, v.own);
-            v.other = L::select(ok, other, v.other);
-            out.push(v);
-            let here = out.len() - 1;
-            alive = ok;
-            // The travel weight of the step: the sampled value over its
-            // density, with the cosine a surface vertex's direction carries.
-            let cos = L::select(v.surface, d.z.abs(), L::one());
-            let mut beta = Rgb::select(alive, v.beta * wv.scale(cos), v.beta);
-            events = L::select(alive, events + L::one(), events);
-            let up = d.z.gt(zero);
-            let (l_s, out_s) = self.layout().enter(v.idx, up);
-            let layer = L::select(v.surface, l_s, v.idx);
-            // (A direction exactly parallel to the layer collides in a
-            // scattering layer and ends in an inert one, as in every walk:
-            // `events::free_flight`, `events::cross_inert`.)
-            alive = alive & !(v.surface & out_s);
-            alive = events::survive(&mut beta, events, draw(alive), alive, self.settings);
-            if !alive.any() {
-                break;
+        t.v = Vertex::select(m, &v, &t.v);
+        t.hero = L::select(m, start.hero, t.hero);
+        t.ratios = Rgb::select(m, start.ratios, t.ratios);
+        t.events = L::select(m, start.events, t.events);
+        t.order = L::select(m, start.order, t.order);
+        t.first = t.first | m;
+    }
+
+    /// One vertex of the subpath on every lane of `t` that has one (the
+    /// eye subpath's if `eye`): samples its direction, flies to the next
+    /// vertex, and returns the finished vertex (its `exists`: the lanes that
+    /// had one). `t` moves on to the next vertex, where the subpath goes on.
+    pub fn step(
+        &self,
+        t: &mut Tracing<L>,
+        eye: bool,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) -> Vertex<L> {
+        let zero = L::zero();
+        let last = L::splat(self.n() as f64 - 1.0);
+        let mut v = t.v;
+        let endpoint = t.first & v.exists;
+        t.first = t.first & !v.exists;
+        let (d, wv, own, other, ok) = self.sample_end(&v, eye, endpoint, v.exists, draw);
+        v.own = L::select(ok, own, v.own);
+        v.other = L::select(ok, other, v.other);
+        let mut alive = ok;
+        // The travel weight of the step: the sampled value over its
+        // density, with the cosine a surface vertex's direction carries.
+        let cos = L::select(v.surface, d.z.abs(), L::one());
+        let mut beta = Rgb::select(alive, v.beta * wv.scale(cos), v.beta);
+        t.events = L::select(alive, t.events + L::one(), t.events);
+        let up = d.z.gt(zero);
+        let (l_s, out_s) = self.layout().enter(v.idx, up);
+        let layer = L::select(v.surface, l_s, v.idx);
+        // (A direction exactly parallel to the layer collides in a
+        // scattering layer and ends in an inert one, as in every walk:
+        // `events::free_flight`, `events::cross_inert`.)
+        alive = alive & !(v.surface & out_s);
+        alive = events::survive(&mut beta, t.events, draw(alive), alive, self.settings);
+        // The flight to the next vertex.
+        let h = self.thickness(layer);
+        let z0 = L::select(v.surface, L::select(up, h, zero), v.z);
+        let mut z = z0;
+        let mut col = L::Mask::splat(false);
+        for (ll, med) in self.media.iter().enumerate() {
+            let m = alive & layer.eq(L::splat(ll as f64));
+            if !m.any() {
+                continue;
             }
-            // The flight to the next vertex.
-            let h = self.thickness(layer);
-            let z0 = L::select(v.surface, L::select(up, h, zero), v.z);
-            let mut z = z0;
-            let mut col = L::Mask::splat(false);
-            for (ll, med) in self.media.iter().enumerate() {
-                let m = alive & layer.eq(L::splat(ll as f64));
-                if !m.any() {
-                    continue;
-                }
-                if med.kind != LayerKind::Scattering {
-                    alive = alive & !events::cross_inert(med, z0, d, m, &mut beta);
-                } else {
-                    let fl = events::Flight {
-                        z: &mut z,
-                        beta: &mut beta,
-                        ratios: &mut ratios,
-                        order: &mut order,
-                    };
-                    let cap = self.settings.max_scatter_order;
-                    let (hit, pass) = events::free_flight(med, fl, d, hero, draw(m), None, m, cap);
-                    alive = alive & !(m & !hit & !pass);
-                    col = col | hit;
-                }
+            if med.kind != LayerKind::Scattering {
+                alive = alive & !events::cross_inert(med, z0, d, m, &mut beta);
+            } else {
+                let fl = events::Flight {
+                    z: &mut z,
+                    beta: &mut beta,
+                    ratios: &mut t.ratios,
+                    order: &mut t.order,
+                };
+                let cap = self.settings.max_scatter_order;
+                let (hit, pass) = events::free_flight(med, fl, d, t.hero, draw(m), None, m, cap);
+                alive = alive & !(m & !hit & !pass);
+                col = col | hit;
             }
-            let arrive = self.layout().arrive(layer, up);
-            let z_end = L::select(col, z, L::select(up, zero, h));
-            let (_, p_nc, p_col) = self.segment(layer, (z_end - z0).abs(), d, alive);
-            let prev = &mut out[here];
-            prev.land_rev = L::select(alive, L::select(v.surface, p_nc, p_col), prev.land_rev);
-            let next_i = L::select(col, layer, arrive);
-            let it = self.at(L::select(alive, next_i, zero).max(zero).min(last));
-            v = Vertex {
-                exists: alive,
-                surface: !col,
-                delta: !col & it.smooth,
-                idx: next_i,
-                z: z_end,
-                a: -d,
-                beta,
-                own: L::one(),
-                other: L::one(),
-                land: L::select(col, p_col, p_nc),
-                land_rev: L::one(),
-                order,
-            };
-            if !alive.any() {
-                break;
-            }
+        }
+        let arrive = self.layout().arrive(layer, up);
+        let z_end = L::select(col, z, L::select(up, zero, h));
+        let (_, p_nc, p_col) = self.segment(layer, (z_end - z0).abs(), d, alive);
+        v.land_rev = L::select(alive, L::select(v.surface, p_nc, p_col), v.land_rev);
+        let next_i = L::select(col, layer, arrive);
+        let it = self.at(L::select(alive, next_i, zero).max(zero).min(last));
+        t.v = Vertex {
+            exists: alive,
+            surface: !col,
+            delta: !col & it.smooth,
+            idx: next_i,
+            z: z_end,
+            a: -d,
+            beta,
+            own: L::one(),
+            other: L::one(),
+            land: L::select(col, p_col, p_nc),
+            land_rev: L::one(),
+            order: t.order,
+        };
+        v
+    }
+
+    /// Traces a subpath from `w` (pointing away from the stack) on every
+    /// lane, in step: the light subpath from `wi`, or (`eye`) the eye
+    /// subpath from `wo`.
+    fn trace(
+        &self,
+        w: V3<L>,
+        eye: bool,
+        out: &mut Vec<Vertex<L>>,
+        draw: &mut impl FnMut(L::Mask) -> L,
+    ) {
+        out.clear();
+        let mut t = Tracing::idle();
+        self.begin(w, L::Mask::splat(true), &mut t, draw);
+        while t.active().any() {
+            out.push(self.step(&mut t, eye, draw));
         }
     }
 
@@ -622,7 +714,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                 let path = Path { light, eye, jy, jz };
                 // (s, L): y draws the direction, z is evaluated.
                 let (d, wy, own_y, other_y, ok) =
-                    self.sample_end(y, false, jy == 0, m & !z.delta, &mut draw);
+                    self.sample_end(y, false, L::Mask::splat(jy == 0), m & !z.delta, &mut draw);
                 let r = self.reach(y, z, d, ok);
                 if r.ok.any() {
                     let ez = self.end(z, -d, true, jz == 0, r.ok, &mut draw);
@@ -642,7 +734,7 @@ impl<L: Lane> BidirWalk<'_, L> {
                 }
                 // (s, E): z draws the direction, y is evaluated.
                 let (o, wz, own_z, other_z, ok) =
-                    self.sample_end(z, true, jz == 0, m & !y.delta, &mut draw);
+                    self.sample_end(z, true, L::Mask::splat(jz == 0), m & !y.delta, &mut draw);
                 let d = -o;
                 let r = self.reach(z, y, o, ok);
                 if r.ok.any() {

@@ -1,26 +1,32 @@
 //! The bidirectional estimator on lanes: one walk of a query per lane
 //! ([`crate::estimator::bidir`] written once over lanes; the lanes of a
-//! chunk are walks of one query, so that they share its parameters:
-//! consecutive walks while tracing, walks of like subpath lengths while
-//! connecting, where those vary). Each lane draws only where it is active,
-//! so a lane replays the scalar engine's walk of its sample exactly. Queries are cut
-//! into blocks of [`BLOCK`] walks, reduced in sample order and merged in
-//! block order: the scalar engine's reduction, whatever the threads.
+//! chunk are walks of one query, so that they share its parameters). Where
+//! subpath lengths vary, a lane takes the next walk as soon as its subpath
+//! ends, and walks of like subpath lengths are connected together; elsewhere
+//! a chunk's consecutive walks are traced and connected in step. Each lane
+//! draws only where it is active, so a lane replays the scalar engine's walk
+//! of its sample exactly. Queries are cut into blocks of [`BLOCK`] walks,
+//! reduced in sample order and merged in block order: the scalar engine's
+//! reduction, whatever the threads.
 
 use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
-use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers};
+use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers, Tracing, Vertex};
 use crate::estimator::Estimate;
-use crate::lane::{Wide, V3};
+use crate::lane::{LaneMask, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use rayon::prelude::*;
 
 /// A unit's walks between their tracing and their connections.
 #[derive(Default)]
 struct Regrouped<W: Wide> {
-    /// The subpaths, per chunk of consecutive walks as they were traced.
-    traced: Vec<Buffers<W>>,
-    /// Per walk: where its subpaths are, their lengths, its random state.
+    /// One chunk's subpaths, where walks are not regrouped.
+    chunk: Buffers<W>,
+    /// The light and the eye subpaths' vertices: lane `j` of these rows
+    /// holds the subpaths that lane `j` traced, one after another.
+    light: Vec<Vertex<W>>,
+    eye: Vec<Vertex<W>>,
+    /// Per walk: where its subpaths are, its random state after them.
     walks: Vec<Traced>,
     /// The walks in connection order: by subpath lengths.
     order: Vec<u32>,
@@ -30,12 +36,99 @@ struct Regrouped<W: Wide> {
     values: Vec<[f64; 3]>,
 }
 
-/// One traced walk.
-struct Traced {
-    chunk: usize,
+/// Where one subpath's vertices are: lane `lane` of rows `first..first + len`.
+#[derive(Clone, Copy, Default)]
+struct Span {
     lane: usize,
-    lengths: (usize, usize),
+    first: usize,
+    len: usize,
+}
+
+impl Span {
+    /// The subpath's rows in `rows`, and its lane.
+    fn of<'r, W: Wide>(&self, rows: &'r [Vertex<W>]) -> (&'r [Vertex<W>], usize) {
+        (&rows[self.first..self.first + self.len], self.lane)
+    }
+}
+
+/// One traced walk.
+#[derive(Clone, Copy, Default)]
+struct Traced {
+    light: Span,
+    eye: Span,
     state: [u32; 4],
+}
+
+/// Traces one subpath of each walk of `walks` from `w` (the eye subpath if
+/// `eye`) into `rows`, a lane taking the next walk as soon as its subpath
+/// ends, so that lanes do not wait for the longest subpath of a chunk. Walk
+/// `k` starts from random state `state(k, &walks[k])`; `done(&mut walks[k],
+/// span, state)` records where its vertices are and its state after them. A
+/// lane draws only for its own walk, so each walk's draws are the scalar
+/// engine's.
+fn trace_refilled<W: Wide>(
+    walk: &BidirWalk<W>,
+    w: V3<W>,
+    eye: bool,
+    walks: &mut [Traced],
+    rows: &mut Vec<Vertex<W>>,
+    state: impl Fn(usize, &Traced) -> [u32; 4],
+    done: impl Fn(&mut Traced, Span, [u32; 4]),
+) {
+    let count = walks.len();
+    rows.clear();
+    let mut t = Tracing::<W>::idle();
+    // (Idle lanes draw nothing: their state is never used.)
+    let mut rng = LaneRng::<W>::from_states(|_| [0; 4]);
+    // Per lane: its next row, and its walk and that walk's first row.
+    let mut cursor = [0usize; MAX_LANES];
+    let mut slot: [Option<(usize, usize)>; MAX_LANES] = [None; MAX_LANES];
+    let mut next = 0;
+    loop {
+        let active = t.active();
+        let mut fresh = [false; MAX_LANES];
+        for j in (0..W::LANES).filter(|&j| !active.lane(j)) {
+            if let Some((k, first)) = slot[j].take() {
+                let len = cursor[j] - first;
+                done(
+                    &mut walks[k],
+                    Span {
+                        lane: j,
+                        first,
+                        len,
+                    },
+                    rng.lane_state(j),
+                );
+            }
+            if next < count {
+                slot[j] = Some((next, cursor[j]));
+                fresh[j] = true;
+                next += 1;
+            }
+        }
+        let fresh = W::Mask::from_fn(|j| fresh[j]);
+        if fresh.any() {
+            rng = LaneRng::from_states(|j| match slot[j] {
+                Some((k, _)) if fresh.lane(j) => state(k, &walks[k]),
+                _ => rng.lane_state(j),
+            });
+            walk.begin(w, fresh, &mut t, &mut |m| rng.uniform(m));
+        }
+        if !t.active().any() {
+            return;
+        }
+        let row = walk.step(&mut t, eye, &mut |m| rng.uniform(m));
+        for j in (0..W::LANES).filter(|&j| row.exists.lane(j)) {
+            let r = cursor[j];
+            if r == rows.len() {
+                rows.push(row);
+            } else {
+                let lane = W::Mask::from_fn(|i| i == j);
+                rows[r] = Vertex::select(lane, &row, &rows[r]);
+            }
+            cursor[j] += 1;
+        }
+    }
 }
 
 impl<W: Wide> Wavefront<W> {
@@ -43,12 +136,14 @@ impl<W: Wide> Wavefront<W> {
     /// to `push` in sample order.
     ///
     /// Every pair of vertices of a walk's two subpaths is a connection, so a
-    /// chunk of walks loops over the longest subpaths among its lanes. The
-    /// unit's walks are therefore traced in chunks of consecutive walks,
-    /// then regrouped by the lengths of their subpaths for the connections,
-    /// each lane carrying its walk's subpaths and random state: a walk's
-    /// value and draws are its own, whatever its company, so the values are
-    /// the scalar engine's walk for walk.
+    /// chunk of walks loops over the longest subpaths among its lanes, and
+    /// a chunk traced in step waits for its longest subpath. Where lengths
+    /// vary, the unit's light subpaths are therefore traced with lanes
+    /// refilled as subpaths end, then its eye subpaths the same way, and the
+    /// walks are regrouped by the lengths of their subpaths for the
+    /// connections, each lane carrying its walk's subpaths and random state:
+    /// a walk's value and draws are its own, whatever its company, so the
+    /// values are the scalar engine's walk for walk.
     fn bidir_values(
         &self,
         q: &Queries,
@@ -87,63 +182,56 @@ impl<W: Wide> Wavefront<W> {
             )
         };
         let (wi, wo) = (s(&q.wi), s(&q.wo));
-        // The random streams of the chunk of walks `first..first + lanes`
-        // (a partial chunk's spare lanes repeat its last walk).
+        // Walk `k`'s random stream, and those of the chunk of walks `first..
+        // first + lanes` (a partial chunk's spare lanes repeat its last walk).
+        let seed = |k: usize| seed_state_from(q.prefix[qi], u.first + k as u64, Stream::Bidir);
         let chunk_rng = |first: usize, lanes: usize| {
-            LaneRng::<W>::from_states(|j| {
-                let sample = u.first + (first + j.min(lanes - 1)) as u64;
-                seed_state_from(q.prefix[qi], sample, Stream::Bidir)
-            })
+            LaneRng::<W>::from_states(|j| seed(first + j.min(lanes - 1)))
         };
         if !walk.subpath_lengths_vary() {
-            // Chunk by chunk: regrouping would not pay.
-            if g.traced.is_empty() {
-                g.traced.push(Buffers::default());
-            }
-            let buf = &mut g.traced[0];
+            // Chunk by chunk, the lanes in step: refilled lanes need the
+            // regrouping, which would not pay here (docs/performance.md).
             for first in (0..count).step_by(W::LANES) {
                 let lanes = (count - first).min(W::LANES);
                 let mut rng = chunk_rng(first, lanes);
-                let v = walk.run(wi, wo, buf, |m| rng.uniform(m));
+                let v = walk.run(wi, wo, &mut g.chunk, |m| rng.uniform(m));
                 (0..lanes).for_each(|j| push([v.r.lane(j), v.g.lane(j), v.b.lane(j)]));
             }
             return;
         }
-        let chunks = count.div_ceil(W::LANES);
-        if g.traced.len() < chunks {
-            g.traced.resize_with(chunks, Buffers::default);
-        }
-        g.walks.clear();
-        for (c, buf) in g.traced[..chunks].iter_mut().enumerate() {
-            let first = c * W::LANES;
-            let lanes = (count - first).min(W::LANES);
-            let mut rng = chunk_rng(first, lanes);
-            walk.trace_both(wi, wo, buf, |m| rng.uniform(m));
-            g.walks.extend((0..lanes).map(|lane| Traced {
-                chunk: c,
-                lane,
-                lengths: buf.lengths(lane),
-                state: rng.lane_state(lane),
-            }));
-        }
         let Regrouped {
-            traced,
+            light,
+            eye,
             walks,
             order,
             joined,
             values,
+            ..
         } = g;
+        walks.clear();
+        walks.resize(count, Traced::default());
+        let seed = |k: usize, _: &Traced| seed(k);
+        trace_refilled(&walk, wi, false, walks, light, seed, |t, span, state| {
+            (t.light, t.state) = (span, state);
+        });
+        let resume = |_: usize, t: &Traced| t.state;
+        trace_refilled(&walk, wo, true, walks, eye, resume, |t, span, state| {
+            (t.eye, t.state) = (span, state);
+        });
         order.clear();
         order.extend(0..count as u32);
-        order.sort_unstable_by_key(|&w| walks[w as usize].lengths);
+        order.sort_unstable_by_key(|&w| {
+            let t = &walks[w as usize];
+            (t.light.len, t.eye.len)
+        });
         values.resize(count, [0.0; 3]);
         for group in order.chunks(W::LANES) {
             let pick = |j: usize| &walks[group[j.min(group.len() - 1)] as usize];
             let rows = group.iter().fold((0, 0), |(y, z), &w| {
-                let (ly, lz) = walks[w as usize].lengths;
-                (y.max(ly), z.max(lz))
+                let t = &walks[w as usize];
+                (y.max(t.light.len), z.max(t.eye.len))
             });
-            joined.gather(rows, |j| (&traced[pick(j).chunk], pick(j).lane));
+            joined.gather(rows, |j| pick(j).light.of(light), |j| pick(j).eye.of(eye));
             let mut rng = LaneRng::<W>::from_states(|j| pick(j).state);
             let v = walk.connect(joined, |m| rng.uniform(m));
             for (j, &w) in group.iter().enumerate() {
