@@ -122,27 +122,14 @@ pub struct Tracing<L: Lane> {
 impl<L: Lane> Tracing<L> {
     /// No subpath on any lane ([`BidirWalk::begin`] starts them).
     pub fn idle() -> Self {
-        let (zero, one, no) = (L::zero(), L::one(), L::Mask::splat(false));
+        let zero = L::zero();
         Tracing {
-            v: Vertex {
-                exists: no,
-                surface: no,
-                delta: no,
-                idx: zero,
-                z: zero,
-                a: V3::z_axis(),
-                beta: Rgb::one(),
-                own: one,
-                other: one,
-                land: one,
-                land_rev: one,
-                order: zero,
-            },
+            v: Vertex::idle(),
             hero: zero,
             ratios: Rgb::one(),
             events: zero,
             order: zero,
-            first: no,
+            first: L::Mask::splat(false),
         }
     }
 
@@ -179,8 +166,8 @@ impl<L: Lane> Buffers<L> {
     }
 }
 
-/// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)` (at
-/// least one row), as in [`Buffers::gather`]. (Arrays, not vectors: a warm
+/// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)`, as in
+/// [`Buffers::gather`]. (Arrays, not vectors: a warm
 /// walk allocates nothing.)
 fn gather_rows<'b, L: Lane + 'b>(
     out: &mut Vec<Vertex<L>>,
@@ -191,11 +178,11 @@ fn gather_rows<'b, L: Lane + 'b>(
     // A lane's rows past its subpath hold the idle vertex's plain values:
     // the connections compute on every lane, and a subpath's last vertex
     // repeated there slowed them (docs/performance.md).
-    let none = Tracing::<L>::idle().v;
+    let none = Vertex::idle();
     out.clear();
     for r in 0..len {
         let row: [_; MAX_LANES] = std::array::from_fn(|j| {
-            let (rows, lane) = src[j.min(L::LANES - 1)];
+            let (rows, lane) = src[j];
             match rows.get(r) {
                 Some(v) => (v, lane, v.exists.lane(lane)),
                 None => (&none, lane, false),
@@ -206,6 +193,25 @@ fn gather_rows<'b, L: Lane + 'b>(
 }
 
 impl<L: Lane> Vertex<L> {
+    /// No vertex on any lane, its fields plain values (zeros and ones).
+    pub fn idle() -> Self {
+        let (zero, one, no) = (L::zero(), L::one(), L::Mask::splat(false));
+        Vertex {
+            exists: no,
+            surface: no,
+            delta: no,
+            idx: zero,
+            z: zero,
+            a: V3::z_axis(),
+            beta: Rgb::one(),
+            own: one,
+            other: one,
+            land: one,
+            land_rev: one,
+            order: zero,
+        }
+    }
+
     /// `t` on the lanes of `m`, `f` elsewhere.
     pub fn select(m: L::Mask, t: &Self, f: &Self) -> Self {
         let mask = |a: L::Mask, b: L::Mask| (m & a) | (!m & b);
@@ -661,7 +667,8 @@ impl<L: Lane> BidirWalk<'_, L> {
 
     /// Whether the lengths of subpaths vary much from walk to walk: in a
     /// scattering layer or between three interfaces or more (where the
-    /// wavefront regroups walks by them before connecting).
+    /// wavefront refills a lane as its subpath ends, and regroups walks by
+    /// their lengths before connecting).
     pub fn subpath_lengths_vary(&self) -> bool {
         self.n() >= 3 || (self.media.iter()).any(|m| m.kind == LayerKind::Scattering)
     }
@@ -673,7 +680,7 @@ impl<L: Lane> BidirWalk<'_, L> {
 
     /// The first half of [`Self::run`]: the light subpath from `wi`, then
     /// the eye subpath from `wo`, into `buf`.
-    pub fn trace_both(
+    fn trace_both(
         &self,
         wi: V3<L>,
         wo: V3<L>,

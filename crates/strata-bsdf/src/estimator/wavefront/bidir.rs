@@ -59,21 +59,20 @@ struct Traced {
     state: [u32; 4],
 }
 
-/// Traces one subpath of each walk of `walks` from `w` (the eye subpath if
-/// `eye`) into `rows`, a lane taking the next walk as soon as its subpath
-/// ends, so that lanes do not wait for the longest subpath of a chunk. Walk
-/// `k` starts from random state `state(k, &walks[k])`; `done(&mut walks[k],
-/// span, state)` records where its vertices are and its state after them. A
-/// lane draws only for its own walk, so each walk's draws are the scalar
-/// engine's.
+/// Traces one subpath of each walk of `walks` from `w` into `rows`: the
+/// light subpath, from walk `k`'s random state `seed(k)`, or (`eye`) the eye
+/// subpath, from the state its light subpath left. A lane takes the next
+/// walk as soon as its subpath ends, so that lanes do not wait for the
+/// longest subpath of a chunk; each walk records where its vertices are and
+/// its state after them. A lane draws only for its own walk, so each walk's
+/// draws are the scalar engine's.
 fn trace_refilled<W: Wide>(
     walk: &BidirWalk<W>,
     w: V3<W>,
     eye: bool,
     walks: &mut [Traced],
     rows: &mut Vec<Vertex<W>>,
-    state: impl Fn(usize, &Traced) -> [u32; 4],
-    done: impl Fn(&mut Traced, Span, [u32; 4]),
+    seed: impl Fn(usize) -> [u32; 4],
 ) {
     let count = walks.len();
     rows.clear();
@@ -90,15 +89,17 @@ fn trace_refilled<W: Wide>(
         for j in (0..W::LANES).filter(|&j| !active.lane(j)) {
             if let Some((k, first)) = slot[j].take() {
                 let len = cursor[j] - first;
-                done(
-                    &mut walks[k],
-                    Span {
-                        lane: j,
-                        first,
-                        len,
-                    },
-                    rng.lane_state(j),
-                );
+                let traced = &mut walks[k];
+                *(if eye {
+                    &mut traced.eye
+                } else {
+                    &mut traced.light
+                }) = Span {
+                    lane: j,
+                    first,
+                    len,
+                };
+                traced.state = rng.lane_state(j);
             }
             if next < count {
                 slot[j] = Some((next, cursor[j]));
@@ -109,7 +110,8 @@ fn trace_refilled<W: Wide>(
         let fresh = W::Mask::from_fn(|j| fresh[j]);
         if fresh.any() {
             rng = LaneRng::from_states(|j| match slot[j] {
-                Some((k, _)) if fresh.lane(j) => state(k, &walks[k]),
+                Some((k, _)) if fresh.lane(j) && eye => walks[k].state,
+                Some((k, _)) if fresh.lane(j) => seed(k),
                 _ => rng.lane_state(j),
             });
             walk.begin(w, fresh, &mut t, &mut |m| rng.uniform(m));
@@ -210,14 +212,8 @@ impl<W: Wide> Wavefront<W> {
         } = g;
         walks.clear();
         walks.resize(count, Traced::default());
-        let seed = |k: usize, _: &Traced| seed(k);
-        trace_refilled(&walk, wi, false, walks, light, seed, |t, span, state| {
-            (t.light, t.state) = (span, state);
-        });
-        let resume = |_: usize, t: &Traced| t.state;
-        trace_refilled(&walk, wo, true, walks, eye, resume, |t, span, state| {
-            (t.eye, t.state) = (span, state);
-        });
+        trace_refilled(&walk, wi, false, walks, light, seed);
+        trace_refilled(&walk, wo, true, walks, eye, seed);
         order.clear();
         order.extend(0..count as u32);
         order.sort_unstable_by_key(|&w| {
