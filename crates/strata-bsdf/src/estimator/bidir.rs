@@ -167,8 +167,8 @@ impl<L: Lane> Buffers<L> {
 }
 
 /// `out` row `r < len`, lane `j`: row `r` of the subpath `src(j)`, as in
-/// [`Buffers::gather`]. (Arrays, not vectors: a warm
-/// walk allocates nothing.)
+/// [`Buffers::gather`]. (Arrays, not vectors: a warm walk allocates
+/// nothing.)
 fn gather_rows<'b, L: Lane + 'b>(
     out: &mut Vec<Vertex<L>>,
     len: usize,
@@ -533,14 +533,8 @@ impl<L: Lane> BidirWalk<'_, L> {
             surface: m,
             delta: self.at(i0).smooth,
             idx: i0,
-            z: zero,
             a: w,
-            beta: Rgb::one(),
-            own: L::one(),
-            other: L::one(),
-            land: L::one(),
-            land_rev: L::one(),
-            order: zero,
+            ..Vertex::idle()
         };
         t.v = Vertex::select(m, &v, &t.v);
         t.hero = L::select(m, start.hero, t.hero);

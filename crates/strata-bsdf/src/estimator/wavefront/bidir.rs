@@ -89,16 +89,16 @@ fn trace_refilled<W: Wide>(
         for j in (0..W::LANES).filter(|&j| !active.lane(j)) {
             if let Some((k, first)) = slot[j].take() {
                 let len = cursor[j] - first;
-                let traced = &mut walks[k];
-                *(if eye {
-                    &mut traced.eye
-                } else {
-                    &mut traced.light
-                }) = Span {
+                let span = Span {
                     lane: j,
                     first,
                     len,
                 };
+                let traced = &mut walks[k];
+                match eye {
+                    true => traced.eye = span,
+                    false => traced.light = span,
+                }
                 traced.state = rng.lane_state(j);
             }
             if next < count {
