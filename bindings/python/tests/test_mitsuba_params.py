@@ -144,8 +144,9 @@ def test_a_normal_map_tilts_the_coat(tmp_path):
     got = render({"type": "strata", "filename": base, NRM: {"type": "rgb", "value": [0.5, 0.5, 1.0]}}, w, h, spp)
     np.testing.assert_array_equal(got, flat)
     c = np.array([0.6, 0.5, 0.9], np.float32)
-    n = [float(x) for x in np.float32(2.0) * c - np.float32(1.0)]
-    tilted = coat().replace('roughness = 0.2 }', f"roughness = 0.2, normal = [{n[0]!r}, {n[1]!r}, {n[2]!r}] }}")
+    # The texel's normal, 2c - 1 in float32, as the decimal a column sets.
+    n = [str(x) for x in np.float32(2.0) * c - np.float32(1.0)]
+    tilted = coat().replace('roughness = 0.2 }', f"roughness = 0.2, normal = [{n[0]}, {n[1]}, {n[2]}] }}")
     assert "normal" in tilted
     ref = render({"type": "strata", "filename": material(tmp_path, tilted)}, w, h, spp)
     got = render({"type": "strata", "filename": base, NRM: {"type": "rgb", "value": [0.6, 0.5, 0.9]}}, w, h, spp)

@@ -21,12 +21,12 @@ BASE = dict(ior=1.5, rough=0.1, thickness=0.5, sigma_t=[0.2, 0.6, 1.2], albedo=0
 
 
 def toml(**values):
-    """The material with `values` (floats as the f64 of their f32, which is what a
-    float32 params array hands over)."""
+    """The material with `values` (floats as the shortest decimal of their f32,
+    which is the number a float32 params array sets)."""
     def text(v):
         if isinstance(v, (list, tuple, np.ndarray)):
-            return "[" + ", ".join(repr(float(np.float32(x))) for x in v) + "]"
-        return repr(float(np.float32(v)))
+            return "[" + ", ".join(str(np.float32(x)) for x in v) + "]"
+        return str(np.float32(v))
     return TEMPLATE.format(**{k: text(v) for k, v in dict(BASE, **values).items()})
 
 

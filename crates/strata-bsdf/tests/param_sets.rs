@@ -496,6 +496,12 @@ fn bad_columns_are_errors_and_name_their_column() {
     let bad = [0.5f32, -1.0];
     let e = Materials::per_query(&bsdf, 2, &[col(&thickness, 1, &bad)]).unwrap_err();
     assert!(matches!(e, ColumnsError::Query { query: 1, .. }), "{e}");
+    // The value as the caller wrote it: -0.1, not its widening to f64
+    // (-0.10000000149011612).
+    let bad = [0.5f32, -0.1];
+    let e = Materials::per_query(&bsdf, 2, &[col(&thickness, 1, &bad)]).unwrap_err();
+    let m = e.to_string();
+    assert!(m.contains("= -0.1:") && !m.contains("0000"), "{m}");
     let column = |e: ColumnsError| match e {
         ColumnsError::Column { column, error } => (column, error.to_string()),
         e => panic!("not a column's fault: {e}"),
@@ -646,7 +652,8 @@ fn per_query_columns_share_the_rough_coats_integral_or_walk() {
         let p_all = m.pdf_batch(&ids, &pairs).unwrap();
         let u = m.pdf_unbiased_batch(&ids, &pairs, 8).unwrap();
         for k in 0..n {
-            let st = base.with_set(&[(p.clone(), (column_values[k] as f64).into())]);
+            // The column's f32 is the decimal a material file gives.
+            let st = base.with_set(&[(p.clone(), values[k].into())]);
             let own = LayeredBsdf::new(st.unwrap()).samples(32).seed(3);
             let walked = template_value.is_some_and(|t| values[k] != t);
             assert!(own.eval_without_walks());

@@ -11,15 +11,15 @@ use strata_capi::*;
 
 /// The material of query `k`: a dielectric coat with an absorbing medium
 /// over a rough conductor, with `k`'s thickness, `sigma_t`, conductor `eta`
-/// and conductor roughness. The values are printed as the f64 of the f32 a
-/// column holds, so the file and the column give the same number.
+/// and conductor roughness. The values are printed as the shortest decimal
+/// of the f32 a column holds, which is the number a column sets.
 fn material(thickness: f32, sigma_t: [f32; 3], eta: [f32; 3], roughness: f32) -> String {
     material_text(thickness, &v(sigma_t), eta, roughness)
 }
 
-/// A value as TOML: the f64 of the f32.
+/// A value as TOML: the shortest decimal that reads back as `x`.
 fn n(x: f32) -> String {
-    format!("{:?}", x as f64)
+    format!("{x:?}")
 }
 
 /// A triple as TOML.

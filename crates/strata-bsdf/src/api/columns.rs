@@ -203,7 +203,7 @@ fn check_columns(base: &LayerStack, columns: &[Column]) -> Result<(), ColumnsErr
         }
         let first = (0..c.width).map(|j| c.values.get(j).copied().unwrap_or(1.0));
         let probe: Vec<f64> = first
-            .map(|x| if x.is_finite() { x as f64 } else { 1.0 })
+            .map(|x| if x.is_finite() { decimal(x) } else { 1.0 })
             .collect();
         let probe = match probe[..] {
             [x] => Value::from(x),
@@ -212,6 +212,14 @@ fn check_columns(base: &LayerStack, columns: &[Column]) -> Result<(), ColumnsErr
         desc.apply_set(c.path, &probe).map_err(at)?;
     }
     Ok(())
+}
+
+/// The `f64` of the shortest decimal that reads back as `x`: a column's
+/// 0.1 is the 0.1 a material file gives (widening it would give
+/// 0.10000000149011612, a different material and, in an error, a value the
+/// caller never wrote).
+fn decimal(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(x as f64)
 }
 
 /// `base` with query `k`'s row of every column.
@@ -233,8 +241,8 @@ fn query_stack(
             return Err(ColumnsError::Query { query: k, error });
         }
         let value = match row {
-            [x] => Value::from(*x as f64),
-            _ => Value::from(row.iter().map(|&x| x as f64).collect::<Vec<_>>()),
+            [x] => Value::from(decimal(*x)),
+            _ => Value::from(row.iter().map(|&x| decimal(x)).collect::<Vec<_>>()),
         };
         set.push((c.path.clone(), value));
     }

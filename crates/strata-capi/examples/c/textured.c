@@ -24,16 +24,28 @@ static void check(int32_t status, const char *what) {
     }
 }
 
-/* The material with a coat of thickness `t` (printed exactly: "%.17g" of
- * the float's double is the float's value). */
+/* The shortest decimal that reads back as `x`: the number a column's float
+ * sets (a column's 0.45f is a material file's 0.45). */
+static void shortest(char *out, size_t size, float x) {
+    for (int digits = 1; digits <= 9; digits++) {
+        snprintf(out, size, "%.*g", digits, (double)x);
+        if (strtof(out, NULL) == x) {
+            return;
+        }
+    }
+}
+
+/* The material with a coat of thickness `t`, as a column sets it. */
 static void material(char *out, size_t size, float t) {
+    char thickness[32];
+    shortest(thickness, sizeof thickness, t);
     snprintf(out, size,
              "[[layers]]\n"
              "interface = { kind = \"dielectric\", ior = 1.5, roughness = 0.1 }\n"
-             "medium = { thickness = %.17g, sigma_t = [0.2, 0.6, 1.2], albedo = 0.0 }\n"
+             "medium = { thickness = %s, sigma_t = [0.2, 0.6, 1.2], albedo = 0.0 }\n"
              "[[layers]]\n"
              "interface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.2 }\n",
-             (double)t);
+             thickness);
 }
 
 #define N 6
