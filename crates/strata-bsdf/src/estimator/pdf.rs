@@ -67,6 +67,18 @@ impl PdfWalks {
         rel_stderr: 0.15,
     };
 
+    /// The rule for a pdf within 0.7–1.3× of `sample()`'s density at
+    /// nearly every direction: a pilot of 8 walks, then 8 to 128 walks for
+    /// a relative standard error of 0.1 (0.7–1.3× at three standard
+    /// errors). About twice the default's walks where one walk is noisy
+    /// (docs/method.md §6 measures both; a renderer's MIS weights rarely
+    /// need it, a pdf compared direction by direction may).
+    pub const TIGHT: PdfWalks = PdfWalks {
+        pilot: 8,
+        max: 128,
+        rel_stderr: 0.1,
+    };
+
     /// Exactly `n` walks (1 to [`crate::MAX_WALKS`]), no pilot.
     pub fn fixed(n: u64) -> Self {
         PdfWalks {
