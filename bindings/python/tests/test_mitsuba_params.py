@@ -7,6 +7,7 @@ mi = pytest.importorskip("mitsuba")
 dr = pytest.importorskip("drjit")
 
 from test_mitsuba import material, scene, use_variant  # noqa: E402
+from test_params import decimal  # noqa: E402
 
 # A rough coat with a tinted absorber over rough silver: the thickness shows
 # as colour depth. (Not a Lambertian base: there `auto` answers a uniform
@@ -144,8 +145,8 @@ def test_a_normal_map_tilts_the_coat(tmp_path):
     got = render({"type": "strata", "filename": base, NRM: {"type": "rgb", "value": [0.5, 0.5, 1.0]}}, w, h, spp)
     np.testing.assert_array_equal(got, flat)
     c = np.array([0.6, 0.5, 0.9], np.float32)
-    # The texel's normal, 2c - 1 in float32, as the decimal a column sets.
-    n = [str(x) for x in np.float32(2.0) * c - np.float32(1.0)]
+    # The texel's normal, 2c - 1 in float32, as the number a column sets.
+    n = [decimal(x) for x in np.float32(2.0) * c - np.float32(1.0)]
     tilted = coat().replace('roughness = 0.2 }', f"roughness = 0.2, normal = [{n[0]}, {n[1]}, {n[2]}] }}")
     assert "normal" in tilted
     ref = render({"type": "strata", "filename": material(tmp_path, tilted)}, w, h, spp)

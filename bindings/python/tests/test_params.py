@@ -20,13 +20,20 @@ interface = {{ kind = "conductor", eta = {eta}, k = [3.9, 2.45, 2.2], roughness 
 BASE = dict(ior=1.5, rough=0.1, thickness=0.5, sigma_t=[0.2, 0.6, 1.2], albedo=0.3, g=0.2, eta=[0.2, 0.92, 1.1])
 
 
+def decimal(x):
+    """The number a float32 `x` of a params array sets, as text: the first of
+    its correctly rounded decimals of 1 to 9 digits that reads back as `x`
+    (`str(np.float32(x))` but for exact ties, which it may break upwards)."""
+    x = np.float32(x)
+    return next(s for s in ("%.*g" % (p, float(x)) for p in range(1, 10)) if np.float32(s) == x)
+
+
 def toml(**values):
-    """The material with `values` (floats as the shortest decimal of their f32,
-    which is the number a float32 params array sets)."""
+    """The material with `values`, each float as the number its float32 sets."""
     def text(v):
         if isinstance(v, (list, tuple, np.ndarray)):
-            return "[" + ", ".join(str(np.float32(x)) for x in v) + "]"
-        return str(np.float32(v))
+            return "[" + ", ".join(decimal(x) for x in v) + "]"
+        return decimal(v)
     return TEMPLATE.format(**{k: text(v) for k, v in dict(BASE, **values).items()})
 
 

@@ -203,9 +203,9 @@ pub struct StrataStackInfo {
 /// all three channels (an anisotropic roughness, two numbers, cannot be a
 /// column). Query `k` then answers bit for bit what a BSDF made from a
 /// material file with row `k`'s values answers (same seed and key), with the
-/// BSDF's walk count, seed, transport mode and threads. A float's value is
-/// the shortest decimal that reads back as it: a column's `0.1f` is a
-/// material file's `0.1` (examples/c/textured.c prints it so).
+/// BSDF's walk count, seed, transport mode and threads. A float sets the
+/// first of its `%.1g` … `%.9g` decimals that reads back as it: a column's
+/// `0.1f` is a material file's `0.1` (examples/c/textured.c prints it so).
 ///
 /// Errors: every column and every row is checked before anything runs, and a
 /// failed call writes nothing to its outputs. A bad column is named by its

@@ -11,15 +11,19 @@ use strata_capi::*;
 
 /// The material of query `k`: a dielectric coat with an absorbing medium
 /// over a rough conductor, with `k`'s thickness, `sigma_t`, conductor `eta`
-/// and conductor roughness. The values are printed as the shortest decimal
-/// of the f32 a column holds, which is the number a column sets.
+/// and conductor roughness. The values are printed as the number a column
+/// sets (see [`n`]).
 fn material(thickness: f32, sigma_t: [f32; 3], eta: [f32; 3], roughness: f32) -> String {
     material_text(thickness, &v(sigma_t), eta, roughness)
 }
 
-/// A value as TOML: the shortest decimal that reads back as `x`.
+/// A value as TOML, the number a column's `x` sets: the first of its
+/// correctly rounded decimals of 1 to 9 digits that reads back as `x`.
 fn n(x: f32) -> String {
-    format!("{x:?}")
+    (1..=9)
+        .map(|p| format!("{:.*e}", p - 1, f64::from(x)))
+        .find(|s| s.parse::<f32>() == Ok(x))
+        .expect("nine digits read back as any f32")
 }
 
 /// A triple as TOML.

@@ -263,7 +263,7 @@ def _param_width(bsdf, key: str, path: str, mean: float) -> int:
             return width
         except ValueError as e:
             err = e
-    raise ValueError(f"strata: property {key!r} (parameter {path!r}, texture mean {mean}): {err}")
+    raise ValueError(f"strata: property {key!r} (parameter {path!r}, texture mean {np.float32(mean)}): {err}")
 
 
 class _Param:

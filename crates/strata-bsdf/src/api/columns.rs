@@ -5,7 +5,8 @@
 //! query. [`Materials::per_query`] turns such columns into one material per
 //! query: the BSDF's stack with row `k` of every column set through
 //! [`LayerStack::with_set`], so query `k` answers bit for bit what a material
-//! file with those values answers. This is the one implementation behind the
+//! file with those values answers (each float as the number it sets: see
+//! [`Column`]). This is the one implementation behind the
 //! C ABI's and the Python module's per-query arrays.
 
 use super::{LayeredBsdf, Materials};
@@ -15,7 +16,9 @@ use std::collections::HashMap;
 use std::fmt;
 
 /// One parameter's values, `width` floats per query (1 for a number, 3 for
-/// an RGB triple or a normal), query after query.
+/// an RGB triple or a normal), query after query. A value sets the number
+/// of its shortest correctly rounded decimal: `0.1f32` is a material file's
+/// 0.1 (the first of C's `%.1g` … `%.9g` that reads back as the float).
 #[derive(Clone, Copy, Debug)]
 pub struct Column<'a> {
     /// The parameter, e.g. `layers[0].medium.thickness`.
@@ -214,12 +217,25 @@ fn check_columns(base: &LayerStack, columns: &[Column]) -> Result<(), ColumnsErr
     Ok(())
 }
 
-/// The `f64` of the shortest decimal that reads back as `x`: a column's
-/// 0.1 is the 0.1 a material file gives (widening it would give
-/// 0.10000000149011612, a different material and, in an error, a value the
-/// caller never wrote).
+/// The number a column's `x` sets: the first of its correctly rounded
+/// decimals of 1 to 9 significant digits (ties to even, as C's `%.*g` and
+/// Python's `'%.*g'` round) that reads back as `x`. A column's 0.1 is then
+/// the 0.1 of a material file; widening the float would give
+/// 0.10000000149011612, a material whose answers differ in the last bits
+/// and whose errors name a value the caller never wrote. The rule is
+/// spelled out (Rust's `Display` of an `f32` breaks exact ties upwards,
+/// numpy's `str` takes the shortest digits even where they are not the
+/// correctly rounded ones) so that C and Python can print the same text.
 fn decimal(x: f32) -> f64 {
-    x.to_string().parse().unwrap_or(x as f64)
+    let wide = f64::from(x);
+    let digits = |p: usize| format!("{:.*e}", p - 1, wide);
+    // Nine digits always read back (any f32), and what `format!` writes
+    // always parses: the widened value is never reached.
+    (1..=9)
+        .map(digits)
+        .find(|s| s.parse::<f32>() == Ok(x))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(wide)
 }
 
 /// `base` with query `k`'s row of every column.

@@ -24,8 +24,9 @@ static void check(int32_t status, const char *what) {
     }
 }
 
-/* The shortest decimal that reads back as `x`: the number a column's float
- * sets (a column's 0.45f is a material file's 0.45). */
+/* The number a column's float `x` sets, as text: the first of its correctly
+ * rounded decimals of 1 to 9 digits that reads back as `x` (a column's 0.45f
+ * is a material file's 0.45). */
 static void shortest(char *out, size_t size, float x) {
     for (int digits = 1; digits <= 9; digits++) {
         snprintf(out, size, "%.*g", digits, (double)x);
