@@ -382,12 +382,12 @@ fn ratios(b: &LayeredBsdf, u: &[strata_bsdf::PdfEstimate]) -> Vec<f64> {
 /// median within 0.9–1.1, and at more directions than 4 fixed walks reach.
 /// [`PdfWalks::TIGHT`] (a relative standard error of 0.1, three standard
 /// errors) is within 0.7–1.3× at 95 % of the directions of the four stacks
-/// and three seeds together, and at 90 % of each stack's: the default
-/// reads 0.93 there (method.md §6).
+/// and three seeds together, and at 90 % of each stack's, more than the
+/// default (`--nocapture` prints both; method.md §6).
 #[test]
 fn approximate_pdf_is_close_pointwise() {
     let within = |r: &[f64]| r.iter().filter(|x| (0.7..=1.3).contains(*x)).count();
-    let (mut tight_in, mut tight_all) = (0, 0);
+    let (mut tight_in, mut tight_all, mut default_in) = (0, 0, 0);
     for (name, toml) in &STACKS[..4] {
         let b = bsdf(toml);
         let u = b.pdf_unbiased_batch(&ring(), 4096).unwrap();
@@ -406,15 +406,21 @@ fn approximate_pdf_is_close_pointwise() {
         let (k, m) = tight
             .iter()
             .fold((0, 0), |(k, m), r| (k + within(r), m + r.len()));
+        let default: usize = (11..14)
+            .map(|seed| within(&ratios(&b.clone().seed(seed), &u)))
+            .sum();
+        eprintln!("{name}: within 0.7–1.3×, tight {k} of {m}, default {default}");
         assert!(
             k * 10 >= m * 9,
             "{name}: tight, {k} of {m} within 0.7–1.3×: {tight:.2?}"
         );
         (tight_in, tight_all) = (tight_in + k, tight_all + m);
+        default_in += default;
     }
+    eprintln!("all four: tight {tight_in} of {tight_all}, default {default_in}");
     assert!(
-        tight_in * 20 >= tight_all * 19,
-        "tight: {tight_in} of {tight_all} within 0.7–1.3×"
+        tight_in * 20 >= tight_all * 19 && tight_in > default_in,
+        "tight: {tight_in} of {tight_all} within 0.7–1.3× (the default: {default_in})"
     );
 }
 
