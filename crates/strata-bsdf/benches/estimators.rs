@@ -169,7 +169,8 @@ fn density_walks(c: &mut Criterion) {
 
 /// A batch of path vertices on the representative stacks: `sample`, then
 /// `eval` and `pdf` of a light direction, through the public API on one
-/// thread, with the default pdf walks ([`PdfWalks::DEFAULT`]) and with 4.
+/// thread, with the default pdf walks ([`PdfWalks::DEFAULT`]), with
+/// [`PdfWalks::TIGHT`] and with 4.
 fn vertices(c: &mut Criterion) {
     let pairs: Vec<(Vec3, Vec3)> = pairs()
         .into_iter()
@@ -186,7 +187,12 @@ fn vertices(c: &mut Criterion) {
         let stack = strata_bsdf::materials::builtin(name).unwrap();
         let mut g = c.benchmark_group(format!("vertex/{name}"));
         g.throughput(Throughput::Elements(QUERIES as u64));
-        for (label, walks) in [("default", PdfWalks::DEFAULT), ("pdf4", 4.into())] {
+        let rules = [
+            ("default", PdfWalks::DEFAULT),
+            ("tight", PdfWalks::TIGHT),
+            ("pdf4", 4.into()),
+        ];
+        for (label, walks) in rules {
             let bsdf = (LayeredBsdf::new(stack.clone()).pdf_walks(walks))
                 .threads(1)
                 .unwrap();
