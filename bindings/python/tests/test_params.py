@@ -23,7 +23,8 @@ BASE = dict(ior=1.5, rough=0.1, thickness=0.5, sigma_t=[0.2, 0.6, 1.2], albedo=0
 def decimal(x):
     """The number a float32 `x` of a params array sets, as text: the first of
     its correctly rounded decimals of 1 to 9 digits that reads back as `x`
-    (`str(np.float32(x))` but for exact ties, which it may break upwards)."""
+    (`str(np.float32(x))` but at a few powers of two far outside any parameter
+    range, where numpy's shortest digits are not the correctly rounded ones)."""
     x = np.float32(x)
     return next(s for s in ("%.*g" % (p, float(x)) for p in range(1, 10)) if np.float32(s) == x)
 
