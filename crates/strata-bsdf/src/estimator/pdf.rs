@@ -101,6 +101,31 @@ impl PdfWalks {
         }
     }
 
+    /// [`PdfWalks::adaptive`] for input from outside (the C ABI, Python, the
+    /// CLI): a count out of range or a relative standard error that is not
+    /// a positive finite number is an error naming the field and the value,
+    /// not clamped.
+    pub fn try_adaptive(pilot: u64, max: u64, rel_stderr: f64) -> Result<Self, String> {
+        if !(2..=crate::MAX_WALKS).contains(&pilot) {
+            return Err(format!(
+                "pilot = {pilot}: expected 2 to {} walks (one walk has no spread)",
+                crate::MAX_WALKS
+            ));
+        }
+        if !(pilot..=crate::MAX_WALKS).contains(&max) {
+            return Err(format!(
+                "max = {max}: expected pilot ({pilot}) to {} walks",
+                crate::MAX_WALKS
+            ));
+        }
+        if !(rel_stderr.is_finite() && rel_stderr > 0.0) {
+            return Err(format!(
+                "rel_stderr = {rel_stderr}: expected a positive relative standard error"
+            ));
+        }
+        Ok(PdfWalks::adaptive(pilot, max, rel_stderr))
+    }
+
     /// The walks of the pilot round (0 for a fixed number).
     pub fn pilot(&self) -> u64 {
         self.pilot
@@ -179,6 +204,55 @@ impl PdfWalks {
 impl Default for PdfWalks {
     fn default() -> Self {
         PdfWalks::DEFAULT
+    }
+}
+
+/// A rule by name, as the CLI and the bindings take it: `default`, `tight`,
+/// a fixed count `N` (1 to [`crate::MAX_WALKS`]) or an adaptive rule
+/// `PILOT,MAX,REL_STDERR` ([`PdfWalks::try_adaptive`]).
+impl std::str::FromStr for PdfWalks {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let expected = "expected default, tight, a number of walks or PILOT,MAX,REL_STDERR";
+        match s.trim() {
+            "default" => Ok(PdfWalks::DEFAULT),
+            "tight" => Ok(PdfWalks::TIGHT),
+            t => match t.split(',').map(str::trim).collect::<Vec<_>>()[..] {
+                [n] => match n.parse::<u64>() {
+                    Ok(n @ 1..=crate::MAX_WALKS) => Ok(PdfWalks::fixed(n)),
+                    Ok(n) => Err(format!("{n} walks: expected 1 to {}", crate::MAX_WALKS)),
+                    Err(_) => Err(format!("{s:?}: {expected}")),
+                },
+                [pilot, max, rel] => {
+                    let count = |field: &str, v: &str| {
+                        v.parse::<u64>()
+                            .map_err(|_| format!("{s:?}: {field} {v:?} is not a number of walks"))
+                    };
+                    let rel_stderr = rel
+                        .parse::<f64>()
+                        .map_err(|_| format!("{s:?}: rel_stderr {rel:?} is not a number"))?;
+                    PdfWalks::try_adaptive(count("pilot", pilot)?, count("max", max)?, rel_stderr)
+                        .map_err(|e| format!("{s:?}: {e}"))
+                }
+                _ => Err(format!("{s:?}: {expected}")),
+            },
+        }
+    }
+}
+
+/// The rule's name, which [`PdfWalks::from_str`](std::str::FromStr) reads
+/// back: `default`, `tight`, the count, or `PILOT,MAX,REL_STDERR`.
+impl std::fmt::Display for PdfWalks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if *self == PdfWalks::DEFAULT {
+            f.write_str("default")
+        } else if *self == PdfWalks::TIGHT {
+            f.write_str("tight")
+        } else if self.pilot == 0 {
+            write!(f, "{}", self.max)
+        } else {
+            write!(f, "{},{},{}", self.pilot, self.max, self.rel_stderr)
+        }
     }
 }
 
@@ -387,6 +461,49 @@ mod tests {
             (crate::MAX_WALKS, crate::MAX_WALKS)
         );
         assert_eq!(PdfWalks::fixed(u64::MAX).max(), crate::MAX_WALKS);
+    }
+
+    #[test]
+    fn a_rule_reads_back_from_its_name() {
+        for (name, rule) in [
+            ("default", PdfWalks::DEFAULT),
+            ("tight", PdfWalks::TIGHT),
+            ("32", PdfWalks::fixed(32)),
+            ("4,200,0.05", PdfWalks::adaptive(4, 200, 0.05)),
+            // The named rules by their parameters are the named rules.
+            ("8,128,0.1", PdfWalks::TIGHT),
+            (" 8, 64, 0.15 ", PdfWalks::DEFAULT),
+        ] {
+            let parsed: PdfWalks = name.parse().unwrap();
+            assert_eq!(parsed, rule, "{name}");
+            assert_eq!(parsed.to_string().parse::<PdfWalks>().unwrap(), rule);
+        }
+        assert_eq!(PdfWalks::fixed(1).to_string(), "1");
+        assert_eq!(PdfWalks::adaptive(4, 200, 0.05).to_string(), "4,200,0.05");
+    }
+
+    #[test]
+    fn a_bad_rule_names_the_field_and_the_value() {
+        for (name, message) in [
+            ("0", "0 walks: expected 1 to 1099511627776"),
+            ("1099511627777", "1099511627777 walks"),
+            ("tighter", "\"tighter\": expected default, tight"),
+            ("-3", "\"-3\": expected default"),
+            ("8,64", "\"8,64\": expected default"),
+            ("1,64,0.1", "pilot = 1: expected 2 to"),
+            ("8,4,0.1", "max = 4: expected pilot (8) to"),
+            ("8,64,0", "rel_stderr = 0: expected a positive"),
+            ("8,64,NaN", "rel_stderr = NaN"),
+            ("8,64,inf", "rel_stderr = inf"),
+            ("8,x,0.1", "max \"x\" is not a number of walks"),
+            ("8,64,y", "rel_stderr \"y\" is not a number"),
+        ] {
+            let e = name.parse::<PdfWalks>().unwrap_err();
+            assert!(e.contains(message), "{name}: {e}");
+        }
+        assert!(PdfWalks::try_adaptive(2, crate::MAX_WALKS + 1, 0.1).is_err());
+        assert!(PdfWalks::try_adaptive(8, 8, -0.1).is_err());
+        assert_eq!(PdfWalks::try_adaptive(8, 128, 0.1), Ok(PdfWalks::TIGHT));
     }
 
     #[test]
