@@ -56,18 +56,35 @@ pub struct Args {
     /// standard error; slow).
     #[arg(long, default_value = "approx")]
     pdf: strata_bsdf::PdfKind,
-    /// Density walks per pdf: for approx, a fixed number in place of the
-    /// library's pilot round (8 walks, then 8 to 64 fresh ones for a
-    /// relative standard error of 0.15, as `strata sample` runs them); for
-    /// unbiased, default 4096.
-    #[arg(long, value_parser = crate::common::walks)]
-    pdf_samples: Option<u64>,
+    /// Density walks per pdf. For approx: the library's rule by name,
+    /// `default` (a pilot of 8 walks, then 8 to 64 fresh ones for a relative
+    /// standard error of 0.15, as `strata sample` runs them unless told
+    /// otherwise) or `tight` (8, then 8 to 128 for 0.1: within 0.7–1.3× of
+    /// the density nearly everywhere), a fixed number of walks, or an
+    /// adaptive rule `PILOT,MAX,REL_STDERR`. For unbiased: a number of
+    /// walks, default 4096.
+    #[arg(long, value_parser = crate::common::pdf_walks)]
+    pdf_samples: Option<strata_bsdf::PdfWalks>,
     #[command(flatten)]
     engine: EngineArgs,
 }
 
 /// Density walks per unbiased pdf unless `--pdf-samples` says otherwise.
 const UNBIASED_PDF_SAMPLES: u64 = 4096;
+
+impl Args {
+    /// The density walks of an unbiased pdf: `--pdf-samples` must be a
+    /// number of them.
+    fn unbiased_walks(&self) -> Result<u64, String> {
+        match (self.pdf, self.pdf_samples) {
+            (PdfKind::Unbiased, Some(walks)) if walks.pilot() > 0 => Err(format!(
+                "--pdf-samples {walks}: --pdf unbiased takes a number of walks"
+            )),
+            (_, Some(walks)) => Ok(walks.max()),
+            (_, None) => Ok(UNBIASED_PDF_SAMPLES),
+        }
+    }
+}
 
 /// Queries evaluated together (the wavefront engine batches them).
 const CHUNK: usize = 1024;
@@ -86,10 +103,11 @@ struct Answer {
 pub fn run(args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
     let mut bsdf = LayeredBsdf::new(stack.clone());
-    if let (PdfKind::Approximate, Some(n)) = (args.pdf, args.pdf_samples) {
-        let n = u32::try_from(n).map_err(|_| format!("--pdf-samples: {n} is too many for approx"))?;
-        bsdf = bsdf.pdf_samples(n);
+    if let (PdfKind::Approximate, Some(walks)) = (args.pdf, args.pdf_samples) {
+        bsdf = bsdf.pdf_walks(walks);
     }
+    // A rule where a number is needed is an error before any output.
+    args.unbiased_walks()?;
     let bsdf = bsdf
         .seed(args.seed)
         .estimator(args.estimator)
@@ -259,7 +277,7 @@ fn answer_with(
         .map(|p| (p, None))
         .collect(),
         PdfKind::Unbiased => {
-            let n = args.pdf_samples.unwrap_or(UNBIASED_PDF_SAMPLES);
+            let n = args.unbiased_walks().map_err(Err)?;
             match batch {
                 Batch::One(b) => b.pdf_unbiased_batch(pairs, n),
                 Batch::Mixed(m, of) => m.pdf_unbiased_batch(of, pairs, n),

@@ -33,6 +33,11 @@ pub struct Args {
     /// carries (docs/materials.md), e.g. `{"layers[0].medium.thickness":0.5}`.
     #[arg(long)]
     set: Option<String>,
+    /// Density walks of the pdf each line carries, as `strata eval
+    /// --pdf-samples` takes them for approx: `default` (the library's rule),
+    /// `tight`, a fixed number, or `PILOT,MAX,REL_STDERR`.
+    #[arg(long, value_parser = crate::common::pdf_walks)]
+    pdf_samples: Option<strata_bsdf::PdfWalks>,
     #[command(flatten)]
     engine: EngineArgs,
 }
@@ -61,7 +66,9 @@ pub fn run(args: Args) -> Result<(), String> {
         let q = strata_bsdf::query::QuerySet::from_json(&v).map_err(|e| format!("--set: {e}"))?;
         stack = q.apply(&stack).map_err(|e| format!("--set: {e}"))?;
     }
-    let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
+    let walks = args.pdf_samples.unwrap_or_default();
+    let bsdf = LayeredBsdf::new(stack).seed(args.seed).pdf_walks(walks);
+    let bsdf = args.engine.apply(bsdf)?;
     // Validate the direction once, naming the flag.
     strata_bsdf::Direction::new("wi", wi).map_err(|e| format!("--wi {}: {e}", args.wi))?;
     let stdout = std::io::stdout();

@@ -515,35 +515,106 @@ fn sample_prints_absorbed_walks_as_null_with_zero_weight() {
 
 #[test]
 fn sample_lines_carry_the_pdf_eval_reports() {
-    // The pdf of a sampled direction is a function of the two directions:
-    // `strata eval` prints the same number for that pair.
+    // The pdf of a sampled direction is a function of the two directions
+    // and the density walks' rule: `strata eval` prints the same number for
+    // that pair under the same `--pdf-samples`, and another rule prints
+    // another number (the flag reaches both commands).
     for name in ["coated_copper.toml", "scattering_slab.toml"] {
         let m = example(name);
         let wi = "0.5,0,0.8660254";
-        let lines = sample(&m, wi, 64, 3);
-        let exited: Vec<&Line> = lines.iter().filter(|l| l.wo.is_some()).collect();
-        assert!(exited.len() > 20, "{name}: {} walks left", exited.len());
-        let queries: String = exited
-            .iter()
-            .map(|l| {
-                let wo = l.wo.unwrap();
-                format!(
-                    "{{\"wi\":[0.5,0,0.8660254],\"wo\":[{},{},{}]}}\n",
-                    wo[0] as f32, wo[1] as f32, wo[2] as f32
-                )
-            })
-            .collect();
-        let out = assert_ok(&run(
-            &["eval", "--material", &m, "--samples", "1", "--seed", "3"],
-            &queries,
-        ));
-        for (l, e) in exited.iter().zip(out.lines()) {
-            let v: Value = serde_json::from_str(e).unwrap();
-            let p = v["pdf"].as_f64().unwrap();
-            assert_eq!(l.pdf, Some(p), "{name}: sample line {:?} vs eval {e}", l.wo);
-            assert!(p > 0.0);
+        let mut pdfs: Vec<Vec<f64>> = Vec::new();
+        for rule in [None, Some("tight"), Some("16"), Some("4,32,0.2")] {
+            let flags: Vec<&str> = rule.iter().flat_map(|r| ["--pdf-samples", r]).collect();
+            let mut args = vec!["sample", "--material", &m, "--count", "64", "--seed", "3"];
+            args.push("--wi=0.5,0,0.8660254");
+            args.extend(&flags);
+            let lines = parse_sample_lines(&assert_ok(&run(&args, "")));
+            assert_eq!(lines.len(), 64, "{name} {rule:?}");
+            let exited: Vec<&Line> = lines.iter().filter(|l| l.wo.is_some()).collect();
+            assert!(exited.len() > 20, "{name}: {} walks left", exited.len());
+            let queries: String = exited
+                .iter()
+                .map(|l| {
+                    let wo = l.wo.unwrap();
+                    format!(
+                        "{{\"wi\":[{wi}],\"wo\":[{},{},{}]}}\n",
+                        wo[0] as f32, wo[1] as f32, wo[2] as f32
+                    )
+                })
+                .collect();
+            let mut args = vec!["eval", "--material", &m, "--samples", "1", "--seed", "3"];
+            args.extend(&flags);
+            let out = assert_ok(&run(&args, &queries));
+            let mut rule_pdfs = Vec::new();
+            for (l, e) in exited.iter().zip(out.lines()) {
+                let v: Value = serde_json::from_str(e).unwrap();
+                let p = v["pdf"].as_f64().unwrap();
+                assert_eq!(
+                    l.pdf,
+                    Some(p),
+                    "{name} {rule:?}: sample {:?} vs eval {e}",
+                    l.wo
+                );
+                assert!(p > 0.0);
+                rule_pdfs.push(p);
+            }
+            pdfs.push(rule_pdfs);
+        }
+        // The walks differ, so the directions do not (same seed): each
+        // rule's pdf of the first direction is its own.
+        let first: Vec<f64> = pdfs.iter().map(|p| p[0]).collect();
+        for i in 1..first.len() {
+            assert_ne!(
+                first[0], first[i],
+                "{name}: rule {i} gave the default's pdf"
+            );
         }
     }
+    let m = example("coated_copper.toml");
+    for (flag, message) in [
+        ("tighter", "expected default, tight"),
+        ("0", "0 walks: expected 1 to"),
+        ("1,8,0.1", "pilot = 1"),
+    ] {
+        let bad = run(
+            &[
+                "sample",
+                "--material",
+                &m,
+                "--wi=0,0,1",
+                "--count",
+                "1",
+                "--pdf-samples",
+                flag,
+            ],
+            "",
+        );
+        assert!(!bad.status.success(), "{flag}");
+        assert!(
+            String::from_utf8_lossy(&bad.stderr).contains(message),
+            "{flag}"
+        );
+    }
+    let q = "{\"wi\":[0,0,1],\"wo\":[0.6,0,0.8]}\n";
+    let bad = run(
+        &[
+            "eval",
+            "--material",
+            &m,
+            "--pdf",
+            "unbiased",
+            "--pdf-samples",
+            "tight",
+        ],
+        q,
+    );
+    assert!(!bad.status.success());
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        stderr.contains("--pdf-samples tight: --pdf unbiased takes a number of walks"),
+        "{stderr}"
+    );
+    assert!(bad.stdout.is_empty());
 }
 
 #[test]
@@ -578,7 +649,8 @@ fn eval_reports_the_unbiased_pdf_with_its_standard_error() {
     };
     let (p, se) = unbiased("1");
     assert!(p > 0.0 && se > 0.0 && se < 0.2 * p, "{p} ± {se}");
-    let floor = 0.1 / (4.0 * std::f64::consts::PI);
+    let f = strata_bsdf::estimator::pdf::UNIFORM_FRACTION;
+    let floor = f / (4.0 * std::f64::consts::PI);
     let approx: Vec<f64> = (0..64)
         .map(|s| {
             let out = assert_ok(&run(
@@ -595,7 +667,7 @@ fn eval_reports_the_unbiased_pdf_with_its_standard_error() {
             ));
             let v: Value = serde_json::from_str(out.trim()).unwrap();
             assert!(v.get("pdf_stderr").is_none(), "{out}");
-            (v["pdf"].as_f64().unwrap() - floor) / 0.9
+            (v["pdf"].as_f64().unwrap() - floor) / (1.0 - f)
         })
         .collect();
     let (mean, mean_se) = mean_se(&approx);
