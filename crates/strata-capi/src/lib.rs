@@ -666,8 +666,9 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
 /// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
 /// 8 walks and then 8 to 64 fresh ones for a relative standard error of
 /// 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
-/// compares the two). Every `n` is valid. (The Rust API's `pdf_samples(0)`
-/// is one walk; here 0 names the rule.)
+/// compares the two; `strata_bsdf_set_pdf_walks` sets any other rule).
+/// Every `n` is valid. (The Rust API's `pdf_samples(0)` is one walk; here 0
+/// names the rule.)
 /// Configure a BSDF before sharing it: this call must not run while another
 /// thread uses `b`.
 ///
@@ -684,6 +685,40 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32)
             STRATA_PDF_SAMPLES_RULE => PdfWalks::DEFAULT,
             n => PdfWalks::fixed(u64::from(n)),
         };
+        *b = b.clone().pdf_walks(walks);
+        Ok(())
+    })
+}
+
+/// Sets an adaptive rule for the approximate pdf's density walks (the pdf
+/// that `strata_pdf_batch` returns and that the samples carry): a pilot of
+/// `pilot` walks (at least 2) measures one walk's relative variance, then
+/// `pilot` to `max` fresh walks run for a relative standard error of about
+/// `rel_stderr` (a positive number), as the Rust API's `PdfWalks::adaptive`.
+/// The library's default is (8, 64, 0.15); (8, 128, 0.1), its `TIGHT` rule,
+/// gives a pdf within 0.7–1.3× of the density of the samples at nearly
+/// every direction for about twice the walks (docs/method.md §6). A pilot
+/// under 2, a `max` under `pilot`, or a `rel_stderr` that is not a positive
+/// finite number is `STRATA_ERR_INVALID_ARGUMENT`, naming the argument and its
+/// value, and leaves the BSDF as it was. Configure a BSDF before sharing
+/// it: this call must not run while another thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_pdf_walks(
+    b: *mut StrataBsdf,
+    pilot: u32,
+    max: u32,
+    rel_stderr: f64,
+) -> i32 {
+    guard("strata_bsdf_set_pdf_walks", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
+        let walks = PdfWalks::try_adaptive(u64::from(pilot), u64::from(max), rel_stderr)
+            .map_err(Failure::invalid)?;
         *b = b.clone().pdf_walks(walks);
         Ok(())
     })

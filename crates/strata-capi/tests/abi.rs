@@ -8,8 +8,8 @@ use glam::Vec3;
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
 use strata_bsdf::{
-    AlbedoRecord, Estimator, EvalRecord, LayerStack, LayeredBsdf, SampleRecord, Transport, Vectors,
-    VectorsMut,
+    AlbedoRecord, Estimator, EvalRecord, LayerStack, LayeredBsdf, PdfWalks, SampleRecord,
+    Transport, Vectors, VectorsMut,
 };
 use strata_capi::*;
 
@@ -473,6 +473,55 @@ fn pdf_samples_are_the_rust_apis() {
         STRATA_ERR_NULL
     );
     assert_eq!(last_error(), "strata_bsdf_set_pdf_samples: b is NULL");
+
+    // An adaptive rule is the Rust API's: the default's parameters give the
+    // default, TIGHT's give TIGHT, which differs from it.
+    for (pilot, max, rel, rule) in [
+        (8, 64, 0.15, PdfWalks::DEFAULT),
+        (8, 128, 0.1, PdfWalks::TIGHT),
+        (4, 24, 0.3, PdfWalks::adaptive(4, 24, 0.3)),
+    ] {
+        let c = Capi::toml(COATED_COPPER, 16, 5);
+        // SAFETY: `c.0` is a live BSDF used by this thread only. A count
+        // set first must not survive the rule.
+        assert_eq!(unsafe { strata_bsdf_set_pdf_samples(c.0, 7) }, STRATA_OK);
+        let status = unsafe { strata_bsdf_set_pdf_walks(c.0, pilot, max, rel) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        let (pdf, carried) = pdfs(&c);
+        let (want, want_carried) = rust_pdfs(&rust(COATED_COPPER, 16, 5).pdf_walks(rule));
+        assert_eq!(bits(&pdf), bits(&want), "{rule}");
+        assert_eq!(carried, want_carried, "{rule}");
+        assert_eq!(bits(&pdf) == seen[0], rule == PdfWalks::DEFAULT, "{rule}");
+    }
+    // A bad rule names the argument and its value and changes nothing.
+    let c = Capi::toml(COATED_COPPER, 16, 5);
+    // SAFETY: as above.
+    assert_eq!(unsafe { strata_bsdf_set_pdf_samples(c.0, 3) }, STRATA_OK);
+    for (pilot, max, rel, message) in [
+        (1, 64, 0.1, "pilot = 1: expected 2 to"),
+        (0, 64, 0.1, "pilot = 0"),
+        (8, 4, 0.1, "max = 4: expected pilot (8) to"),
+        (8, 64, 0.0, "rel_stderr = 0: expected a positive"),
+        (8, 64, -0.5, "rel_stderr = -0.5"),
+        (8, 64, f64::NAN, "rel_stderr = NaN"),
+        (8, 64, f64::INFINITY, "rel_stderr = inf"),
+    ] {
+        // SAFETY: as above.
+        let status = unsafe { strata_bsdf_set_pdf_walks(c.0, pilot, max, rel) };
+        assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT, "{message}");
+        let e = last_error();
+        assert!(
+            e.starts_with("strata_bsdf_set_pdf_walks: ") && e.contains(message),
+            "{e}"
+        );
+    }
+    assert_eq!(bits(&pdfs(&c).0), seen[2], "a bad rule changed the BSDF");
+    // SAFETY: NULL is an error, not a dereference.
+    assert_eq!(
+        unsafe { strata_bsdf_set_pdf_walks(null_mut(), 8, 64, 0.15) },
+        STRATA_ERR_NULL
+    );
+    assert_eq!(last_error(), "strata_bsdf_set_pdf_walks: b is NULL");
 }
 
 #[test]

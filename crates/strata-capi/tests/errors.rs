@@ -280,6 +280,10 @@ fn null_arrays_are_errors_naming_them_unless_n_is_zero() {
             strata_bsdf_set_pdf_samples(null_mut(), 4),
             "strata_bsdf_set_pdf_samples: b is NULL",
         );
+        expect_null(
+            strata_bsdf_set_pdf_walks(null_mut(), 8, 128, 0.1),
+            "strata_bsdf_set_pdf_walks: b is NULL",
+        );
         let p = v.as_ptr();
         let mut x = [0.0f32; 2];
         let (fr, fg, fb) = (f.as_mut_ptr(), f.as_mut_ptr().add(2), f.as_mut_ptr().add(4));

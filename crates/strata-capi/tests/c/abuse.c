@@ -68,6 +68,8 @@ int main(void) {
            "b is NULL", NULL);
     expect("pdf samples, NULL b", strata_bsdf_set_pdf_samples(NULL, 4), STRATA_ERR_NULL,
            "b is NULL", NULL);
+    expect("pdf walks, NULL b", strata_bsdf_set_pdf_walks(NULL, 8, 128, 0.1), STRATA_ERR_NULL,
+           "b is NULL", NULL);
     expect("NULL b even with n = 0", strata_eval_batch(NULL, 0, NULL, NULL, NULL, NULL),
            STRATA_ERR_NULL, "b is NULL", NULL);
     expect("keyed, NULL b and keys", strata_eval_batch_keyed(NULL, 4, wi, wo, NULL, f, NULL),
@@ -179,6 +181,10 @@ int main(void) {
            "mode = 7", NULL);
     expect("estimator 3", strata_bsdf_set_estimator(b, 3), STRATA_ERR_INVALID_ARGUMENT,
            "estimator = 3", NULL);
+    expect("pdf walks, pilot 1", strata_bsdf_set_pdf_walks(b, 1, 64, 0.1),
+           STRATA_ERR_INVALID_ARGUMENT, "pilot = 1", NULL);
+    expect("pdf walks, NaN error", strata_bsdf_set_pdf_walks(b, 8, 64, NAN),
+           STRATA_ERR_INVALID_ARGUMENT, "rel_stderr = NaN", NULL);
     expect("overlapping arrays", strata_eval_batch(b, 4, wi, wo, (float *)wi, NULL),
            STRATA_ERR_INVALID_ARGUMENT, "wi and f_out overlap", NULL);
     char raw[64];
