@@ -621,30 +621,65 @@ struct Bsdf {
     inner: LayeredBsdf,
 }
 
+/// What `pdf_samples` accepts.
+const PDF_SAMPLES_EXPECTED: &str =
+    "None (the library's rule), a number of walks, \"default\", \"tight\" or (pilot, max, rel_stderr)";
+
+/// The `pdf_samples` argument as a rule of density walks: `None` or
+/// "default" for the library's rule, "tight", a fixed count, or an adaptive
+/// rule `(pilot, max, rel_stderr)`; anything else is an error naming the
+/// value.
+fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(PdfWalks::DEFAULT);
+    };
+    if let Ok(n) = obj.extract::<i128>() {
+        return match n {
+            1..=0xffff_ffff => Ok(PdfWalks::fixed(n as u64)),
+            0 => Err(PyValueError::new_err(
+                "pdf_samples = 0: at least one walk per pdf is needed",
+            )),
+            n => Err(PyValueError::new_err(format!(
+                "pdf_samples = {n}: expected None or 1 to 4294967295 walks"
+            ))),
+        };
+    }
+    if let Ok(name) = obj.extract::<String>() {
+        return match name.as_str() {
+            "default" | "tight" => name.parse().map_err(PyValueError::new_err),
+            _ => Err(PyValueError::new_err(format!(
+                "pdf_samples = {name:?}: expected {PDF_SAMPLES_EXPECTED}"
+            ))),
+        };
+    }
+    if let Ok((pilot, max, rel_stderr)) = obj.extract::<(i128, i128, f64)>() {
+        let count = |field: &str, n: i128| {
+            u64::try_from(n).map_err(|_| format!("{field} = {n}: expected a number of walks"))
+        };
+        return count("pilot", pilot)
+            .and_then(|pilot| Ok((pilot, count("max", max)?)))
+            .and_then(|(pilot, max)| PdfWalks::try_adaptive(pilot, max, rel_stderr))
+            .map_err(|e| {
+                PyValueError::new_err(format!("pdf_samples = ({pilot}, {max}, {rel_stderr}): {e}"))
+            });
+    }
+    Err(PyTypeError::new_err(format!(
+        "pdf_samples must be {PDF_SAMPLES_EXPECTED}; got {}",
+        type_name(obj)
+    )))
+}
+
 fn build(
     stack: LayerStack,
     samples: i128,
     seed: i128,
     transport: &str,
-    pdf_samples: Option<i128>,
+    pdf_samples: Option<&Bound<'_, PyAny>>,
     estimator: &str,
 ) -> PyResult<Bsdf> {
     let samples = walks_arg("samples", samples).map_err(PyValueError::new_err)?;
     let seed = u64_arg("seed", seed, "0 to 2^64 − 1").map_err(PyValueError::new_err)?;
-    let pdf_walks = match pdf_samples {
-        None => PdfWalks::DEFAULT,
-        Some(n @ 1..=0xffff_ffff) => PdfWalks::fixed(n as u64),
-        Some(0) => {
-            return Err(PyValueError::new_err(
-                "pdf_samples = 0: at least one walk per pdf is needed",
-            ))
-        }
-        Some(n) => {
-            return Err(PyValueError::new_err(format!(
-                "pdf_samples = {n}: expected None or 1 to 4294967295 walks"
-            )))
-        }
-    };
+    let pdf_walks = pdf_walks_in(pdf_samples)?;
     let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
     let estimator: Estimator = estimator.parse().map_err(PyValueError::new_err)?;
     Ok(Bsdf {
@@ -678,7 +713,7 @@ impl Bsdf {
         samples: i128,
         seed: i128,
         transport: &str,
-        pdf_samples: Option<i128>,
+        pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
@@ -693,7 +728,7 @@ impl Bsdf {
         samples: i128,
         seed: i128,
         transport: &str,
-        pdf_samples: Option<i128>,
+        pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
@@ -709,7 +744,7 @@ impl Bsdf {
         samples: i128,
         seed: i128,
         transport: &str,
-        pdf_samples: Option<i128>,
+        pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;
@@ -740,12 +775,23 @@ impl Bsdf {
         self.inner.estimator_choice().as_str()
     }
 
-    /// The fixed number of density walks per approximate pdf, or `None` for
-    /// the library's rule (a pilot round; the default).
+    /// The density walks per approximate pdf, as `pdf_samples` takes them:
+    /// `None` for the library's rule (the default), a fixed count, "tight",
+    /// or `(pilot, max, rel_stderr)`.
     #[getter]
-    fn pdf_samples(&self) -> Option<u64> {
+    fn pdf_samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let walks = self.inner.pdf_walks_value();
-        (walks.pilot() == 0).then(|| walks.max())
+        Ok(if walks == PdfWalks::DEFAULT {
+            py.None().into_bound(py)
+        } else if walks == PdfWalks::TIGHT {
+            "tight".into_pyobject(py)?.into_any()
+        } else if walks.pilot() == 0 {
+            walks.max().into_pyobject(py)?.into_any()
+        } else {
+            (walks.pilot(), walks.max(), walks.rel_stderr())
+                .into_pyobject(py)?
+                .into_any()
+        })
     }
 
     /// Whether `eval` runs the bidirectional estimator on this material.
@@ -1036,7 +1082,7 @@ impl Bsdf {
         Ok(d)
     }
 
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
         let what = self
             .inner
             .stack()
@@ -1044,15 +1090,14 @@ impl Bsdf {
             .description
             .clone()
             .unwrap_or_else(|| format!("{} interfaces", self.inner.stack().len()));
-        format!(
+        Ok(format!(
             "Bsdf({what:?}, samples={}, seed={}, transport={:?}, estimator={:?}, pdf_samples={})",
             self.inner.samples_per_eval(),
             self.inner.seed_value(),
             self.inner.transport_mode().as_str(),
             self.inner.estimator_choice().as_str(),
-            self.pdf_samples()
-                .map_or("None".to_string(), |n| n.to_string())
-        )
+            self.pdf_samples(py)?.repr()?
+        ))
     }
 }
 

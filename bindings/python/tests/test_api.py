@@ -119,6 +119,48 @@ def test_fixed_pdf_samples_bit_identical_to_cli(strata_cli, materials):
             Bsdf.from_path(path, pdf_samples=bad)
 
 
+def test_pdf_rules_bit_identical_to_cli(strata_cli, materials):
+    # pdf_samples names the library's rules ("default", "tight") or sets an
+    # adaptive one, (pilot, max, rel_stderr), as `--pdf-samples` does: the
+    # same pdfs as the CLI's, bit for bit; "tight" is (8, 128, 0.1) and
+    # differs from the default; each reads back as given.
+    path = materials / "scattering_slab.toml"
+    rng = np.random.default_rng(6)
+    n, seed = 16, 3
+    wi = fixed_directions(n, rng)
+    wo = fixed_directions(n, rng)
+    lines = "".join(
+        json.dumps({"wi": [float(x) for x in a], "wo": [float(x) for x in b]}) + "\n" for a, b in zip(wi, wo)
+    )
+    pdfs = {}
+    for arg, flag, back in (
+        ("default", "default", None),
+        ("tight", "tight", "tight"),
+        ((8, 128, 0.1), "8,128,0.1", "tight"),
+        ((4, 24, 0.3), "4,24,0.3", (4, 24, 0.3)),
+    ):
+        args = ["eval", "--material", str(path), "--samples", "4", "--seed", str(seed), "--pdf-samples", flag]
+        cli = np.array([c["pdf"] for c in run_cli(strata_cli, args, lines)], dtype=np.float64).astype(np.float32)
+        bsdf = Bsdf.from_path(path, samples=4, seed=seed, pdf_samples=arg)
+        np.testing.assert_array_equal(bsdf.pdf(wi, wo), cli, err_msg=flag)
+        assert bsdf.pdf_samples == back and f"pdf_samples={back!r}" in repr(bsdf), (flag, bsdf)
+        assert bsdf.with_estimator("uni").pdf_samples == back
+        pdfs[flag] = cli
+    np.testing.assert_array_equal(pdfs["default"], Bsdf.from_path(path, samples=4, seed=seed).pdf(wi, wo))
+    assert np.any(pdfs["tight"] != pdfs["default"]) and np.any(pdfs["4,24,0.3"] != pdfs["tight"])
+    for bad, kind, message in (
+        ("tighter", ValueError, "pdf_samples = \"tighter\": expected None"),
+        ((1, 64, 0.1), ValueError, r"pdf_samples = \(1, 64, 0.1\): pilot = 1: expected 2 to"),
+        ((8, 4, 0.1), ValueError, r"max = 4: expected pilot \(8\) to"),
+        ((8, 64, float("nan")), ValueError, "rel_stderr = NaN"),
+        ((8, -1, 0.1), ValueError, "max = -1: expected a number of walks"),
+        (1.5, TypeError, r"pdf_samples must be None \(the library's rule\), a number of walks.*; got float"),
+        ([8, 64], TypeError, "got list"),
+    ):
+        with pytest.raises(kind, match=message):
+            Bsdf.from_path(path, pdf_samples=bad)
+
+
 @pytest.mark.parametrize("material", ["coated_copper.toml", "three_interfaces.toml"])
 @pytest.mark.parametrize("estimator", ["uni", "bidir", "auto"])
 def test_estimators_bit_identical_to_cli(strata_cli, materials, material, estimator):

@@ -251,6 +251,14 @@ def test_pdf_samples_property(materials):
     assert fixed.pdf(ctx, si, mi.Vector3f(*wo)) != default.pdf(ctx, si, mi.Vector3f(*wo))
     with pytest.raises(Exception, match="pdf_samples = 0"):
         mi.load_dict(dict(d, pdf_samples=0))
+    # A rule by name: "tight" is the Python Bsdf's, and not the default's.
+    tight = mi.load_dict(dict(d, pdf_samples="tight"))
+    assert "pdf_samples='tight'" in str(tight)
+    want = Bsdf.from_path(path, transport="importance", pdf_samples="tight").pdf(a, b)[0]
+    got = tight.pdf(ctx, si, mi.Vector3f(*wo))
+    assert got == float(want) and got != default.pdf(ctx, si, mi.Vector3f(*wo))
+    with pytest.raises(Exception, match="pdf_samples = \"loose\""):
+        mi.load_dict(dict(d, pdf_samples="loose"))
 
 
 def test_delta_samples_are_flagged(materials):

@@ -16,6 +16,10 @@ Estimator = Literal["auto", "uni", "unidirectional", "bidir", "bidirectional"]
 #: "layers[0].medium.sigma_t", "exterior_ior"; docs/materials.md) to a C-contiguous float32
 #: array of shape (N,) (a number per query) or (N, 3) (a triple per query).
 Params = Optional[Dict[str, F32]]
+#: Density walks per approximate pdf: None or "default" (the library's rule), a fixed count,
+#: "tight" (a pdf within 0.7-1.3x of sample's density nearly everywhere, about twice the
+#: walks), or an adaptive rule (pilot, max, rel_stderr).
+PdfSamples = Union[None, int, Literal["default", "tight"], Tuple[int, int, float]]
 
 REFLECTION: int
 TRANSMISSION: int
@@ -49,7 +53,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: Optional[int] = None,
+        pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
@@ -58,7 +62,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: Optional[int] = None,
+        pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     @staticmethod
@@ -67,7 +71,7 @@ class Bsdf:
         samples: int = 1,
         seed: int = 0,
         transport: Transport = "radiance",
-        pdf_samples: Optional[int] = None,
+        pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
@@ -97,8 +101,9 @@ class Bsdf:
     @property
     def estimator(self) -> Estimator: ...
     @property
-    def pdf_samples(self) -> Optional[int]:
-        """The fixed number of density walks per approximate pdf, or None for the library's rule."""
+    def pdf_samples(self) -> PdfSamples:
+        """The density walks per approximate pdf as pdf_samples takes them: None for the
+        library's rule, a fixed count, "tight", or (pilot, max, rel_stderr)."""
     @property
     def bidirectional(self) -> bool: ...
     @property

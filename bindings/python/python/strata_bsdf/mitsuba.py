@@ -21,10 +21,12 @@ Parameters of ``"strata"``:
 * ``samples`` (int, default 1): walks per ``eval`` (each eval is an unbiased
   estimate; more walks, less noise per call).
 * ``seed`` (int, default 0): seeds strata's random streams.
-* ``pdf_samples`` (int, default: the library's rule): a fixed number of
-  density walks per pdf (at least 1), in place of the pilot round (8 walks,
-  then 8 to 64 for a relative standard error of 0.15); docs/method.md §6
-  compares the two.
+* ``pdf_samples`` (int or string, default: the library's rule): a fixed
+  number of density walks per pdf (at least 1), in place of the pilot round
+  (8 walks, then 8 to 64 for a relative standard error of 0.15), or
+  ``"tight"`` (8, then 8 to 128 for 0.1: a pdf within 0.7–1.3× of the
+  density of the samples at nearly every direction, for about twice the
+  walks); docs/method.md §6 compares them.
 * ``param:<path>`` (float, RGB or texture, any number of them): a parameter
   of the material that varies over the surface, e.g.
   ``"param:layers[0]:medium:thickness": {"type": "bitmap", ...}``. The path
@@ -327,7 +329,9 @@ def _make_class():
             path = str(mi.file_resolver().resolve(name))
             samples = int(props["samples"]) if "samples" in props else 1
             seed = int(props["seed"]) if "seed" in props else 0
-            pdf_samples = int(props["pdf_samples"]) if "pdf_samples" in props else None
+            pdf_samples = props["pdf_samples"] if "pdf_samples" in props else None
+            if pdf_samples is not None and not isinstance(pdf_samples, str):
+                pdf_samples = int(pdf_samples)
             # Mitsuba's radiance mode (camera paths) is strata's importance mode.
             self._camera = Bsdf.from_path(
                 path, samples=samples, seed=seed, transport="importance", pdf_samples=pdf_samples
