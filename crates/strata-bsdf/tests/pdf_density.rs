@@ -25,24 +25,11 @@ const STACKS: [(&str, &str); 11] = [
     ("2.2 coat / Lambertian", common::DENSE_COAT_ABSORBER),
     (
         "rough varnish / scattering layer",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
-        medium = { thickness = 1.0, sigma_t = 2.0, albedo = 0.9, phase = { kind = "hg", g = 0.6 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.5 }
-        "#,
+        common::VARNISH_OVER_SCATTERING,
     ),
     (
         "smooth coat / rough inner / rough copper",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.8, roughness = 0.15 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
-        "#,
+        common::COAT_INNER_COPPER,
     ),
     (
         "smooth slab (transmissive)",
@@ -114,13 +101,7 @@ const STACKS: [(&str, &str); 11] = [
     ),
     (
         "smooth coat / HG 0.8 scattering layer / Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.6 }
-        medium = { thickness = 1.0, sigma_t = 4.0, albedo = [0.6, 0.95, 0.7], phase = { kind = "hg", g = 0.8 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.5 }
-        "#,
+        common::COAT_OVER_HG08,
     ),
 ];
 

@@ -191,45 +191,6 @@ impl Tally {
     }
 }
 
-/// A deterministic stream of uniforms in [0, 1) (SplitMix64), for the cone directions.
-struct Uniforms(u64);
-impl Uniforms {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// A unit direction uniformly distributed in the cone of half-angle `delta` around `axis`.
-fn in_cone(axis: [f64; 3], delta: f64, u: &mut Uniforms) -> [f64; 3] {
-    let cos_t = 1.0 - u.next() * (1.0 - delta.cos());
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let phi = 2.0 * std::f64::consts::PI * u.next();
-    // an orthonormal basis around the axis
-    let a = if axis[2].abs() < 0.9 {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let cross = |p: [f64; 3], q: [f64; 3]| {
-        [
-            p[1] * q[2] - p[2] * q[1],
-            p[2] * q[0] - p[0] * q[2],
-            p[0] * q[1] - p[1] * q[0],
-        ]
-    };
-    let norm = |p: [f64; 3]| {
-        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        [p[0] / l, p[1] / l, p[2] / l]
-    };
-    let t = norm(cross(a, axis));
-    let b = cross(axis, t);
-    [0, 1, 2].map(|i| sin_t * phi.cos() * t[i] + sin_t * phi.sin() * b[i] + cos_t * axis[i])
-}
-
 /// strata's value for a reference row: (value, stderr) per channel.
 fn strata_value(bsdf: &LayeredBsdf, row: &Row, walks: u64, cone_dirs: usize) -> [(f64, f64); 3] {
     let (ti, pi) = (row.num("theta_i"), row.num_or("phi_i", 0.0));

@@ -23,6 +23,36 @@ medium = { thickness = 0.2, sigma_t = [0.1, 0.3, 0.8], albedo = 0.0 }
 interface = { kind = "diffuse", albedo = 0.7 }
 "#;
 
+/// Issue 16's rough varnish over a scattering layer (HG 0.6) over a
+/// Lambertian base.
+pub const VARNISH_OVER_SCATTERING: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+medium = { thickness = 1.0, sigma_t = 2.0, albedo = 0.9, phase = { kind = "hg", g = 0.6 } }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.5 }
+"#;
+
+/// Issue 16's smooth coat over a rough inner interface over rough copper.
+pub const COAT_INNER_COPPER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+[[layers]]
+interface = { kind = "dielectric", ior = 1.8, roughness = 0.15 }
+[[layers]]
+interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
+"#;
+
+/// A smooth coat over a peaked (HG 0.8), chromatic scattering layer over a
+/// Lambertian base.
+pub const COAT_OVER_HG08: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.6 }
+medium = { thickness = 1.0, sigma_t = 4.0, albedo = [0.6, 0.95, 0.7], phase = { kind = "hg", g = 0.8 } }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.5 }
+"#;
+
 /// A stack from TOML text (panics with the error: test inputs are valid).
 pub fn stack(toml: &str) -> LayerStack {
     LayerStack::from_toml_str(toml).unwrap_or_else(|e| panic!("test material: {e}"))
@@ -62,3 +92,43 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
 
 pub mod chi2;
 pub mod reference;
+
+/// A deterministic stream of uniforms in [0, 1) (SplitMix64), for the cone directions.
+pub struct Uniforms(pub u64);
+impl Uniforms {
+    /// The next uniform.
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// A unit direction uniformly distributed in the cone of half-angle `delta` around `axis`.
+pub fn in_cone(axis: [f64; 3], delta: f64, u: &mut Uniforms) -> [f64; 3] {
+    let cos_t = 1.0 - u.next() * (1.0 - delta.cos());
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u.next();
+    // an orthonormal basis around the axis
+    let a = if axis[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let cross = |p: [f64; 3], q: [f64; 3]| {
+        [
+            p[1] * q[2] - p[2] * q[1],
+            p[2] * q[0] - p[0] * q[2],
+            p[0] * q[1] - p[1] * q[0],
+        ]
+    };
+    let norm = |p: [f64; 3]| {
+        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        [p[0] / l, p[1] / l, p[2] / l]
+    };
+    let t = norm(cross(a, axis));
+    let b = cross(axis, t);
+    [0, 1, 2].map(|i| sin_t * phi.cos() * t[i] + sin_t * phi.sin() * b[i] + cos_t * axis[i])
+}
