@@ -47,7 +47,8 @@ impl Light {
     }
 }
 
-/// Light from 25°.
+/// The direction the vertex is seen from, 25° off the normal (these stacks
+/// reflect only, where both transport modes agree).
 fn wi() -> Vec3 {
     vec3(dir(25.0, 0.0))
 }
