@@ -61,9 +61,33 @@ fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
     query_err(py, e.to_string(), e.index)
 }
 
-/// An integer argument as `u64`, or a message naming it and its value: the
-/// arguments are taken as any Python int (`i128`), so that a negative or a
-/// huge one gets this message, not pyo3's bare OverflowError.
+/// A whole-number argument, taken as any Python int (`i128`) so that a
+/// negative or a huge one gets [`u64_arg`]'s message, not pyo3's bare
+/// OverflowError; anything else (a float, a string) is a TypeError that
+/// names the argument, the type and the value.
+fn whole(argument: &str, obj: &Bound<'_, PyAny>) -> PyResult<i128> {
+    obj.extract::<i128>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{argument} = {}: expected a whole number, got {}",
+            repr(obj),
+            type_name(obj)
+        ))
+    })
+}
+
+fn samples_arg(obj: &Bound<'_, PyAny>) -> PyResult<i128> {
+    whole("samples", obj)
+}
+
+fn seed_arg(obj: &Bound<'_, PyAny>) -> PyResult<i128> {
+    whole("seed", obj)
+}
+
+fn n_arg(obj: &Bound<'_, PyAny>) -> PyResult<i128> {
+    whole("n", obj)
+}
+
+/// An integer argument as `u64`, or a message naming it and its value.
 fn u64_arg(argument: &str, n: i128, expected: &str) -> Result<u64, String> {
     u64::try_from(n).map_err(|_| format!("{argument} = {n}: expected {expected}"))
 }
@@ -133,6 +157,11 @@ impl VecIn<'_> {
 }
 
 /// The Python type name of `obj`, for error messages.
+/// What Python prints for `obj`, for messages.
+fn repr(obj: &Bound<'_, PyAny>) -> String {
+    obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
+}
+
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type()
         .name()
@@ -648,7 +677,8 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
         return match name.as_str() {
             "default" | "tight" => name.parse().map_err(PyValueError::new_err),
             _ => Err(PyValueError::new_err(format!(
-                "pdf_samples = {name:?}: expected {PDF_SAMPLES_EXPECTED}"
+                "pdf_samples = {}: expected {PDF_SAMPLES_EXPECTED}",
+                repr(obj)
             ))),
         };
     }
@@ -664,7 +694,8 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
             });
     }
     Err(PyTypeError::new_err(format!(
-        "pdf_samples must be {PDF_SAMPLES_EXPECTED}; got {}",
+        "pdf_samples = {}: expected {PDF_SAMPLES_EXPECTED}, got {}",
+        repr(obj),
         type_name(obj)
     )))
 }
@@ -710,8 +741,8 @@ impl Bsdf {
     #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_toml(
         text: &str,
-        samples: i128,
-        seed: i128,
+        #[pyo3(from_py_with = samples_arg)] samples: i128,
+        #[pyo3(from_py_with = seed_arg)] seed: i128,
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
@@ -725,8 +756,8 @@ impl Bsdf {
     #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_json(
         text: &str,
-        samples: i128,
-        seed: i128,
+        #[pyo3(from_py_with = samples_arg)] samples: i128,
+        #[pyo3(from_py_with = seed_arg)] seed: i128,
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
@@ -741,8 +772,8 @@ impl Bsdf {
     #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
     fn from_path(
         path: std::path::PathBuf,
-        samples: i128,
-        seed: i128,
+        #[pyo3(from_py_with = samples_arg)] samples: i128,
+        #[pyo3(from_py_with = seed_arg)] seed: i128,
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
@@ -944,7 +975,7 @@ impl Bsdf {
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
-        samples: i128,
+        #[pyo3(from_py_with = samples_arg)] samples: i128,
         params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
         let samples = walks_arg("samples", samples).map_err(|e| query_err(py, e, None))?;
@@ -972,7 +1003,7 @@ impl Bsdf {
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
-        n: i128,
+        #[pyo3(from_py_with = n_arg)] n: i128,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(

@@ -257,7 +257,7 @@ def test_pdf_samples_property(materials):
     want = Bsdf.from_path(path, transport="importance", pdf_samples="tight").pdf(a, b)[0]
     got = tight.pdf(ctx, si, mi.Vector3f(*wo))
     assert got == float(want) and got != default.pdf(ctx, si, mi.Vector3f(*wo))
-    with pytest.raises(Exception, match="pdf_samples = \"loose\""):
+    with pytest.raises(Exception, match="pdf_samples = 'loose'"):
         mi.load_dict(dict(d, pdf_samples="loose"))
 
 
