@@ -67,6 +67,10 @@ pub struct Args {
     pdf_samples: Option<strata_bsdf::PdfWalks>,
     #[command(flatten)]
     engine: EngineArgs,
+    /// The density walks of an unbiased pdf, from `--pdf-samples` (set by
+    /// `run`).
+    #[arg(skip)]
+    unbiased_pdf_walks: u64,
 }
 
 /// Density walks per unbiased pdf unless `--pdf-samples` says otherwise.
@@ -100,14 +104,14 @@ struct Answer {
 }
 
 /// Runs `strata eval`.
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(mut args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
     let mut bsdf = LayeredBsdf::new(stack.clone());
     if let (PdfKind::Approximate, Some(walks)) = (args.pdf, args.pdf_samples) {
         bsdf = bsdf.pdf_walks(walks);
     }
     // A rule where a number is needed is an error before any output.
-    args.unbiased_walks()?;
+    args.unbiased_pdf_walks = args.unbiased_walks()?;
     let bsdf = bsdf
         .seed(args.seed)
         .estimator(args.estimator)
@@ -277,7 +281,7 @@ fn answer_with(
         .map(|p| (p, None))
         .collect(),
         PdfKind::Unbiased => {
-            let n = args.unbiased_walks().map_err(Err)?;
+            let n = args.unbiased_pdf_walks;
             match batch {
                 Batch::One(b) => b.pdf_unbiased_batch(pairs, n),
                 Batch::Mixed(m, of) => m.pdf_unbiased_batch(of, pairs, n),

@@ -560,8 +560,9 @@ fn sample_lines_carry_the_pdf_eval_reports() {
             }
             pdfs.push(rule_pdfs);
         }
-        // The walks differ, so the directions do not (same seed): each
-        // rule's pdf of the first direction is its own.
+        // The sampled directions are the same under every rule (same seed;
+        // only the density walks differ), and each rule's pdf of the first
+        // one is its own.
         let first: Vec<f64> = pdfs.iter().map(|p| p[0]).collect();
         for i in 1..first.len() {
             assert_ne!(

@@ -218,11 +218,12 @@ impl std::str::FromStr for PdfWalks {
             "default" => Ok(PdfWalks::DEFAULT),
             "tight" => Ok(PdfWalks::TIGHT),
             t => match t.split(',').map(str::trim).collect::<Vec<_>>()[..] {
-                [n] => match n.parse::<u64>() {
-                    Ok(n @ 1..=crate::MAX_WALKS) => Ok(PdfWalks::fixed(n)),
-                    Ok(n) => Err(format!("{n} walks: expected 1 to {}", crate::MAX_WALKS)),
-                    Err(_) => Err(format!("{s:?}: {expected}")),
-                },
+                [n] if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => {
+                    match n.parse::<u64>() {
+                        Ok(n @ 1..=crate::MAX_WALKS) => Ok(PdfWalks::fixed(n)),
+                        _ => Err(format!("{n} walks: expected 1 to {}", crate::MAX_WALKS)),
+                    }
+                }
                 [pilot, max, rel] => {
                     let count = |field: &str, v: &str| {
                         v.parse::<u64>()
@@ -240,8 +241,11 @@ impl std::str::FromStr for PdfWalks {
     }
 }
 
-/// The rule's name, which [`PdfWalks::from_str`](std::str::FromStr) reads
-/// back: `default`, `tight`, the count, or `PILOT,MAX,REL_STDERR`.
+/// The rule's name: `default`, `tight`, the count, or
+/// `PILOT,MAX,REL_STDERR`. [`PdfWalks::from_str`](std::str::FromStr) reads
+/// back every rule that [`PdfWalks::fixed`] and [`PdfWalks::try_adaptive`]
+/// make; not [`PdfWalks::adaptive`]'s with a relative standard error that
+/// is not a positive finite number (which runs `max` walks).
 impl std::fmt::Display for PdfWalks {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         if *self == PdfWalks::DEFAULT {
@@ -487,6 +491,11 @@ mod tests {
         for (name, message) in [
             ("0", "0 walks: expected 1 to 1099511627776"),
             ("1099511627777", "1099511627777 walks"),
+            (
+                "99999999999999999999",
+                "99999999999999999999 walks: expected 1 to",
+            ),
+            ("+5", "\"+5\": expected default"),
             ("tighter", "\"tighter\": expected default, tight"),
             ("-3", "\"-3\": expected default"),
             ("8,64", "\"8,64\": expected default"),
