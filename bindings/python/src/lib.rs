@@ -156,12 +156,12 @@ impl VecIn<'_> {
     }
 }
 
-/// The Python type name of `obj`, for error messages.
 /// What Python prints for `obj`, for messages.
 fn repr(obj: &Bound<'_, PyAny>) -> String {
     obj.repr().map_or_else(|_| "?".into(), |r| r.to_string())
 }
 
+/// The Python type name of `obj`, for error messages.
 fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type()
         .name()
@@ -664,13 +664,16 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
     };
     if let Ok(n) = obj.extract::<i128>() {
         return match n {
-            1..=0xffff_ffff => Ok(PdfWalks::fixed(n as u64)),
             0 => Err(PyValueError::new_err(
                 "pdf_samples = 0: at least one walk per pdf is needed",
             )),
-            n => Err(PyValueError::new_err(format!(
-                "pdf_samples = {n}: expected None or 1 to 4294967295 walks"
-            ))),
+            n => u64_arg("pdf_samples", n, &format!("None or 1 to {MAX_WALKS} walks"))
+                .and_then(|n| {
+                    check_walks("pdf_samples", n)
+                        .map(|()| PdfWalks::fixed(n))
+                        .map_err(|e| e.to_string())
+                })
+                .map_err(PyValueError::new_err),
         };
     }
     if let Ok(name) = obj.extract::<String>() {
@@ -682,16 +685,16 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
             ))),
         };
     }
-    if let Ok((pilot, max, rel_stderr)) = obj.extract::<(i128, i128, f64)>() {
-        let count = |field: &str, n: i128| {
-            u64::try_from(n).map_err(|_| format!("{field} = {n}: expected a number of walks"))
+    if let Ok((pilot, max, rel_stderr)) = obj.extract::<(Bound<PyAny>, Bound<PyAny>, f64)>() {
+        let count = |field: &str, v: &Bound<PyAny>| {
+            let n = whole(field, v)?;
+            u64::try_from(n).map_err(|_| {
+                PyValueError::new_err(format!("{field} = {n}: expected a number of walks"))
+            })
         };
-        return count("pilot", pilot)
-            .and_then(|pilot| Ok((pilot, count("max", max)?)))
-            .and_then(|(pilot, max)| PdfWalks::try_adaptive(pilot, max, rel_stderr))
-            .map_err(|e| {
-                PyValueError::new_err(format!("pdf_samples = ({pilot}, {max}, {rel_stderr}): {e}"))
-            });
+        let rule = PdfWalks::try_adaptive(count("pilot", &pilot)?, count("max", &max)?, rel_stderr);
+        return rule
+            .map_err(|e| PyValueError::new_err(format!("pdf_samples = {}: {e}", repr(obj))));
     }
     Err(PyTypeError::new_err(format!(
         "pdf_samples = {}: expected {PDF_SAMPLES_EXPECTED}, got {}",

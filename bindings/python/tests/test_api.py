@@ -114,9 +114,12 @@ def test_fixed_pdf_samples_bit_identical_to_cli(strata_cli, materials):
     assert "pdf_samples=4" in repr(four) and "pdf_samples=None" in repr(rule)
     with pytest.raises(ValueError, match="pdf_samples = 0"):
         Bsdf.from_path(path, pdf_samples=0)
-    for bad in (-3, 2**32):
+    for bad in (-3, 2**64):
         with pytest.raises(ValueError, match=f"pdf_samples = {bad}: expected None or 1 to"):
             Bsdf.from_path(path, pdf_samples=bad)
+    with pytest.raises(ValueError, match=f"pdf_samples = {2**40 + 1}: at most {2**40} walks"):
+        Bsdf.from_path(path, pdf_samples=2**40 + 1)
+    assert Bsdf.from_path(path, pdf_samples=2**40).pdf_samples == 2**40
 
 
 def test_pdf_rules_bit_identical_to_cli(strata_cli, materials):
@@ -154,6 +157,8 @@ def test_pdf_rules_bit_identical_to_cli(strata_cli, materials):
         ((8, 4, 0.1), ValueError, r"max = 4: expected pilot \(8\) to"),
         ((8, 64, float("nan")), ValueError, "rel_stderr = NaN"),
         ((8, -1, 0.1), ValueError, "max = -1: expected a number of walks"),
+        ((8.5, 64, 0.1), TypeError, "pilot = 8.5: expected a whole number, got float"),
+        ((8, 64, float("inf")), ValueError, r"pdf_samples = \(8, 64, inf\): rel_stderr = inf"),
         (1.5, TypeError, r"pdf_samples = 1\.5: expected None \(the library's rule\), a number of walks.*, got float"),
         ([8, 64], TypeError, r"pdf_samples = \[8, 64\]: .*, got list"),
     ):

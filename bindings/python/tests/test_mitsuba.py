@@ -259,6 +259,11 @@ def test_pdf_samples_property(materials):
     assert got == float(want) and got != default.pdf(ctx, si, mi.Vector3f(*wo))
     with pytest.raises(Exception, match="pdf_samples = 'loose'"):
         mi.load_dict(dict(d, pdf_samples="loose"))
+    # A count that is not a whole number is named, not truncated.
+    with pytest.raises(Exception, match=r"samples = 1\.5: expected a whole number"):
+        mi.load_dict(dict(d, samples=1.5))
+    with pytest.raises(Exception, match=r"pdf_samples = 4\.5: expected None"):
+        mi.load_dict(dict(d, pdf_samples=4.5))
 
 
 def test_delta_samples_are_flagged(materials):

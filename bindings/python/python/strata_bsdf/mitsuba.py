@@ -327,11 +327,11 @@ def _make_class():
                 raise ValueError('strata: the "filename" parameter (a TOML or JSON material) is required')
             name = str(props["filename"])
             path = str(mi.file_resolver().resolve(name))
-            samples = int(props["samples"]) if "samples" in props else 1
-            seed = int(props["seed"]) if "seed" in props else 0
+            # Passed on as given: Bsdf names a value that is not a whole
+            # number (or, for pdf_samples, a rule) rather than truncating it.
+            samples = props["samples"] if "samples" in props else 1
+            seed = props["seed"] if "seed" in props else 0
             pdf_samples = props["pdf_samples"] if "pdf_samples" in props else None
-            if pdf_samples is not None and not isinstance(pdf_samples, str):
-                pdf_samples = int(pdf_samples)
             # Mitsuba's radiance mode (camera paths) is strata's importance mode.
             self._camera = Bsdf.from_path(
                 path, samples=samples, seed=seed, transport="importance", pdf_samples=pdf_samples
