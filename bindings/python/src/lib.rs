@@ -21,7 +21,7 @@ use numpy::{
 use pyo3::create_exception;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
@@ -63,15 +63,19 @@ fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
 
 /// A whole-number argument, taken as any Python int (`i128`) so that a
 /// negative or a huge one gets [`u64_arg`]'s message, not pyo3's bare
-/// OverflowError; anything else (a float, a string) is a TypeError that
-/// names the argument, the type and the value.
+/// OverflowError; an int beyond `i128` is a ValueError, anything else (a
+/// float, a string) a TypeError, each naming the argument and the value.
 fn whole(argument: &str, obj: &Bound<'_, PyAny>) -> PyResult<i128> {
     obj.extract::<i128>().map_err(|_| {
-        PyTypeError::new_err(format!(
-            "{argument} = {}: expected a whole number, got {}",
-            repr(obj),
-            type_name(obj)
-        ))
+        let value = repr(obj);
+        if obj.is_instance_of::<PyInt>() {
+            PyValueError::new_err(format!("{argument} = {value}: out of range"))
+        } else {
+            PyTypeError::new_err(format!(
+                "{argument} = {value}: expected a whole number, got {}",
+                type_name(obj)
+            ))
+        }
     })
 }
 
@@ -663,18 +667,9 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
         return Ok(PdfWalks::DEFAULT);
     };
     if let Ok(n) = obj.extract::<i128>() {
-        return match n {
-            0 => Err(PyValueError::new_err(
-                "pdf_samples = 0: at least one walk per pdf is needed",
-            )),
-            n => u64_arg("pdf_samples", n, &format!("None or 1 to {MAX_WALKS} walks"))
-                .and_then(|n| {
-                    check_walks("pdf_samples", n)
-                        .map(|()| PdfWalks::fixed(n))
-                        .map_err(|e| e.to_string())
-                })
-                .map_err(PyValueError::new_err),
-        };
+        return walks_arg("pdf_samples", n)
+            .map(PdfWalks::fixed)
+            .map_err(PyValueError::new_err);
     }
     if let Ok(name) = obj.extract::<String>() {
         return match name.as_str() {
@@ -687,10 +682,7 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
     }
     if let Ok((pilot, max, rel_stderr)) = obj.extract::<(Bound<PyAny>, Bound<PyAny>, f64)>() {
         let count = |field: &str, v: &Bound<PyAny>| {
-            let n = whole(field, v)?;
-            u64::try_from(n).map_err(|_| {
-                PyValueError::new_err(format!("{field} = {n}: expected a number of walks"))
-            })
+            u64_arg(field, whole(field, v)?, "a number of walks").map_err(PyValueError::new_err)
         };
         let rule = PdfWalks::try_adaptive(count("pilot", &pilot)?, count("max", &max)?, rel_stderr);
         return rule

@@ -212,7 +212,7 @@ fn strata_value(bsdf: &LayeredBsdf, row: &Row, walks: u64, cone_dirs: usize) -> 
             let wo = dir(row.num("theta_o"), row.num("phi_o"));
             let delta = row.num("delta_deg").to_radians();
             let omega = 2.0 * std::f64::consts::PI * (1.0 - delta.cos());
-            let mut u = Uniforms(0x5EED ^ bsdf.seed_value());
+            let mut u = reference::SplitMix(0x5EED ^ bsdf.seed_value());
             let dirs: Vec<[f64; 3]> = (0..cone_dirs).map(|_| in_cone(wi, delta, &mut u)).collect();
             let pairs: Vec<_> = dirs.iter().map(|w| (vec3(*w), vec3(wo))).collect();
             let keys: Vec<u64> = (0..cone_dirs as u64).collect();

@@ -63,7 +63,7 @@ pub struct Args {
     /// the density nearly everywhere), a fixed number of walks, or an
     /// adaptive rule `PILOT,MAX,REL_STDERR`. For unbiased: a number of
     /// walks, default 4096.
-    #[arg(long, value_parser = crate::common::pdf_walks)]
+    #[arg(long)]
     pdf_samples: Option<strata_bsdf::PdfWalks>,
     #[command(flatten)]
     engine: EngineArgs,

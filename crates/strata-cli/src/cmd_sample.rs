@@ -36,7 +36,7 @@ pub struct Args {
     /// Density walks of the pdf each line carries, as `strata eval
     /// --pdf-samples` takes them for approx: `default` (the library's rule),
     /// `tight`, a fixed number, or `PILOT,MAX,REL_STDERR`.
-    #[arg(long, value_parser = crate::common::pdf_walks)]
+    #[arg(long)]
     pdf_samples: Option<strata_bsdf::PdfWalks>,
     #[command(flatten)]
     engine: EngineArgs,

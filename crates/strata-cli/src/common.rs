@@ -47,12 +47,6 @@ pub fn walks(text: &str) -> Result<u64, String> {
     walks_at_most(text, strata_bsdf::MAX_WALKS)
 }
 
-/// The density walks of an approximate pdf (`--pdf-samples`): `default`,
-/// `tight`, a number of walks, or `PILOT,MAX,REL_STDERR`.
-pub fn pdf_walks(text: &str) -> Result<strata_bsdf::PdfWalks, String> {
-    text.parse()
-}
-
 /// A whole number from 1 to `max` walks.
 pub fn walks_at_most(text: &str, max: u64) -> Result<u64, String> {
     at_most(text, max, " walks per query")

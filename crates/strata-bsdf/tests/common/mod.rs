@@ -93,24 +93,12 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
 pub mod chi2;
 pub mod reference;
 
-/// A deterministic stream of uniforms in [0, 1) (SplitMix64), for the cone directions.
-pub struct Uniforms(pub u64);
-impl Uniforms {
-    /// The next uniform.
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
-/// A unit direction uniformly distributed in the cone of half-angle `delta` around `axis`.
-pub fn in_cone(axis: [f64; 3], delta: f64, u: &mut Uniforms) -> [f64; 3] {
-    let cos_t = 1.0 - u.next() * (1.0 - delta.cos());
+/// A unit direction uniformly distributed in the cone of half-angle `delta`
+/// around `axis`, from two uniforms of `u`.
+pub fn in_cone(axis: [f64; 3], delta: f64, u: &mut reference::SplitMix) -> [f64; 3] {
+    let cos_t = 1.0 - u.next_f64() * (1.0 - delta.cos());
     let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    let phi = 2.0 * std::f64::consts::PI * u.next();
+    let phi = 2.0 * std::f64::consts::PI * u.next_f64();
     // an orthonormal basis around the axis
     let a = if axis[2].abs() < 0.9 {
         [0.0, 0.0, 1.0]
