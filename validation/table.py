@@ -1,12 +1,13 @@
 #!/usr/bin/env python3
 """Makes the comparison table of docs/validation.md from a strata run of the validation test.
 
-    STRATA_VALIDATION_OUT=/tmp/val cargo test --release -p strata-bsdf --test validation
+    STRATA_VALIDATION_OUT=/tmp/val cargo test --release -p strata-bsdf --test physics validation::
     python3 validation/table.py /tmp/val          # rewrites the table in docs/validation.md
 
 The test writes one CSV per reference file (exact.csv.strata.csv, mitsuba.csv.strata.csv,
-iad.csv.strata.csv) with strata's value and standard error on each engine beside the stored
-reference; this script pairs the two engines and puts every comparison in one table between
+iad.csv.strata.csv) with strata's value and standard error of each run (the wavefront engine with seeds 1 and
+2; seed 1's walks are the scalar reference's) beside the stored reference; this script pairs
+the two runs and puts every comparison in one table between
 the markers <!-- table:begin --> and <!-- table:end -->. Standard library only.
 """
 import csv
@@ -39,8 +40,8 @@ def query(r):
 
 def main():
     out = sys.argv[1]
-    lines = ["| reference | stack | quantity | ch | strata scalar ± σ | strata wavefront ± σ | "
-             "reference ± σ (bound) | z scalar | z wavefront |",
+    lines = ["| reference | stack | quantity | ch | strata seed 1 ± σ | strata seed 2 ± σ | "
+             "reference ± σ (bound) | z seed 1 | z seed 2 |",
              "|---|---|---|---|---|---|---|---|---|"]
     worst, count = 0.0, 0
     for fname, label in FILES:
@@ -50,9 +51,9 @@ def main():
         by_key = {}
         for r in rows:
             key = (r["case"], r["quantity"], r["theta_i"], r["theta_o"], r["phi_o"], r["channel"])
-            by_key.setdefault(key, {})[r["engine"]] = r
+            by_key.setdefault(key, {})[r["run"]] = r
         for key, eng in by_key.items():
-            s, w = eng["scalar"], eng["wavefront"]
+            s, w = eng["seed1"], eng["seed2"]
             bound = float(s["bound"])
             ref = fmt(s["reference"], s["reference_sigma"]) + (f" ({bound:.0e})" if bound > 0 else "")
             lines.append(f"| {label} | {key[0]} | {query(s)} | {CHANNEL[key[5]]} | "

@@ -60,7 +60,7 @@ pub const REPRESENTATIVE: &[&str] = &[
 /// The built-in stacks with a scattering medium whose phase function has a
 /// closed form of the angle alone (Henyey–Greenstein or a mixture), from
 /// least to most peaked: where the pdf's density walks may connect media
-/// (`benches/estimators.rs` times them).
+/// (`crates/strata-benches/benches/estimators.rs` times them).
 pub const SCATTERING: &[&str] = &[
     "varnished_wood",
     "thick_scattering",
