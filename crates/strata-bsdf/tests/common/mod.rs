@@ -2,7 +2,9 @@
 //! angles, and z-score assertions whose tolerance comes from standard errors.
 #![allow(dead_code)]
 
-use strata_bsdf::LayerStack;
+use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
+use strata_bsdf::lane::F32x8;
+use strata_bsdf::{Albedo, Estimate, LayerStack, Settings};
 
 /// A smooth coat over a white Lambertian base: a closed-form stack
 /// (`estimator::closed_form`), lossless.
@@ -119,4 +121,33 @@ pub fn in_cone(axis: [f64; 3], delta: f64, u: &mut reference::SplitMix) -> [f64;
     let t = norm(cross(a, axis));
     let b = cross(axis, t);
     [0, 1, 2].map(|i| sin_t * phi.cos() * t[i] + sin_t * phi.sin() * b[i] + cos_t * axis[i])
+}
+
+/// The wavefront engine behind the scalar engine's one-query calls: the same
+/// numbers, bit for bit (the engines replay each other walk by walk:
+/// tests/parity), at a fraction of the time. Statistical tests run on it;
+/// the scalar reference is checked against it in tests/parity alone.
+#[derive(Clone)]
+pub struct Walks(pub Wavefront<F32x8>);
+
+impl Walks {
+    /// The specialized wavefront walks of `stack` under `settings`.
+    pub fn new(stack: &LayerStack, settings: Settings) -> Self {
+        Walks(Wavefront::new(stack, settings, Plan::Specialized))
+    }
+
+    /// `ScalarEngine::eval`: `n` unidirectional walks of query `query`.
+    pub fn eval(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
+        self.0.eval_batch(&[(wi, wo)], n, seed, &[query]).0[0]
+    }
+
+    /// `ScalarEngine::eval_bidir`: `n` bidirectional walks of query `query`.
+    pub fn eval_bidir(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
+        self.0.eval_bidir_batch(&[(wi, wo)], n, seed, &[query])[0]
+    }
+
+    /// `ScalarEngine::albedo`: `n` walks from `wi`.
+    pub fn albedo(&self, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Albedo {
+        self.0.albedo_batch(&[wi], n, seed, &[query]).0[0]
+    }
 }

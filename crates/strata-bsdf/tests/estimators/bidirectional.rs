@@ -221,7 +221,7 @@ fn bidirectional_agrees_with_unidirectional() {
     let mut worst = 0.0f64;
     for (name, toml) in STACKS.iter().chain(RULE_STACKS) {
         let st = stack(toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         let transmissive = st.transmissive();
         for (q, (wi, wo)) in pairs(transmissive).into_iter().enumerate() {
             let u = eng.eval(wi, wo, 40_000, 11, q as u64);
