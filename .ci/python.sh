@@ -3,6 +3,8 @@
 # the module with maturin into a venv, builds the CLI the tests compare
 # against, and runs pytest (bit identity with the Rust API, errors, and
 # renders against Mitsuba's built-in BSDFs in scalar_rgb and llvm_ad_rgb).
+# The module's formatting and lints are .ci/run's (cargo fmt --all, cargo
+# clippy --workspace).
 #
 # Runs from any directory, on a fresh Debian bookworm with Python 3.11 and
 # rustup's cargo. As root it installs what it needs with apt-get (libLLVM 19
@@ -38,11 +40,6 @@ echo "== cargo build --release -p strata-cli (the tests compare with it)"
 cargo build --release -p strata-cli
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
 export STRATA_CLI="$TARGET_DIR/release/strata"
-
-echo "== cargo fmt --check, cargo clippy -p strata-bsdf-python -- -D warnings"
-rustup component add rustfmt clippy >/dev/null 2>&1 || true
-cargo fmt -p strata-bsdf-python -- --check
-cargo clippy -q -p strata-bsdf-python --all-targets -- -D warnings
 
 echo "== pytest bindings/python/tests"
 python -m pytest -q bindings/python/tests

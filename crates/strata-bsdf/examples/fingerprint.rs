@@ -53,9 +53,17 @@ fn main() {
         let mut line = String::from(name);
         let runs = [
             ("scalar-uni", Engine::Scalar, Estimator::Unidirectional),
-            ("wavefront-uni", Engine::Wavefront, Estimator::Unidirectional),
+            (
+                "wavefront-uni",
+                Engine::Wavefront,
+                Estimator::Unidirectional,
+            ),
             ("scalar-bidir", Engine::Scalar, Estimator::Bidirectional),
-            ("wavefront-bidir", Engine::Wavefront, Estimator::Bidirectional),
+            (
+                "wavefront-bidir",
+                Engine::Wavefront,
+                Estimator::Bidirectional,
+            ),
             ("auto", Engine::Auto, Estimator::Auto),
         ];
         for (label, engine, estimator) in runs {

@@ -615,7 +615,7 @@ mod tests {
     /// computes what each alone does (a value shared between the two wrongly
     /// fails it); the kernel's physics is checked against sampling
     /// histograms and closed forms (`tests/kernels_chi2.rs`,
-    /// `tests/kernels_closed_forms.rs`).
+    /// `tests/physics/kernels_closed_forms.rs`).
     #[test]
     fn eval_pdf_is_eval_and_pdf() {
         let tilt = ", normal = [0.3, -0.2, 0.93]";

@@ -15,7 +15,7 @@
 //! let stack = LayerStack::from_toml_str(r#"
 //!     [[layers]]
 //!     interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-//!     medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
+//!     medium = { thickness = 0.5, sigma_t = [0.2, 0.6, 1.2], albedo = 0.0 }
 //!     [[layers]]
 //!     interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
 //! "#).unwrap();

@@ -14,12 +14,12 @@
 //! A `StrataBsdf` is the library's [`LayeredBsdf`] behind a pointer; the
 //! batch functions are its slice calls (`eval_into`, `sample_records`, ...)
 //! over the caller's flat arrays, so they give the Rust API's numbers bit for
-//! bit (tested in `tests/abi.rs`).
+//! bit (tested in `tests/abi_suite/abi.rs`).
 //!
 //! Per-query parameters (a renderer's textures) are `StrataColumn`s, taken by
 //! the `*_columns` form of every batch call: the call builds one material per
 //! query with [`Materials::per_query`] and answers query `k` as a BSDF made
-//! from a material file with row `k`'s values (`tests/columns.rs`). Each
+//! from a material file with row `k`'s values (`tests/abi_suite/columns.rs`). Each
 //! batch call has one body that both its forms share.
 
 #![warn(missing_docs)]

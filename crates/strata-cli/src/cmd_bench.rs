@@ -45,6 +45,11 @@ pub struct Args {
     /// Benchmark this material instead of the built-in representative stacks.
     #[arg(long)]
     material: Option<PathBuf>,
+    /// Also time the bidirectional walks (scalar and wavefront rows): on the
+    /// thick scattering stack they take minutes, so they are not in the
+    /// default run. `--only scalar-bidir` or `wavefront-bidir` implies it.
+    #[arg(long)]
+    bidir: bool,
     /// Run only this engine's one-thread row (to profile it).
     #[arg(long, value_parser = ["scalar", "wavefront", "wavefront-general", "wavefront-f32x16", "scalar-bidir", "wavefront-bidir"])]
     only: Option<String>,
@@ -121,15 +126,20 @@ impl<'a> Measurement<'a> {
 }
 
 /// Runs the measurements in turn, one batch each per round (after one
-/// warm-up round), until each has run at least three times and for at least
-/// `min`: a slow phase of a shared machine then hits every engine alike, and
-/// each keeps its fastest run.
+/// warm-up round), each until it has run at least three times and for at
+/// least `min`: a slow phase of a shared machine then hits every engine
+/// alike, and each keeps its fastest run. A measurement that is done sits
+/// out the later rounds, so a fast one does not make a slow one run for as
+/// many rounds as it needs.
 fn interleaved(ms: &mut [Measurement], min: Duration) {
     ms.iter_mut().for_each(|m| {
         (m.run)();
     });
-    while ms.iter().any(|m| m.reps < 3 || m.spent < min) {
-        ms.iter_mut().for_each(Measurement::once);
+    let done = |m: &Measurement| m.reps >= 3 && m.spent >= min;
+    while ms.iter().any(|m| !done(m)) {
+        ms.iter_mut()
+            .filter(|m| !done(m))
+            .for_each(Measurement::once);
     }
 }
 
@@ -269,7 +279,8 @@ fn bench_stack(
     }
     ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
     ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
-    if stack.len() >= 2 {
+    let only_bidir = args.only.as_deref().is_some_and(|o| o.ends_with("-bidir"));
+    if stack.len() >= 2 && (args.bidir || only_bidir) {
         // The bidirectional walks, whose connections make them costlier.
         ms.push(Measurement::new("scalar-bidir", 1, || {
             let s: f64 = (pairs.iter().enumerate())

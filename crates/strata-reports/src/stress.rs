@@ -27,7 +27,7 @@
 //! the suite looks for (the f32 failures it found were 1e-3 to 1e-1).
 //!
 //! The module computes and formats; it never prints (`strata stress` prints,
-//! `tests/stress.rs` asserts).
+//! `tests/reports/stress.rs` asserts).
 
 use std::time::Instant;
 use strata_bsdf::estimator::pdf::PdfKind;

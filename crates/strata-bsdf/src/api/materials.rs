@@ -7,7 +7,7 @@
 //! each group as one batch of per-query sets, and puts the answers back in
 //! query order. A query answers bit for bit what a BSDF of its material
 //! alone answers, with the same configuration and key
-//! (`tests/param_sets.rs`).
+//! (`tests/api/param_sets.rs`).
 
 use super::sets::Returns;
 use super::{BatchError, LayeredBsdf, ParamSets, QueryError, Sample};

@@ -6,7 +6,7 @@
 //! validates them and derives their lanes, with no engine rebuilt), and the
 //! `*_batch_sets` calls give each query its set by index. A query answers
 //! exactly, bit for bit, what a BSDF built from its set's stack answers,
-//! with the same settings, seed and key (`tests/param_sets.rs`).
+//! with the same settings, seed and key (`tests/api/param_sets.rs`).
 
 use super::{directions2, one_each, BatchError, Estimator, LayeredBsdf, QueryError, Sample};
 use crate::estimator::coat_lambertian::CoatLambertian;

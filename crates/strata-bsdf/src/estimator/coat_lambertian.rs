@@ -194,7 +194,7 @@ impl CoatLambertian {
     /// first rule lost at some pair under rough coats (0.73–0.84×), one
     /// gained little (1.55× at the median).
     ///
-    /// Measured in `tests/layered_control_variate.rs`
+    /// Measured in `tests/estimators/layered_control_variate.rs`
     /// (`control_variate_efficiency`; docs/performance.md).
     pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
         // The shape of `unscattered`, without building it.

@@ -52,7 +52,7 @@ pub struct Settings {
     /// Combine next-event estimation and path continuation with MIS (power
     /// heuristic); `false` uses next-event estimation alone where it applies,
     /// and the pdf's density walks leave out their medium connection (an
-    /// unbiased estimate either way: `tests/pdf_density.rs` compares them).
+    /// unbiased estimate either way: `tests/estimators/pdf_density.rs` compares them).
     pub mis: bool,
 }
 

@@ -7,7 +7,7 @@
 //! polynomial near 0. Each is within 2 ulp of the correctly rounded result over
 //! the ranges strata uses: `exp` and `exp_m1` on [-87, 88], `ln` on the
 //! positive normal numbers, `sin_cos_turns` on [0, 1] (tested against `f64` in
-//! `tests/kernels_closed_forms.rs`).
+//! `tests/physics/kernels_closed_forms.rs`).
 //! No fused multiply-add is used: `mul_add` fuses only when FMA is compiled in,
 //! which would make results depend on target features.
 //!

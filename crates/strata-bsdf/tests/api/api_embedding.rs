@@ -17,8 +17,7 @@ use strata_bsdf::{
     SampleRecord, Transport, Vectors, VectorsMut,
 };
 
-const COATED_COPPER: &str = include_str!("../../materials/coated_copper.toml");
-const SLAB: &str = include_str!("../../materials/scattering_slab.toml");
+use crate::common::{COATED_COPPER, SCATTERING_SLAB as SLAB};
 
 /// A rough dielectric interface alone: air above, glass below (exteriors of
 /// different IOR, so the two transport modes differ in transmission).

@@ -71,6 +71,6 @@ fn readme_shows_this_example() {
     let block: Vec<&str> = block.lines().collect();
     assert_eq!(
         block, code,
-        "README's example differs from tests/readme_example.rs"
+        "README's example differs from tests/api/readme_example.rs"
     );
 }

@@ -6,6 +6,13 @@ use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::F32x8;
 use strata_bsdf::{Albedo, Estimate, LayerStack, Settings};
 
+/// The built-in coated copper (`examples/materials/coated_copper.toml`):
+/// the tests' coated conductor is the material the README and the CLI name.
+pub const COATED_COPPER: &str = include_str!("../../materials/coated_copper.toml");
+
+/// The built-in scattering slab (`examples/materials/scattering_slab.toml`).
+pub const SCATTERING_SLAB: &str = include_str!("../../materials/scattering_slab.toml");
+
 /// A smooth coat over a white Lambertian base: a closed-form stack
 /// (`estimator::closed_form`), lossless.
 pub const SMOOTH_COAT_WHITE: &str = r#"
@@ -142,7 +149,14 @@ impl Walks {
     }
 
     /// `ScalarEngine::eval_bidir`: `n` bidirectional walks of query `query`.
-    pub fn eval_bidir(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
+    pub fn eval_bidir(
+        &self,
+        wi: [f64; 3],
+        wo: [f64; 3],
+        n: u64,
+        seed: u64,
+        query: u64,
+    ) -> Estimate {
         self.0.eval_bidir_batch(&[(wi, wo)], n, seed, &[query])[0]
     }
 

@@ -342,7 +342,7 @@ fn bidirectional_matches_the_clear_coat_closed_form() {
 /// Efficiency `1 / (variance × time)` of the bidirectional estimator over
 /// the unidirectional one, per stack and pair, on the wavefront engine on
 /// one thread: the measurement behind `Estimator::Auto`'s rule
-/// (`cargo test --release -p strata-bsdf --test bidirectional -- --ignored
+/// (`cargo test --release -p strata-bsdf --test estimators bidirectional:: -- --ignored
 /// --nocapture`). Not an assertion: timings belong to reports.
 #[test]
 #[ignore]

@@ -7,9 +7,9 @@
 //!
 //! * **Weights**: the weighted histogram of its non-specular directions
 //!   against the integral of `eval`'s `f · cos θo` over each cell (the closed
-//!   form, which `tests/layered_oracles.rs` checks against the walks and the
+//!   form, which `tests/physics/layered_oracles.rs` checks against the walks and the
 //!   test suite's own formula; the factorization, which
-//!   `tests/rough_coat.rs` checks against the walks), and its mean weight
+//!   `tests/physics/rough_coat.rs` checks against the walks), and its mean weight
 //!   against the directional albedo of the *walks* (an independent
 //!   estimator: neither in it).
 //! * **Density**: a chi-square test of its histogram against its pdf, the
@@ -351,7 +351,7 @@ fn one_pdf_everywhere() {
 /// the variance of the weight (first channel; for BSDF sampling under
 /// uniform light it is the estimator's variance) and the time per sample
 /// with its pdf (a batch on the calling pool), for docs/performance.md:
-/// `cargo test --release -p strata-bsdf --test closed_form_sampler --
+/// `cargo test --release -p strata-bsdf --test estimators closed_form_sampler:: --
 /// --ignored --nocapture`.
 #[test]
 #[ignore]

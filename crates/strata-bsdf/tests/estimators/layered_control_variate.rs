@@ -22,7 +22,7 @@
 //! * The API: `Auto` uses it (and is not "exact"), `Unidirectional` does not.
 //!
 //! Walk-by-walk parity of the two engines with it is in
-//! `tests/wavefront_parity.rs`, reciprocity in `tests/layered_reciprocity.rs`.
+//! `tests/parity/wavefront_parity.rs`, reciprocity in `tests/physics/layered_reciprocity.rs`.
 
 use crate::common;
 use common::*;
@@ -560,7 +560,7 @@ fn auto_uses_the_control_variate_only_where_it_pays() {
 /// The control variate's efficiency over the plain walks' on every stack
 /// above, `1 / (variance × time)` per channel and pair (median and worst),
 /// one thread, for docs/performance.md: `cargo test --release -p
-/// strata-bsdf --test layered_control_variate -- --ignored --nocapture`.
+/// strata-bsdf --test estimators layered_control_variate:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn control_variate_efficiency() {

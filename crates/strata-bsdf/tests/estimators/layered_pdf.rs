@@ -1,7 +1,7 @@
 //! The approximate pdf of `sample()` (`ScalarEngine::pdf`, method.md §6).
 //!
 //! It is an estimate of the density of `sample()`'s walks of at most
-//! `APPROX_EVENTS` events (tests/pdf_density.rs checks the density walk
+//! `APPROX_EVENTS` events (tests/estimators/pdf_density.rs checks the density walk
 //! against `sample()`'s histogram), and need not integrate to 1:
 //! * `sample()` itself is a defective distribution: walks can be absorbed
 //!   (returning `None`) and smooth interfaces put probability into delta lobes,
@@ -43,16 +43,7 @@ const STACKS: [(&str, &str); 6] = [
         interface = { kind = "diffuse", albedo = 0.8 }
         "#,
     ),
-    (
-        "coated conductor",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-        medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
-        "#,
-    ),
+    ("coated conductor", COATED_COPPER),
     (
         "scattering varnish",
         r#"

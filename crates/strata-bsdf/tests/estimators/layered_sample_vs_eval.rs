@@ -46,8 +46,6 @@
 use crate::common;
 use common::reference::SplitMix;
 use common::*;
-use strata_bsdf::estimator::scalar::ScalarEngine;
-use strata_bsdf::rng::{Stream, WalkRng};
 use strata_bsdf::Settings;
 
 const N_MU: usize = 6;
@@ -91,17 +89,22 @@ struct Case {
 
 fn check(case: &Case, n_samples: u64, n_eval: u64, seed: u64) {
     let st = stack(case.toml);
-    let mut eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    // The wavefront engine, in one batch per side: the scalar engine's
+    // walks and streams, bit for bit (tests/parity), faster.
+    let mut eng = Walks::new(&st, Settings::default()).0;
     eng.set_adjoint(case.adjoint);
     let wi = dir(case.wi.0, case.wi.1);
 
-    // Weighted histogram of sample(): Σ w and Σ w² per bin and channel.
+    // Weighted histogram of sample(): Σ w and Σ w² per bin and channel;
+    // sample k draws from the stream (seed, 1, k).
     let mut s1 = vec![[0.0f64; 3]; BINS];
     let mut s2 = vec![[0.0f64; 3]; BINS];
     let mut counts = vec![0u64; BINS];
-    for k in 0..n_samples {
-        let mut rng = WalkRng::new(seed, 1, k, Stream::Walk);
-        let Some(s) = eng.sample(wi, &mut rng) else {
+    let wis = vec![wi; n_samples as usize];
+    let ones = vec![1u64; n_samples as usize];
+    let index: Vec<u64> = (0..n_samples).collect();
+    for s in eng.sample_batch(&wis, seed, &ones, &index).0 {
+        let Some(s) = s else {
             continue;
         };
         if s.specular {
@@ -119,8 +122,23 @@ fn check(case: &Case, n_samples: u64, n_eval: u64, seed: u64) {
     }
     let n = n_samples as f64;
 
-    // Jittered integration of eval · |cos| over each bin.
+    // Jittered integration of eval · |cos| over each bin: the point of cell
+    // p of bin b is evaluated with key b · 100 + p, all in one batch.
     let mut jitter = SplitMix(seed ^ 0x5eed);
+    let mut points = Vec::with_capacity(BINS * SUB * SUB);
+    for b in 0..BINS {
+        for p in 0..SUB * SUB {
+            let (s, t) = (
+                ((p / SUB) as f64 + jitter.next_f64()) / SUB as f64,
+                ((p % SUB) as f64 + jitter.next_f64()) / SUB as f64,
+            );
+            points.push((wi, point_in(b, s, t)));
+        }
+    }
+    let keys: Vec<u64> = (0..BINS * SUB * SUB)
+        .map(|i| ((i / (SUB * SUB)) * 100 + i % (SUB * SUB)) as u64)
+        .collect();
+    let evals = eng.eval_batch(&points, n_eval, seed + 1, &keys).0;
     // Per channel: Σ z² and the number of bins compared.
     let (mut zsum, mut k) = ([0.0; 3], [0usize; 3]);
     let mut worst = (0.0f64, String::new());
@@ -128,12 +146,7 @@ fn check(case: &Case, n_samples: u64, n_eval: u64, seed: u64) {
         // y[c][p] = eval · |cos| at the point of cell p (row-major).
         let mut y = [[0.0f64; SUB * SUB]; 3];
         for p in 0..SUB * SUB {
-            let (s, t) = (
-                ((p / SUB) as f64 + jitter.next_f64()) / SUB as f64,
-                ((p % SUB) as f64 + jitter.next_f64()) / SUB as f64,
-            );
-            let w = point_in(b, s, t);
-            let v = eng.eval(wi, w, n_eval, seed + 1, (b * 100 + p) as u64);
+            let (w, v) = (points[b * SUB * SUB + p].1, evals[b * SUB * SUB + p]);
             assert!(
                 v.value.iter().all(|x| x.is_finite() && *x >= 0.0),
                 "{}: eval {v:?}",

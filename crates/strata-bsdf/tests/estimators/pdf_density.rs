@@ -11,7 +11,7 @@
 //!
 //! These are the walks' pdfs (`Estimator::Unidirectional`); where a stack
 //! has a closed form, `Auto` samples it without a walk and its pdf is exact
-//! (`tests/closed_form_sampler.rs`).
+//! (`tests/estimators/closed_form_sampler.rs`).
 
 use crate::common;
 use common::chi2::chi2_sf;
@@ -115,7 +115,7 @@ fn dir(theta_deg: f64, phi_deg: f64) -> [f32; 3] {
 }
 
 /// The walks' sampler and pdf, on every stack: `Auto` samples the first two
-/// stacks without a walk, with an exact pdf (`tests/closed_form_sampler.rs`).
+/// stacks without a walk, with an exact pdf (`tests/estimators/closed_form_sampler.rs`).
 fn bsdf(toml: &str) -> LayeredBsdf {
     let stack = LayerStack::from_toml_str(toml).unwrap();
     LayeredBsdf::new(stack)
@@ -493,7 +493,7 @@ fn medium_connection_changes_only_the_variance() {
 /// cost side is the `pdf` group of `benches/estimators.rs`): one density
 /// walk's relative variance (median over the ring of directions of
 /// [`approximate_pdf_ratios`]) with and without it: `cargo test --release
-/// -p strata-bsdf --test pdf_density -- --ignored --nocapture
+/// -p strata-bsdf --test estimators pdf_density:: -- --ignored --nocapture
 /// medium_connection_variance`.
 #[test]
 #[ignore]
@@ -544,7 +544,7 @@ fn unbiased_pdf_checks_its_arguments() {
 
 /// Pointwise ratios of the approximate pdf to the unbiased one over a ring
 /// of directions, for docs/method.md: `cargo test --release -p strata-bsdf
-/// --test pdf_density -- --ignored --nocapture`.
+/// --test estimators pdf_density:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn approximate_pdf_ratios() {

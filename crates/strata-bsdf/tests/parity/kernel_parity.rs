@@ -25,7 +25,7 @@
 //!
 //! The file must pass on baseline x86-64 too (where `wide` runs `f32x8` as two
 //! SSE halves): `RUSTFLAGS="-C target-cpu=x86-64" CARGO_TARGET_DIR=target/baseline
-//! cargo test --release --test kernel_parity`.
+//! cargo test --release --test parity kernel_parity::`.
 
 use std::fmt::Debug;
 use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};

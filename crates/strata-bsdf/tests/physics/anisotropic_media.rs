@@ -1,5 +1,5 @@
 //! Media with an SGGX or a mixture phase function, through whole walks
-//! (the kernels alone: `tests/phase_sggx.rs`).
+//! (the kernels alone: `tests/physics/phase_sggx.rs`).
 //!
 //! * **Direction-dependent extinction.** An absorbing SGGX layer between
 //!   index-matched smooth boundaries transmits exactly
@@ -16,7 +16,7 @@
 //!   symmetric, `f(wi, wo) = f(wo, wi)`, within 4 combined standard errors.
 //! * **Mixtures.** Two lobes of the same `g` are that lobe: the same BSDF
 //!   from other random numbers (the mixture's sampler and value against
-//!   each other: the chi-square of `tests/phase_sggx.rs`).
+//!   each other: the chi-square of `tests/physics/phase_sggx.rs`).
 //!
 //! Tolerances: 3 or 4 standard errors with fixed seeds; the exact
 //! transmittance to 2e-6 relative (single precision through the walk).

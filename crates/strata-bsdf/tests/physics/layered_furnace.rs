@@ -244,16 +244,7 @@ fn lone_rough_interface_loses_only_its_own_energy() {
 #[test]
 fn every_stack_conserves_energy() {
     let stacks = [
-        (
-            "coated conductor",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-            medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
-            [[layers]]
-            interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
-            "#,
-        ),
+        ("coated conductor", COATED_COPPER),
         (
             "scattering varnish",
             r#"

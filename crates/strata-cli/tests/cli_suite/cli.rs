@@ -1142,16 +1142,17 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
             .map(|l| serde_json::from_str(l).expect("a JSON object per line"))
             .collect()
     };
-    let all = rows(&run(&base, ""));
-    let engines: Vec<(String, u64)> = all
-        .iter()
-        .map(|r| {
-            (
-                r["engine"].as_str().unwrap().to_string(),
-                r["threads"].as_u64().unwrap(),
-            )
-        })
-        .collect();
+    let engines = |rows: &[Value]| -> Vec<(String, u64)> {
+        rows.iter()
+            .map(|r| {
+                (
+                    r["engine"].as_str().unwrap().to_string(),
+                    r["threads"].as_u64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let all = rows(&run(&[&base[..], &["--bidir"]].concat(), ""));
     let expect = [
         ("scalar", 1),
         ("wavefront", 1),
@@ -1163,7 +1164,15 @@ fn bench_reports_every_engine_as_json_and_one_with_only() {
         ("scalar-bidir", 1),
         ("wavefront-bidir", 1),
     ];
-    assert_eq!(engines, expect.map(|(e, t)| (e.to_string(), t)).to_vec());
+    let expect = expect.map(|(e, t)| (e.to_string(), t)).to_vec();
+    assert_eq!(engines(&all), expect);
+    // Without --bidir, the same rows but the bidirectional ones.
+    let default = rows(&run(&base, ""));
+    let uni: Vec<(String, u64)> = (expect.iter())
+        .filter(|(e, _)| !e.ends_with("-bidir"))
+        .cloned()
+        .collect();
+    assert_eq!(engines(&default), uni);
     for r in &all {
         let q = r["queries_per_s"].as_f64().unwrap();
         assert!(q.is_finite() && q > 0.0, "{r}");
