@@ -19,7 +19,7 @@ use numpy::{
     PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::create_exception;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
@@ -146,10 +146,6 @@ impl VecIn<'_> {
                 z.as_slice().expect("checked contiguous"),
             ]),
         }
-    }
-
-    fn len(&self) -> usize {
-        self.vectors().len()
     }
 
     fn layout(&self) -> Layout {
@@ -292,6 +288,29 @@ fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyAr
     })?;
     checked::<u64>("keys", a, "uint64", 1, "(N,)")?;
     Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
+}
+
+/// Checks a pair call's vectors and keys as the library's call will
+/// (lengths, directions), before anything is allocated for its results:
+/// the number of queries, or the call's `QueryError`.
+fn check_pairs(
+    py: Python<'_>,
+    wi: &VecIn<'_>,
+    wo: &VecIn<'_>,
+    keys: Option<&PyReadonlyArray1<'_, u64>>,
+) -> PyResult<usize> {
+    let k = keys.map(|k| k.as_slice().expect("checked contiguous"));
+    Vectors::check_pairs(&wi.vectors(), &wo.vectors(), k).map_err(|e| batch_err(py, e))
+}
+
+/// [`check_pairs`] for a call on incident directions alone.
+fn check_directions(
+    py: Python<'_>,
+    wi: &VecIn<'_>,
+    keys: Option<&PyReadonlyArray1<'_, u64>>,
+) -> PyResult<usize> {
+    let k = keys.map(|k| k.as_slice().expect("checked contiguous"));
+    Vectors::check_directions(&wi.vectors(), k).map_err(|e| batch_err(py, e))
 }
 
 // ------------------------------------------------------- per-query parameters
@@ -548,6 +567,44 @@ impl Bsdf {
     }
 }
 
+/// Types whose all-zero bytes are a value: what [`zeros`] may allocate.
+///
+/// # Safety
+/// Every field is a float or an integer.
+unsafe trait Zero: Copy {}
+// SAFETY: numbers, and records of them.
+unsafe impl Zero for f32 {}
+// SAFETY: as above.
+unsafe impl Zero for u32 {}
+// SAFETY: as above (`#[repr(C)]` arrays of f32).
+unsafe impl Zero for AlbedoRecord {}
+
+/// `len` zeros, or a `MemoryError` naming `call` where the process cannot
+/// have them (`vec!` would abort the interpreter). Zeroed by the allocator,
+/// not written, so that pages the system maps lazily stay untouched until
+/// the results are.
+fn zeros<T: Zero>(call: &str, len: usize) -> PyResult<Vec<T>> {
+    let fail = || {
+        PyMemoryError::new_err(format!(
+            "{call}: cannot allocate its results ({len} values of {} bytes)",
+            std::mem::size_of::<T>()
+        ))
+    };
+    let layout = std::alloc::Layout::array::<T>(len).map_err(|_| fail())?;
+    if layout.size() == 0 {
+        return Ok(Vec::new());
+    }
+    // SAFETY: the layout's size is not zero.
+    let p = unsafe { std::alloc::alloc_zeroed(layout) }.cast::<T>();
+    if p.is_null() {
+        return Err(fail());
+    }
+    // SAFETY: `p` is from the global allocator with the layout of `len`
+    // values of `T`, all of them initialized: all-zero bytes are a `T`
+    // (`Zero`).
+    Ok(unsafe { Vec::from_raw_parts(p, len, len) })
+}
+
 /// How results are laid out: as the `wi` argument was.
 #[derive(Clone, Copy)]
 enum Layout {
@@ -562,11 +619,12 @@ enum VecOut {
 }
 
 impl VecOut {
-    fn new(layout: Layout, n: usize) -> Self {
-        match layout {
-            Layout::Aos => VecOut::Aos(vec![0.0; 3 * n]),
-            Layout::Soa => VecOut::Soa([vec![0.0; n], vec![0.0; n], vec![0.0; n]]),
-        }
+    /// Zeros for `n` queries, or a `MemoryError` naming `call`.
+    fn new(call: &str, layout: Layout, n: usize) -> PyResult<Self> {
+        Ok(match layout {
+            Layout::Aos => VecOut::Aos(zeros(call, n.saturating_mul(3))?),
+            Layout::Soa => VecOut::Soa([zeros(call, n)?, zeros(call, n)?, zeros(call, n)?]),
+        })
     }
 
     fn as_mut(&mut self) -> VectorsMut<'_> {
@@ -666,8 +724,9 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
     let Some(obj) = obj.filter(|o| !o.is_none()) else {
         return Ok(PdfWalks::DEFAULT);
     };
-    if let Ok(n) = obj.extract::<i128>() {
-        return walks_arg("pdf_samples", n)
+    if obj.is_instance_of::<PyInt>() {
+        // (`whole`: an int beyond i128 is a ValueError too.)
+        return walks_arg("pdf_samples", whole("pdf_samples", obj)?)
             .map(PdfWalks::fixed)
             .map_err(PyValueError::new_err);
     }
@@ -873,10 +932,10 @@ impl Bsdf {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let keys = keys_in(keys)?;
-        let n = wi.len();
+        let n = check_pairs(py, &wi, &wo, keys.as_ref())?;
         let params = params_in(params, n)?;
-        let mut f = VecOut::new(wi.layout(), n);
-        let mut se = VecOut::new(wi.layout(), n);
+        let mut f = VecOut::new("Bsdf.eval", wi.layout(), n)?;
+        let mut se = VecOut::new("Bsdf.eval", wi.layout(), n)?;
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let k = keys
@@ -912,12 +971,12 @@ impl Bsdf {
     )> {
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
-        let n = wi.len();
+        let n = check_directions(py, &wi, keys.as_ref())?;
         let params = params_in(params, n)?;
-        let mut wo = VecOut::new(wi.layout(), n);
-        let mut weight = VecOut::new(wi.layout(), n);
-        let mut pdf = vec![0.0f32; n];
-        let mut flags = vec![0u32; n];
+        let mut wo = VecOut::new("Bsdf.sample", wi.layout(), n)?;
+        let mut weight = VecOut::new("Bsdf.sample", wi.layout(), n)?;
+        let mut pdf: Vec<f32> = zeros("Bsdf.sample", n)?;
+        let mut flags: Vec<u32> = zeros("Bsdf.sample", n)?;
         {
             let wiv = wi.vectors();
             let k = keys
@@ -948,9 +1007,9 @@ impl Bsdf {
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
-        let n = wi.len();
+        let n = check_pairs(py, &wi, &wo, None)?;
         let params = params_in(params, n)?;
-        let mut pdf = vec![0.0f32; n];
+        let mut pdf: Vec<f32> = zeros("Bsdf.pdf", n)?;
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
@@ -976,10 +1035,10 @@ impl Bsdf {
         let samples = walks_arg("samples", samples).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
-        let n = wi.len();
+        let n = check_pairs(py, &wi, &wo, None)?;
         let params = params_in(params, n)?;
-        let mut pdf = vec![0.0f32; n];
-        let mut stderr = vec![0.0f32; n];
+        let mut pdf: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
+        let mut stderr: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
@@ -1010,9 +1069,9 @@ impl Bsdf {
         let n = walks_arg("n", n).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
-        let m = wi.len();
+        let m = check_directions(py, &wi, keys.as_ref())?;
         let params = params_in(params, m)?;
-        let mut rec = vec![AlbedoRecord::default(); m];
+        let mut rec: Vec<AlbedoRecord> = zeros("Bsdf.albedo", m)?;
         {
             let wiv = wi.vectors();
             let k = keys
@@ -1022,7 +1081,12 @@ impl Bsdf {
             self.run(py, &params, m, |a| a.albedo(wiv, n, k, out))?;
         }
         let layout = wi.layout();
-        let mut outs = [(); 4].map(|_| VecOut::new(layout, m));
+        let mut outs = [
+            VecOut::new("Bsdf.albedo", layout, m)?,
+            VecOut::new("Bsdf.albedo", layout, m)?,
+            VecOut::new("Bsdf.albedo", layout, m)?,
+            VecOut::new("Bsdf.albedo", layout, m)?,
+        ];
         for (i, r) in rec.iter().enumerate() {
             outs[0].set(i, r.reflected);
             outs[1].set(i, r.transmitted);

@@ -3,6 +3,7 @@
 import json
 import math
 import subprocess
+import sys
 import threading
 import time
 
@@ -547,3 +548,94 @@ def test_a_rough_coat_over_lambertian_evaluates_without_walks(strata_cli, tmp_pa
     cli = run_cli(strata_cli, args, lines)
     np.testing.assert_array_equal(f, np.array([c["f"] for c in cli], dtype=np.float64).astype(np.float32))
     np.testing.assert_array_equal(se, np.array([c["stderr"] for c in cli], dtype=np.float64).astype(np.float32))
+
+
+def test_pdf_samples_beyond_128_bits_is_a_value_error():
+    # A count pyo3 cannot hold as i128 is a ValueError naming it, as for
+    # `samples` (it was a TypeError, as if it were not an int).
+    for bad in (2**200, -(2**200)):
+        with pytest.raises(ValueError, match=f"pdf_samples = {bad}: out of range"):
+            Bsdf.from_toml(LAMBERT, pdf_samples=bad)
+
+
+def run_isolated(code):
+    """Runs `code` in a fresh interpreter (an allocation failure there aborts
+    that process, not the tests): its exit status and output."""
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    return p.returncode, p.stdout + p.stderr
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="sparse files and memory maps as on Linux")
+def test_inputs_are_checked_before_results_are_allocated(tmp_path):
+    # (2**32, 3) float32 directions, 48 GiB mapped from a sparse file that
+    # costs no disk: a bad argument is a QueryError (a ValueError) before
+    # anything is allocated for the results (it aborted the interpreter,
+    # allocating them first).
+    code = f"""
+import numpy as np, strata_bsdf as sb
+n = 2**32
+def mapped(name):
+    path = {str(tmp_path)!r} + "/" + name
+    with open(path, "wb") as f:
+        f.truncate(n * 3 * 4)
+    return np.memmap(path, dtype=np.float32, mode="r+", shape=(n, 3))
+wi, nan = mapped("wi"), mapped("nan")
+wi[0] = (0, 0, 1)
+nan[0] = (np.nan, 0, 1)
+b = sb.Bsdf.from_toml({LAMBERT!r})
+small = np.zeros((5, 3), np.float32)
+calls = [
+    ("eval short wo", lambda: b.eval(wi, small)),
+    ("eval NaN wo", lambda: b.eval(wi, nan)),
+    ("pdf NaN wi", lambda: b.pdf(nan, wi)),
+    ("pdf_unbiased short wo", lambda: b.pdf_unbiased(wi, small, 4)),
+    ("sample NaN wi", lambda: b.sample(nan)),
+    ("sample short keys", lambda: b.sample(wi[:1], np.zeros(3, np.uint64))),
+    ("albedo NaN wi", lambda: b.albedo(nan, 4)),
+]
+for name, call in calls:
+    try:
+        call()
+        print(name, "answered")
+    except ValueError as e:
+        print(name, type(e).__name__, getattr(e, "index", "-"), e)
+"""
+    status, out = run_isolated(code)
+    assert status == 0, out
+    lines = out.splitlines()
+    assert len(lines) == 7, out
+    for line in lines:
+        assert " QueryError " in line, out
+    assert "eval short wo QueryError None" in out and "wo" in lines[0], out
+    for i in (1, 2, 4, 6):
+        assert "QueryError 0 query 0:" in lines[i] and "NaN" in lines[i], out
+    assert "keys" in lines[5], out
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="address-space limits as on Linux")
+def test_results_too_large_to_allocate_are_a_memory_error():
+    # Valid inputs whose results the process cannot allocate (its address
+    # space limited to a little more than it uses): a MemoryError naming the
+    # call, not an abort of the interpreter.
+    code = f"""
+import resource, numpy as np, strata_bsdf as sb
+b = sb.Bsdf.from_toml({LAMBERT!r})
+n = 1 << 22
+wi = np.zeros((n, 3), np.float32)
+wi[:, 2] = 1
+size = [l for l in open("/proc/self/status") if l.startswith("VmSize:")][0]
+used = int(size.split()[1]) * 1024
+soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+resource.setrlimit(resource.RLIMIT_AS, (used + (16 << 20), hard))
+for name, call in [("eval", lambda: b.eval(wi, wi)), ("sample", lambda: b.sample(wi)),
+                   ("albedo", lambda: b.albedo(wi, 1))]:
+    try:
+        call()
+        print(name, "answered")
+    except MemoryError as e:
+        print(name, "MemoryError", e)
+"""
+    status, out = run_isolated(code)
+    assert status == 0, out
+    for name in ("eval", "sample", "albedo"):
+        assert f"{name} MemoryError Bsdf.{name}: cannot allocate its results" in out, out

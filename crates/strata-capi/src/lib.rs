@@ -26,10 +26,11 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 use std::borrow::Cow;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::ffi::{c_char, CStr, CString};
 use std::mem::{align_of, offset_of, size_of};
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::thread::AccessError;
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
@@ -271,6 +272,12 @@ impl From<MaterialError> for Failure {
 thread_local! {
     /// The message of this thread's last failed call ("" after a success).
     static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    /// The message of a call made after `LAST_ERROR` was destroyed (from a
+    /// thread-local's destructor at thread exit), as a pointer from
+    /// `CString::into_raw` or NULL. No destructor, so it is never gone; the
+    /// next such call frees it, the thread's exit does not (one message at
+    /// most stays allocated per thread that failed a call so late).
+    static LATE_ERROR: Cell<*mut c_char> = const { Cell::new(std::ptr::null_mut()) };
 }
 
 fn set_last_error(message: &str) {
@@ -278,9 +285,21 @@ fn set_last_error(message: &str) {
     // material text quoted in a parser's message).
     let c = CString::new(message.replace('\0', "\\0")).unwrap_or_default();
     // `try_with`: a call made while the thread's locals are torn down (from
-    // a destructor) loses its message instead of panicking outside the
-    // guard, which would abort the process.
-    let _ = LAST_ERROR.try_with(|e| *e.borrow_mut() = c);
+    // a destructor) must not panic outside the guard, which would abort the
+    // process; its message goes to `LATE_ERROR`.
+    if let Err(AccessError { .. }) = LAST_ERROR.try_with(|e| *e.borrow_mut() = c.clone()) {
+        let late = if message.is_empty() {
+            std::ptr::null_mut()
+        } else {
+            c.into_raw()
+        };
+        let old = LATE_ERROR.with(|e| e.replace(late));
+        if !old.is_null() {
+            // SAFETY: `old` came from `CString::into_raw` and is freed once
+            // (it is no longer in `LATE_ERROR`).
+            drop(unsafe { CString::from_raw(old) });
+        }
+    }
 }
 
 /// Runs the body of `function`, catching panics: the status, with the last
@@ -1937,7 +1956,14 @@ unsafe fn albedo_body(
 pub extern "C" fn strata_last_error() -> *const c_char {
     LAST_ERROR
         .try_with(|e| e.borrow().as_ptr())
-        .unwrap_or(EMPTY.as_ptr())
+        .unwrap_or_else(|_| {
+            let late = LATE_ERROR.with(Cell::get);
+            if late.is_null() {
+                EMPTY.as_ptr()
+            } else {
+                late
+            }
+        })
 }
 
 /// A C string from a Rust literal ending in NUL.

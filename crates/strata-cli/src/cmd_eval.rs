@@ -7,7 +7,10 @@
 //! `--pdf unbiased` the line ends with `"pdf_stderr":s`. The first
 //! bad line (malformed JSON, a missing or extra field, not three numbers, a zero
 //! or non-finite direction) stops the run with an error naming its line number;
-//! the answers to the lines before it have already been printed.
+//! the answers to the lines before it have already been printed. Lines are
+//! answered as they arrive: from a pipe or a terminal, the lines read so far
+//! are answered (and the answers flushed) before the next is waited for;
+//! from a file, in chunks. The answers are the same either way.
 //!
 //! Each query is keyed by its directions' bits, as the library's unkeyed
 //! calls key it (and the C and Python bindings'): a line's answer depends on
@@ -23,9 +26,9 @@
 
 use crate::common::{load_material, stdout_failure, EngineArgs};
 use serde::Serialize;
+use std::collections::HashMap;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
-use std::collections::HashMap;
 use strata_bsdf::query::parse_query_line_set;
 use strata_bsdf::{LayerStack, LayeredBsdf, Materials, PdfKind};
 
@@ -90,7 +93,7 @@ impl Args {
     }
 }
 
-/// Queries evaluated together (the wavefront engine batches them).
+/// The most queries evaluated together (the wavefront engine batches them).
 const CHUNK: usize = 1024;
 
 /// One output line (fields in this order).
@@ -118,49 +121,60 @@ pub fn run(mut args: Args) -> Result<(), String> {
         .eval_start(args.eval_start);
     let bsdf = args.engine.apply(bsdf)?;
     let stdin = std::io::stdin();
+    // From a file, lines are read in chunks of CHUNK. From anything else (a
+    // pipe, a terminal) the lines that have arrived are answered, and the
+    // answers flushed, before waiting for more: a program that writes one
+    // query and waits for its answer gets it.
+    let from_file = is_regular_file(&stdin);
+    let mut input = std::io::BufReader::with_capacity(1 << 16, stdin.lock());
     let stdout = std::io::stdout();
     let mut out = std::io::BufWriter::new(stdout.lock());
-    // Queries are read in chunks and evaluated as a batch; each is keyed by
-    // its directions, so its answer depends only on the seed and the
-    // directions (not on the engine, the chunking or its line).
+    // Each query is keyed by its directions, so its answer depends only on
+    // the seed and the directions (not on the engine, the chunking or its
+    // line).
     let mut pairs = Vec::with_capacity(CHUNK);
     let mut lines_of = Vec::with_capacity(CHUNK);
     let mut chunk_sets = Variants::new(stack);
-    let mut lines = stdin.lock().lines().enumerate();
+    let mut line = String::new();
+    let mut line_no = 0;
     loop {
         let mut failure = None;
-        for (i, line) in lines.by_ref() {
-            let line_no = i + 1;
-            let parsed = line
-                .map_err(|e| format!("stdin line {line_no}: cannot read: {e}"))
-                .and_then(|l| {
-                    if l.trim().is_empty() {
-                        return Ok(None);
-                    }
-                    let (wi, wo, set) =
-                        parse_query_line_set(&l).map_err(|e| format!("stdin line {line_no}: {e}"))?;
-                    let m = chunk_sets
-                        .add(&set)
-                        .map_err(|e| format!("stdin line {line_no}: {e}"))?;
-                    Ok(Some((wi, wo, m)))
-                });
-            match parsed {
-                Ok(None) => continue,
-                Ok(Some((wi, wo, m))) => {
-                    pairs.push((wi, wo));
-                    lines_of.push(line_no);
-                    chunk_sets.material.push(m);
+        let mut end = false;
+        loop {
+            line.clear();
+            match input.read_line(&mut line) {
+                Ok(0) => {
+                    end = true;
+                    break;
                 }
+                Ok(_) => line_no += 1,
                 Err(e) => {
+                    let e = format!("stdin line {}: cannot read: {e}", line_no + 1);
                     failure = Some(e);
                     break;
                 }
             }
-            if pairs.len() == CHUNK {
+            let l = line.trim_end_matches('\n').trim_end_matches('\r');
+            if !l.trim().is_empty() {
+                let parsed = parse_query_line_set(l)
+                    .map_err(|e| e.to_string())
+                    .and_then(|(wi, wo, set)| Ok((wi, wo, chunk_sets.add(&set)?)));
+                match parsed {
+                    Ok((wi, wo, m)) => {
+                        pairs.push((wi, wo));
+                        lines_of.push(line_no);
+                        chunk_sets.material.push(m);
+                    }
+                    Err(e) => {
+                        failure = Some(format!("stdin line {line_no}: {e}"));
+                        break;
+                    }
+                }
+            }
+            if pairs.len() == CHUNK || (!from_file && input.buffer().is_empty()) {
                 break;
             }
         }
-        let done = pairs.len() < CHUNK || failure.is_some();
         if let Err(e) = answer(&bsdf, &args, &pairs, &chunk_sets, &lines_of, &mut out) {
             return e;
         }
@@ -172,9 +186,31 @@ pub fn run(mut args: Args) -> Result<(), String> {
             out.flush().or_else(stdout_failure)?;
             return Err(e);
         }
-        if done {
-            return out.flush().or_else(stdout_failure);
+        if end || !from_file {
+            out.flush().or_else(stdout_failure)?;
         }
+        if end {
+            return Ok(());
+        }
+    }
+}
+
+/// Whether standard input is a regular file (which never makes a reader
+/// wait for lines that have not been written yet).
+fn is_regular_file(stdin: &std::io::Stdin) -> bool {
+    #[cfg(unix)]
+    let handle = std::os::fd::AsFd::as_fd(stdin).try_clone_to_owned();
+    #[cfg(windows)]
+    let handle = std::os::windows::io::AsHandle::as_handle(stdin).try_clone_to_owned();
+    #[cfg(any(unix, windows))]
+    return handle
+        .map(std::fs::File::from)
+        .and_then(|f| f.metadata())
+        .is_ok_and(|m| m.is_file());
+    #[cfg(not(any(unix, windows)))]
+    {
+        let _ = stdin;
+        false
     }
 }
 
@@ -194,7 +230,13 @@ fn answer(
     if sets.stacks.len() > 1 {
         // Some lines set values of their own: one batch over the materials.
         let mats = Materials::new(bsdf, sets.stacks.iter().cloned());
-        return answer_with(&Batch::Mixed(&mats, &sets.material), args, pairs, lines_of, out);
+        return answer_with(
+            &Batch::Mixed(&mats, &sets.material),
+            args,
+            pairs,
+            lines_of,
+            out,
+        );
     }
     answer_with(&Batch::One(bsdf), args, pairs, lines_of, out)
 }
@@ -222,7 +264,9 @@ impl Variants {
         if set.is_empty() {
             return Ok(0);
         }
-        let key: Vec<String> = (set.entries().iter()).map(|(p, v)| format!("{p}={v}")).collect();
+        let key: Vec<String> = (set.entries().iter())
+            .map(|(p, v)| format!("{p}={v}"))
+            .collect();
         let key = key.join(";");
         if let Some(&m) = self.seen.get(&key) {
             return Ok(m);

@@ -61,9 +61,12 @@ pub fn run(args: Args) -> Result<(), String> {
     let wi = parse_vec3("--wi", &args.wi)?;
     let mut stack = load_material(&args.material)?;
     if let Some(set) = &args.set {
-        let v: serde_json::Value =
-            serde_json::from_str(set).map_err(|e| format!("--set {set}: not JSON: {e}"))?;
-        let q = strata_bsdf::query::QuerySet::from_json(&v).map_err(|e| format!("--set: {e}"))?;
+        use strata_bsdf::query::{parse_set, QueryParseError};
+        let q = parse_set(set).map_err(|e| match e {
+            QueryParseError::Malformed(m) => format!("--set {set}: not JSON: {m}"),
+            QueryParseError::Set(e) => format!("--set: {e}"),
+            e => format!("--set: {e}"),
+        })?;
         stack = q.apply(&stack).map_err(|e| format!("--set: {e}"))?;
     }
     let walks = args.pdf_samples.unwrap_or_default();
@@ -82,26 +85,26 @@ pub fn run(args: Args) -> Result<(), String> {
             .map_err(|e| format!("--wi {}: {}", args.wi, e.error))?;
         first += n;
         for s in samples {
-        let line = match s {
-            Some(s) => Line {
-                wo: Some(s.wo.to_array()),
-                weight: s.weight,
-                pdf: Some(s.pdf),
-                reflection: Some(s.reflection),
-                specular: Some(s.specular),
-            },
-            None => Line {
-                wo: None,
-                weight: [0.0; 3],
-                pdf: None,
-                reflection: None,
-                specular: None,
-            },
-        };
-        let line = serde_json::to_string(&line).map_err(|e| format!("cannot format: {e}"))?;
-        if let Err(e) = writeln!(out, "{line}") {
-            return stdout_failure(e);
-        }
+            let line = match s {
+                Some(s) => Line {
+                    wo: Some(s.wo.to_array()),
+                    weight: s.weight,
+                    pdf: Some(s.pdf),
+                    reflection: Some(s.reflection),
+                    specular: Some(s.specular),
+                },
+                None => Line {
+                    wo: None,
+                    weight: [0.0; 3],
+                    pdf: None,
+                    reflection: None,
+                    specular: None,
+                },
+            };
+            let line = serde_json::to_string(&line).map_err(|e| format!("cannot format: {e}"))?;
+            if let Err(e) = writeln!(out, "{line}") {
+                return stdout_failure(e);
+            }
         }
     }
     out.flush().or_else(stdout_failure)

@@ -64,6 +64,40 @@ impl<'a> Vectors<'a> {
         }
     }
 
+    /// Checks the inputs of a call on pairs (`eval_into`, `eval_records`,
+    /// `pdf_into`, `pdf_unbiased_into` and [`Materials`]' forms) as the call
+    /// checks them, without running it and allocating nothing: `wi` and
+    /// `wo` hold one vector per query (the SoA slices too), each a direction
+    /// (the error names the first query that is not), and `keys`, if given,
+    /// one per query. Returns the number of queries. For a binding that must
+    /// know the call can run before it allocates its results.
+    pub fn check_pairs(
+        wi: &Vectors,
+        wo: &Vectors,
+        keys: Option<&[u64]>,
+    ) -> Result<usize, BatchError> {
+        let n = wi.count("wi")?;
+        one_each("wo", wo.count("wo")?, n)?;
+        check_pairs(wi, wo)?;
+        if let Some(k) = keys {
+            one_each("keys", k.len(), n)?;
+        }
+        Ok(n)
+    }
+
+    /// [`Vectors::check_pairs`] for a call on incident directions alone
+    /// (`sample_into`, `sample_records`, `albedo_records`).
+    pub fn check_directions(wi: &Vectors, keys: Option<&[u64]>) -> Result<usize, BatchError> {
+        let n = wi.count("wi")?;
+        for k in 0..n {
+            direction_at("wi", k, wi.get(k))?;
+        }
+        if let Some(k) = keys {
+            one_each("keys", k.len(), n)?;
+        }
+        Ok(n)
+    }
+
     /// The number of queries, checking that the three SoA slices agree.
     fn count(&self, argument: &'static str) -> Result<usize, BatchError> {
         if let Vectors::Soa(c) = self {
@@ -684,4 +718,47 @@ fn dir_at(v: &Vectors, k: usize) -> [f64; 3] {
 /// Pair `k` of a checked batch.
 fn pair_at(wi: &Vectors, wo: &Vectors, k: usize) -> Pair {
     (dir_at(wi, k), dir_at(wo, k))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Vectors;
+    use crate::api::QueryError;
+
+    /// The checks a binding runs before it allocates results give the
+    /// errors of the calls themselves.
+    #[test]
+    fn inputs_are_checked_as_the_calls_check_them() {
+        let good = [[0.0, 0.0, 1.0f32]; 4];
+        let mut bad = good;
+        bad[2] = [f32::NAN, 0.0, 1.0];
+        let (g, b) = (Vectors::Aos(&good), Vectors::Aos(&bad));
+        assert_eq!(Vectors::check_pairs(&g, &g, None), Ok(4));
+        assert_eq!(Vectors::check_directions(&g, Some(&[1, 2, 3, 4])), Ok(4));
+        let e = Vectors::check_pairs(&g, &b, None).unwrap_err();
+        assert_eq!(e.index, Some(2));
+        assert!(
+            matches!(e.error, QueryError::NonFinite { argument: "wo", .. }),
+            "{e}"
+        );
+        assert_eq!(
+            Vectors::check_directions(&b, None).unwrap_err().index,
+            Some(2)
+        );
+        let short = Vectors::Aos(&good[..3]);
+        let e = Vectors::check_pairs(&g, &short, None).unwrap_err();
+        assert_eq!((e.index, e.to_string().contains("wo")), (None, true), "{e}");
+        let e = Vectors::check_directions(&g, Some(&[1])).unwrap_err();
+        assert!(e.to_string().contains("keys"), "{e}");
+        let mut f = [[0.0f32; 3]; 4];
+        let bsdf =
+            crate::LayeredBsdf::new(crate::materials::builtin("clear_coat_lambertian").unwrap());
+        let call = bsdf.eval_into(g, b, None, super::VectorsMut::Aos(&mut f), None);
+        // (As text: NaN != NaN.)
+        let check = Vectors::check_pairs(&g, &b, None).map(|_| ());
+        assert_eq!(
+            call.map_err(|e| e.to_string()),
+            check.map_err(|e| e.to_string())
+        );
+    }
 }

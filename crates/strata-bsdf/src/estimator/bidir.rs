@@ -275,15 +275,16 @@ thread_local! {
 /// one type per static; the bidirectional walks' memory is generic over the
 /// lane type, so it is kept by type instead.)
 pub fn with_kept_by_type<T: Default + 'static, R>(f: impl FnOnce(&mut T) -> R) -> R {
-    let kept = KEPT.with(|k| {
+    // (`try_with`: from a thread-local's destructor, fresh memory.)
+    let kept = KEPT.try_with(|k| {
         let mut k = k.borrow_mut();
         let i = k.iter().position(|b| b.is::<T>())?;
         k.swap_remove(i).downcast::<T>().ok()
     });
     // (Kept boxed: unboxing would allocate a new box on every call.)
-    let mut b: Box<T> = kept.unwrap_or_default();
+    let mut b: Box<T> = kept.ok().flatten().unwrap_or_default();
     let r = f(&mut b);
-    KEPT.with(|k| k.borrow_mut().push(b));
+    let _ = KEPT.try_with(|k| k.borrow_mut().push(b));
     r
 }
 

@@ -159,8 +159,7 @@ impl SmoothCoatLambertian {
     /// cone the coat lets light out through, 0 elsewhere. Oriented frame,
     /// as `sample`.
     pub fn pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> f64 {
-        let s2 = 1.0 - wo[2] * wo[2];
-        if wi[2] <= 0.0 || wo[2] <= 0.0 || s2 >= self.cone() || self.enter(wo[2]).0 == 0.0 {
+        if wi[2] <= 0.0 || !self.in_cone(wo[2]) || self.enter(wo[2]).0 == 0.0 {
             return 0.0;
         }
         self.enter(wi[2]).0 * wo[2] / (PI * self.cone())
@@ -170,6 +169,14 @@ impl SmoothCoatLambertian {
     /// coat: 1, or `η²` where the exterior is denser (`η < 1`).
     fn cone(&self) -> f64 {
         (self.eta * self.eta).min(1.0)
+    }
+
+    /// Whether a direction above at cosine `c` is inside that cone. Without
+    /// a critical angle (`η >= 1`) every direction above is: `1 − c²` would
+    /// round to 1 below `c ≈ 1e-8` and leave a grazing direction out (a
+    /// grazing mirror sample then carried pdf 0).
+    fn in_cone(&self, c: f64) -> bool {
+        c > 0.0 && (self.eta >= 1.0 || 1.0 - c * c < self.cone())
     }
 
     /// The coat's transmittance from outside at incidence cosine `c`, and the
@@ -191,4 +198,41 @@ pub struct ExactSample {
     pub weight: [f64; 3],
     /// The coat's mirror reflection.
     pub specular: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{materials, LayeredBsdf};
+    use glam::Vec3;
+
+    /// A grazing mirror sample of a walk-free stack carries a positive pdf,
+    /// the one `pdf` gives for its direction, down to the most grazing
+    /// incidence the library lets light in at (`MIN_COS`): `1 − cos²` once
+    /// rounded to 1 below cos 1e-8 and put the direction outside the cone.
+    #[test]
+    fn grazing_mirror_samples_carry_a_positive_pdf() {
+        let stack = materials::builtin("clear_coat_lambertian").expect("built in");
+        let bsdf = LayeredBsdf::new(stack);
+        assert!(bsdf.sample_is_exact());
+        for c in [2e-18f32, 1e-16, 1e-13, 1e-10, 1e-9, 3e-9, 1e-8, 1e-6, 1e-3] {
+            let wi = Vec3::new(1.0, 0.0, c);
+            let mut mirrors = 0;
+            for index in 0..32 {
+                let s = bsdf
+                    .sample(wi, index)
+                    .expect("valid")
+                    .expect("light enters");
+                if s.specular {
+                    mirrors += 1;
+                    let m = wi.normalize();
+                    let mirror = Vec3::new(-m.x, -m.y, m.z);
+                    assert!((s.wo - mirror).length() < 1e-6, "cos {c}: {}", s.wo);
+                    assert!(s.wo.z > 0.0, "cos {c}: {}", s.wo);
+                    assert!(s.pdf > 0.0 && s.pdf.is_finite(), "cos {c}: pdf {}", s.pdf);
+                    assert_eq!(s.pdf, bsdf.pdf(wi, s.wo).expect("valid"), "cos {c}");
+                }
+            }
+            assert!(mirrors > 0, "cos {c}: no mirror sample");
+        }
+    }
 }

@@ -53,10 +53,20 @@ macro_rules! chain_buffer {
                     static CHAIN: std::cell::RefCell<Vec<Link<$t>>> =
                         const { std::cell::RefCell::new(Vec::new()) };
                 }
-                CHAIN.with(|c| match c.try_borrow_mut() {
-                    Ok(mut v) => f(&mut v),
-                    Err(_) => f(&mut Vec::new()),
-                })
+                // Taken out while `f` runs (a nested call finds it empty);
+                // from a thread-local's destructor, a fresh one.
+                let kept =
+                    CHAIN.try_with(|c| c.try_borrow_mut().map(|mut v| std::mem::take(&mut *v)));
+                let mut v = kept.ok().and_then(Result::ok).unwrap_or_default();
+                let r = f(&mut v);
+                let _ = CHAIN.try_with(|c| {
+                    if let Ok(mut k) = c.try_borrow_mut() {
+                        if k.capacity() < v.capacity() {
+                            *k = v;
+                        }
+                    }
+                });
+                r
             }
         }
     };

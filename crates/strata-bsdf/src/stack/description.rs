@@ -8,6 +8,64 @@ use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// Implements `Deserialize` for types whose derived impl is inherent
+/// (`#[serde(remote = "Self")]`), taking a table (TOML) or an object (JSON)
+/// only: serde's derived impls also take a sequence of the fields in order
+/// (`["diffuse", 0.5]` for `{ kind = "diffuse", albedo = 0.5 }`), which
+/// nothing documents and which reads a typo as a material. `what` is what
+/// the error says was expected.
+macro_rules! tables_only {
+    ($($t:ty: $what:literal),* $(,)?) => {$(
+        impl<'de> serde::Deserialize<'de> for $t {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                struct Table;
+                impl<'de> serde::de::Visitor<'de> for Table {
+                    type Value = $t;
+                    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                        f.write_str($what)
+                    }
+                    fn visit_map<A: serde::de::MapAccess<'de>>(
+                        self,
+                        map: A,
+                    ) -> Result<$t, A::Error> {
+                        <$t>::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    }
+                }
+                d.deserialize_map(Table)
+            }
+        }
+    )*};
+}
+pub(crate) use tables_only;
+
+/// Implements `Serialize` by the inherent (`remote = "Self"`) derived impl.
+macro_rules! serialized_as_derived {
+    ($($t:ty),* $(,)?) => {$(
+        impl Serialize for $t {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                <$t>::serialize(self, s)
+            }
+        }
+    )*};
+}
+
+tables_only! {
+    MaterialDesc: "a material (a table of `layers` and its other fields)",
+    LayerDesc: "a layer (a table of `interface` and `medium`)",
+    InterfaceDesc: "an interface (a table with `kind`)",
+    MediumDesc: "a medium (a table with `thickness` and `sigma_t`)",
+    PhaseDesc: "a phase function (a table with `kind`)",
+    ComponentDesc: "a mixture's lobe (a table with `weight` and `kind`)",
+}
+serialized_as_derived!(
+    MaterialDesc,
+    LayerDesc,
+    InterfaceDesc,
+    MediumDesc,
+    PhaseDesc,
+    ComponentDesc
+);
+
 /// A value that may be given once for all channels or per RGB channel.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -141,11 +199,13 @@ pub enum Shadowing {
 
 /// One interface.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum InterfaceDesc {
     /// A dielectric boundary; `ior` is the IOR of the region below it.
     Dielectric {
         /// IOR of the region below (for the bottom interface: the exterior below).
+        #[serde(deserialize_with = "field::ior")]
         ior: f64,
         /// GGX alpha; 0 is smooth.
         #[serde(default)]
@@ -158,7 +218,11 @@ pub enum InterfaceDesc {
         shadowing: Shadowing,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
         /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "field::normal"
+        )]
         normal: Option<[f64; 3]>,
     },
     /// An opaque conductor; complex IOR relative to vacuum, by preset or value.
@@ -183,7 +247,11 @@ pub enum InterfaceDesc {
         shadowing: Shadowing,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
         /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "field::normal"
+        )]
         normal: Option<[f64; 3]>,
     },
     /// An opaque Lambertian reflector.
@@ -193,7 +261,11 @@ pub enum InterfaceDesc {
         albedo: RgbParam,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
         /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
-        #[serde(default, skip_serializing_if = "Option::is_none")]
+        #[serde(
+            default,
+            skip_serializing_if = "Option::is_none",
+            deserialize_with = "field::normal"
+        )]
         normal: Option<[f64; 3]>,
     },
 }
@@ -211,6 +283,7 @@ impl InterfaceDesc {
 
 /// Phase function of a medium.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum PhaseDesc {
     /// Isotropic scattering. (A struct variant, so that a stray field such
@@ -219,6 +292,7 @@ pub enum PhaseDesc {
     /// Henyey–Greenstein with asymmetry `g` in (-1, 1).
     Hg {
         /// Mean cosine of the scattering angle.
+        #[serde(deserialize_with = "field::g")]
         g: f64,
     },
     /// A weighted sum of Henyey–Greenstein (or isotropic) lobes: the phase
@@ -233,8 +307,10 @@ pub enum PhaseDesc {
         /// The flakes' distribution about `axis`.
         flakes: Flakes,
         /// The distribution's axis (normalized when read).
+        #[serde(deserialize_with = "field::axis")]
         axis: [f64; 3],
         /// In (0, 1]: the spread of the flakes (1: spheres, S = I).
+        #[serde(deserialize_with = "field::flake_roughness")]
         roughness: f64,
         /// How a flake scatters (specular unless given).
         #[serde(default)]
@@ -267,9 +343,10 @@ pub enum FlakeScattering {
 
 /// One lobe of a [`PhaseDesc::Mixture`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct ComponentDesc {
     /// Its share, in (0, 1].
+    #[serde(deserialize_with = "field::weight")]
     pub weight: f64,
     /// `hg` or `isotropic`.
     pub kind: ComponentKind,
@@ -296,7 +373,7 @@ impl Default for PhaseDesc {
 
 /// A homogeneous medium below an interface.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct MediumDesc {
     /// Geometric thickness (any unit; `sigma_t` is per that unit).
     pub thickness: f64,
@@ -318,7 +395,9 @@ fn white() -> RgbParam {
 /// RGB fields whose errors name them.
 mod field {
     use super::{rgb_named, RgbParam};
+    use serde::de::{self, IgnoredAny, SeqAccess, Visitor};
     use serde::Deserializer;
+    use std::fmt;
 
     pub fn albedo<'de, D: Deserializer<'de>>(d: D) -> Result<RgbParam, D::Error> {
         rgb_named(d, "albedo")
@@ -331,6 +410,98 @@ mod field {
     }
     pub fn k<'de, D: Deserializer<'de>>(d: D) -> Result<Option<RgbParam>, D::Error> {
         d.deserialize_option(Optional("k"))
+    }
+
+    pub fn ior<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        d.deserialize_f64(Number("ior"))
+    }
+    pub fn g<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        d.deserialize_f64(Number("g"))
+    }
+    pub fn flake_roughness<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        d.deserialize_f64(Number("roughness"))
+    }
+    pub fn weight<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        d.deserialize_f64(Number("weight"))
+    }
+    pub fn axis<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+        d.deserialize_seq(Triple("axis"))
+    }
+    pub fn normal<'de, D: Deserializer<'de>>(d: D) -> Result<Option<[f64; 3]>, D::Error> {
+        d.deserialize_option(OptionalTriple("normal"))
+    }
+
+    /// A number whose errors name its field: the fields of an interface or
+    /// a phase function (tagged by `kind`) reach their deserializers from
+    /// serde's buffer, which knows no field names, so the message is all
+    /// that says which field is wrong.
+    struct Number(&'static str);
+
+    impl<'de> Visitor<'de> for Number {
+        type Value = f64;
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            write!(f, "`{}` to be a number", self.0)
+        }
+        fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
+            Ok(v)
+        }
+        fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+        fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+    }
+
+    /// Three numbers `[x, y, z]` whose errors name their field.
+    struct Triple(&'static str);
+
+    impl<'de> Visitor<'de> for Triple {
+        type Value = [f64; 3];
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            write!(f, "`{}` to be [x, y, z]", self.0)
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<[f64; 3], A::Error> {
+            let mut a = [0.0; 3];
+            for (i, x) in a.iter_mut().enumerate() {
+                *x = seq
+                    .next_element_seed(NumberSeed(self.0))?
+                    .ok_or_else(|| de::Error::invalid_length(i, &self))?;
+            }
+            if seq.next_element::<IgnoredAny>()?.is_some() {
+                return Err(de::Error::invalid_length(4, &self));
+            }
+            Ok(a)
+        }
+    }
+
+    /// A [`Number`] as an element of a sequence.
+    struct NumberSeed(&'static str);
+
+    impl<'de> de::DeserializeSeed<'de> for NumberSeed {
+        type Value = f64;
+        fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<f64, D::Error> {
+            d.deserialize_f64(Number(self.0))
+        }
+    }
+
+    /// An optional [`Triple`] (JSON writes an absent one as `null`).
+    struct OptionalTriple(&'static str);
+
+    impl<'de> Visitor<'de> for OptionalTriple {
+        type Value = Option<[f64; 3]>;
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            write!(f, "`{}` to be [x, y, z]", self.0)
+        }
+        fn visit_none<E: de::Error>(self) -> Result<Self::Value, E> {
+            Ok(None)
+        }
+        fn visit_unit<E: de::Error>(self) -> Result<Self::Value, E> {
+            Ok(None)
+        }
+        fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
+            d.deserialize_seq(Triple(self.0)).map(Some)
+        }
     }
 
     /// An optional field (JSON writes an absent one as `null`).
@@ -355,7 +526,7 @@ mod field {
 
 /// One entry of the stack: an interface and the medium below it, if any.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct LayerDesc {
     /// The interface.
     pub interface: InterfaceDesc,
@@ -366,7 +537,7 @@ pub struct LayerDesc {
 
 /// A whole material: interfaces listed top to bottom.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(remote = "Self", deny_unknown_fields)]
 pub struct MaterialDesc {
     /// Free text saying what the material models (ignored by the physics; JSON
     /// has no comments, so this is where a JSON file says what it is).

@@ -7,11 +7,13 @@
 
 mod description;
 mod error;
+mod json;
 mod phase;
 pub mod presets;
 mod set;
 mod shape;
 
+pub(crate) use description::tables_only;
 pub use description::{
     ComponentDesc, ComponentKind, Distribution, FlakeScattering, Flakes, InterfaceDesc, LayerDesc,
     MaterialDesc, MediumDesc, PhaseDesc, RgbParam, Roughness, Shadowing,
@@ -507,12 +509,16 @@ impl LayerStack {
         Ok(LayerStack::new(&d)?)
     }
 
-    /// Parses JSON text and builds the stack.
+    /// Parses JSON text and builds the stack. An error in the values names
+    /// their path (`layers[0].interface: invalid type: string "NaN",
+    /// expected `ior` to be a number`), a syntax error the line and column.
     pub fn from_json_str(s: &str) -> Result<Self, MaterialError> {
-        let d: MaterialDesc = serde_json::from_str(s).map_err(|e| MaterialError::Parse {
+        let parse = |message: String| MaterialError::Parse {
             format: "JSON",
-            message: e.to_string(),
-        })?;
+            message,
+        };
+        let tree: serde_json::Value = serde_json::from_str(s).map_err(|e| parse(e.to_string()))?;
+        let d: MaterialDesc = json::from_tree(&tree).map_err(|e| parse(e.to_string()))?;
         Ok(LayerStack::new(&d)?)
     }
 

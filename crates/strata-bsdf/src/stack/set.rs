@@ -462,7 +462,7 @@ impl MaterialDesc {
                 }
             }
         }
-        self.layers[layer] = LayerDesc::deserialize(&tree).map_err(value_error)?;
+        self.layers[layer] = <LayerDesc as Deserialize>::deserialize(&tree).map_err(value_error)?;
         Ok(())
     }
 }

@@ -288,14 +288,17 @@ struct TaskScratch {
 
 /// Runs `f` on the buffers this thread keeps in `key`, taken out while `f`
 /// runs: a call nested in `f` (work stealing, or a sink that calls the
-/// engine) finds none and starts from empty ones, which it then keeps.
+/// engine) finds none and starts from empty ones, which it then keeps. A
+/// call made while the thread's locals are torn down (from a thread-local's
+/// destructor) runs on fresh buffers and keeps nothing.
 pub(crate) fn with_kept<T: Default + 'static, R>(
     key: &'static LocalKey<RefCell<Option<T>>>,
     f: impl FnOnce(&mut T) -> R,
 ) -> R {
-    let mut b = key.with(|c| c.borrow_mut().take()).unwrap_or_default();
+    let kept = key.try_with(|c| c.borrow_mut().take()).ok().flatten();
+    let mut b = kept.unwrap_or_default();
     let r = f(&mut b);
-    key.with(|c| *c.borrow_mut() = Some(b));
+    let _ = key.try_with(|c| *c.borrow_mut() = Some(b));
     r
 }
 
@@ -304,7 +307,8 @@ pub(crate) fn with_kept<T: Default + 'static, R>(
 /// grows), so that a warm thread serves any batch up to its largest so far
 /// without allocating. (Results do not depend on the wave.)
 fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
-    let kept = WAVES.with(|w| {
+    // (`try_with`: from a thread-local's destructor, a fresh wave.)
+    let kept = WAVES.try_with(|w| {
         let mut w = w.borrow_mut();
         let cap = |i: &usize| w[*i].capacity();
         let i = (0..w.len())
@@ -313,10 +317,10 @@ fn with_wave<R>(slots: usize, f: impl FnOnce(&mut Walks) -> R) -> R {
             .or_else(|| (0..w.len()).max_by_key(cap))?;
         Some(w.swap_remove(i))
     });
-    let mut ws = kept.unwrap_or_else(|| Walks::new(slots));
+    let mut ws = kept.ok().flatten().unwrap_or_else(|| Walks::new(slots));
     ws.set_slots(slots);
     let r = f(&mut ws);
-    WAVES.with(|w| {
+    let _ = WAVES.try_with(|w| {
         let mut w = w.borrow_mut();
         if w.len() >= 4 {
             w.remove(0);
