@@ -21,7 +21,7 @@ use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Stats, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8, Wide};
 use strata_bsdf::stack::{InterfaceDesc, RgbParam, Roughness};
-use strata_bsdf::{Engine, EvalStart, Estimator, LayerStack, LayeredBsdf, Materials, Settings};
+use strata_bsdf::{Engine, Estimator, EvalStart, LayerStack, LayeredBsdf, Materials, Settings};
 
 /// Arguments of `strata bench`.
 #[derive(clap::Args)]
@@ -274,11 +274,35 @@ fn bench_stack(
     ];
     ms.push(wave_varying(&table, &set, stack, &pairs, &keys, n, 1)?);
     if all > 1 {
-        ms.push(wave::<F32x8>("wavefront", stack, Plan::Specialized, &pairs, &keys, n, all)?);
+        ms.push(wave::<F32x8>(
+            "wavefront",
+            stack,
+            Plan::Specialized,
+            &pairs,
+            &keys,
+            n,
+            all,
+        )?);
         ms.push(wave_varying(&table, &set, stack, &pairs, &keys, n, all)?);
     }
-    ms.push(wave::<F32x8>("wavefront-general", stack, Plan::General, &pairs, &keys, n, 1)?);
-    ms.push(wave::<F32x16>("wavefront-f32x16", stack, Plan::Specialized, &pairs, &keys, n, 1)?);
+    ms.push(wave::<F32x8>(
+        "wavefront-general",
+        stack,
+        Plan::General,
+        &pairs,
+        &keys,
+        n,
+        1,
+    )?);
+    ms.push(wave::<F32x16>(
+        "wavefront-f32x16",
+        stack,
+        Plan::Specialized,
+        &pairs,
+        &keys,
+        n,
+        1,
+    )?);
     let only_bidir = args.only.as_deref().is_some_and(|o| o.ends_with("-bidir"));
     if stack.len() >= 2 && (args.bidir || only_bidir) {
         // The bidirectional walks, whose connections make them costlier.
@@ -337,7 +361,11 @@ fn bench_stack(
 /// stack `k % stacks`), through [`Materials`] with the wavefront rows' walks
 /// (the wavefront engine, unidirectional walks from `wi`), one thread and
 /// all threads; and the cost of building a parameter set.
-fn bench_mixed(stacks: &[(String, LayerStack)], args: &Args, all: usize) -> Result<Vec<Row>, String> {
+fn bench_mixed(
+    stacks: &[(String, LayerStack)],
+    args: &Args,
+    all: usize,
+) -> Result<Vec<Row>, String> {
     let m = stacks.len();
     let per: Vec<Vec<([f64; 3], [f64; 3])>> = (stacks.iter())
         .map(|(_, st)| batch(st, args.queries as usize))
@@ -428,7 +456,8 @@ pub fn run(args: Args) -> Result<(), String> {
         None => strata_bsdf::materials::REPRESENTATIVE
             .iter()
             .map(|&name| {
-                let st = strata_bsdf::materials::builtin(name).expect("built-in materials are valid");
+                let st =
+                    strata_bsdf::materials::builtin(name).expect("built-in materials are valid");
                 (name.to_string(), st)
             })
             .collect(),

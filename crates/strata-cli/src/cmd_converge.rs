@@ -14,10 +14,10 @@ use plotters::prelude::*;
 use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Instant;
+use strata_bsdf::LayerStack;
 use strata_reports::converge::{
     self, cache_key, Config, EstimatorKind, Progress, QuerySet, Reference, Report,
 };
-use strata_bsdf::LayerStack;
 
 /// Arguments of `strata converge`.
 #[derive(clap::Args)]
@@ -358,8 +358,8 @@ fn check_queries_see(text: &str, name: &str, st: &LayerStack) -> Result<(), Stri
             continue;
         }
         let q = QuerySet::parse_json_lines(t).map_err(|e| format!("line {}: {e}", i + 1))?;
-        let queries = (q.f.iter().map(|f| (f.wi, Some(f.wo))))
-            .chain(q.albedo.iter().map(|&wi| (wi, None)));
+        let queries =
+            (q.f.iter().map(|f| (f.wi, Some(f.wo)))).chain(q.albedo.iter().map(|&wi| (wi, None)));
         for (wi, wo) in queries {
             let Some(why) = converge::unanswerable(st, wi, wo) else {
                 continue;
@@ -386,7 +386,10 @@ fn summary_rows(report: &Report) -> String {
                     "–".into()
                 }
             };
-            let (f, a) = (bar(hf, &report.reference.f), bar(ha, &report.reference.albedo));
+            let (f, a) = (
+                bar(hf, &report.reference.f),
+                bar(ha, &report.reference.albedo),
+            );
             format!("{estimator}, {f} (f), {a} (albedo)")
         }
     };

@@ -39,7 +39,11 @@ pub fn run(args: Args) -> Result<(), String> {
     for c in &selected {
         let t = Instant::now();
         let row = runner.run(c).map_err(|e| format!("case {}: {e}", c.name))?;
-        note(&format!("{:<24} {:>7.1} s", c.name, t.elapsed().as_secs_f64()));
+        note(&format!(
+            "{:<24} {:>7.1} s",
+            c.name,
+            t.elapsed().as_secs_f64()
+        ));
         rows.push(row);
     }
     let failed: Vec<_> = rows.iter().filter(|r| !r.failures().is_empty()).collect();

@@ -1,12 +1,19 @@
 //! `strata`: the command-line tool. One file per subcommand.
 //!
 //! Each subcommand is a module `cmd_NAME` with `pub struct Args` (clap) and
-//! `pub fn run(Args) -> Result<(), String>`. Adding one is one line in the
-//! `commands!` list below (plus its help text as a doc comment). Every error
+//! `pub fn run(Args) -> Result<(), String>`. Adding one is a `mod` line and a
+//! line in the `commands!` list below (with its help text as a doc comment). Every error
 //! is printed to stderr as `strata: MESSAGE` with a non-zero exit status.
 //! A failed or interrupted run removes its temporary files (see `output`).
 
 mod bench_pbrt;
+mod cmd_albedo;
+mod cmd_bench;
+mod cmd_converge;
+mod cmd_demo;
+mod cmd_eval;
+mod cmd_sample;
+mod cmd_stress;
 mod common;
 mod output;
 mod plot;
@@ -14,12 +21,11 @@ mod plot;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
-/// Declares the subcommand modules, the `Command` enum and its dispatch from
-/// one list of `Variant => module` entries.
+/// Declares the `Command` enum and its dispatch from one list of
+/// `Variant => module` entries. (The modules are declared above, outside the
+/// macro, so that rustfmt reaches them.)
 macro_rules! commands {
     ($($(#[$doc:meta])* $variant:ident => $module:ident,)*) => {
-        $(mod $module;)*
-
         /// The subcommands.
         #[derive(Subcommand)]
         enum Command {

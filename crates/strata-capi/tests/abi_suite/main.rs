@@ -1,7 +1,9 @@
 //! The C ABI called from Rust: the functions' contracts (abi), per-query
-//! columns (columns) and every error path (errors). One binary, so that the
+//! columns (columns), every error path (errors) and calls from a
+//! thread-local destructor (thread_exit). One binary, so that the
 //! suite links once; each module's doc says what it checks.
 
 mod abi;
 mod columns;
 mod errors;
+mod thread_exit;

@@ -2,9 +2,7 @@
 //! arrive, and input errors that name where they are (a JSON material's
 //! field, a table written as an array, a set path given twice).
 
-// (Not every helper is used here.)
-#[allow(dead_code)]
-mod cli_common;
+use crate::cli_common;
 use cli_common::*;
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Command, Output, Stdio};
