@@ -34,7 +34,9 @@ python -m pip install -q --upgrade pip
 python -m pip install -q mitsuba==3.9.1 drjit==1.5.0 numpy==2.4.6 maturin==1.16.0 pytest==9.2.0
 
 echo "== maturin develop --release (the module strata_bsdf)"
-maturin develop --release -m bindings/python/Cargo.toml
+# pyo3's features of shared dependencies differ from the workspace build's, so
+# the library compiles again here: without debug info, which nothing reads.
+CARGO_PROFILE_RELEASE_DEBUG=0 maturin develop --release -m bindings/python/Cargo.toml
 
 echo "== cargo build --release -p strata-cli (the tests compare with it)"
 cargo build --release -p strata-cli

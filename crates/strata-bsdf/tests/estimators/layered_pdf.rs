@@ -31,7 +31,7 @@ use common::*;
 use strata_bsdf::estimator::pdf::UNIFORM_FRACTION;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::lane::V3;
-use strata_bsdf::Settings;
+use strata_bsdf::{PdfKind, Settings};
 
 const STACKS: [(&str, &str); 6] = [
     (
@@ -136,42 +136,67 @@ fn pdf_is_finite_and_positive_where_eval_is() {
 }
 
 /// ∫ pdf dω over the sphere by jittered quadrature in (cos θ, φ): one point
-/// per cell of `n_mu × 2 n_mu` per hemisphere; returns the estimate and its
-/// standard error from the squared differences of neighbouring cells.
-fn pdf_integral(pdf: impl Fn([f64; 3], u64) -> f64, n_mu: usize, seed: u64) -> (f64, f64) {
+/// per cell of `n_mu × 2 n_mu` per hemisphere, the k-th point keyed k;
+/// returns the estimate and its standard error from the squared differences
+/// of neighbouring cells. `pdfs` answers every point at once (a batch).
+fn pdf_integral(
+    pdfs: impl Fn(&[[f64; 3]], &[u64]) -> Vec<f64>,
+    n_mu: usize,
+    seed: u64,
+) -> (f64, f64) {
     let n_phi = 2 * n_mu;
     let cell = (1.0 / n_mu as f64) * (2.0 * std::f64::consts::PI / n_phi as f64);
     let mut rng = SplitMix(seed);
-    let (mut sum, mut pairs) = (0.0, 0.0);
-    let mut key = 0u64;
+    let mut points = Vec::new();
     for sign in [1.0, -1.0] {
         for i in 0..n_mu {
-            for j in (0..n_phi).step_by(2) {
-                let mut pair = [0.0; 2];
-                for (k, v) in pair.iter_mut().enumerate() {
-                    let mu = (i as f64 + rng.next_f64()) / n_mu as f64;
-                    let phi = (j + k) as f64 + rng.next_f64();
-                    let phi = phi / n_phi as f64 * 2.0 * std::f64::consts::PI;
-                    let s = (1.0 - mu * mu).max(0.0).sqrt();
-                    *v = pdf([s * phi.cos(), s * phi.sin(), sign * mu], key) * cell;
-                    key += 1;
-                }
-                sum += pair[0] + pair[1];
-                pairs += (pair[0] - pair[1]).powi(2);
+            for j in 0..n_phi {
+                let mu = (i as f64 + rng.next_f64()) / n_mu as f64;
+                let phi = j as f64 + rng.next_f64();
+                let phi = phi / n_phi as f64 * 2.0 * std::f64::consts::PI;
+                let s = (1.0 - mu * mu).max(0.0).sqrt();
+                points.push([s * phi.cos(), s * phi.sin(), sign * mu]);
             }
         }
     }
+    let keys: Vec<u64> = (0..points.len() as u64).collect();
+    let v = pdfs(&points, &keys);
+    let (mut sum, mut pairs) = (0.0, 0.0);
+    for pair in v.chunks(2) {
+        let (a, b) = (pair[0] * cell, pair[1] * cell);
+        sum += a + b;
+        pairs += (a - b).powi(2);
+    }
     (sum, pairs.sqrt())
+}
+
+/// The approximate pdf of `(wi, wo)` for every `wo`, `walks` density walks
+/// each with seed `seed` and query `keys[k]`, as one wavefront batch: the
+/// scalar engine's `pdf` walk by walk (tests/parity).
+fn pdfs(
+    eng: &Walks,
+    wi: [f64; 3],
+    wos: &[[f64; 3]],
+    walks: u64,
+    seed: u64,
+    keys: &[u64],
+) -> Vec<f64> {
+    let pairs: Vec<_> = wos.iter().map(|&wo| (wi, wo)).collect();
+    (eng.0
+        .pdf_batch(&pairs, walks, seed, keys, PdfKind::Approximate))
+    .iter()
+    .map(|p| p.value)
+    .collect()
 }
 
 #[test]
 fn pdf_integrates_to_at_most_one() {
     for (s, (label, toml)) in STACKS.into_iter().enumerate() {
         let st = stack(toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (q, wi) in incidents(st.transmissive()).into_iter().enumerate() {
             let (total, se) = pdf_integral(
-                |wo, key| eng.pdf(wi, wo, 32, 3, key),
+                |wos, keys| pdfs(&eng, wi, wos, 32, 3, keys),
                 80,
                 (s * 10 + q) as u64,
             );
@@ -247,16 +272,15 @@ fn pdf_sees_transmission_through_a_smooth_exit() {
         interface = { kind = "dielectric", ior = 1.0 }
         "#,
     );
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     for (q, wi) in [dir(17.0, 0.0), dir(160.0, 40.0)].into_iter().enumerate() {
         let below = |w: [f64; 3]| (w[2] < 0.0) == (wi[2] > 0.0);
         let (t, se) = pdf_integral(
-            |wo, key| {
-                if below(wo) {
-                    eng.pdf(wi, wo, 32, 3, key)
-                } else {
-                    0.0
-                }
+            |wos, keys| {
+                let p = pdfs(&eng, wi, wos, 32, 3, keys);
+                (wos.iter().zip(p))
+                    .map(|(wo, p)| if below(*wo) { p } else { 0.0 })
+                    .collect()
             },
             60,
             100 + q as u64,
