@@ -25,6 +25,10 @@ if ! command -v cbindgen >/dev/null 2>&1; then
   apt-get install -y -qq cbindgen >/dev/null
 fi
 cbindgen --version
+# .ci/run installs ahead, in the background, while the Rust stages run.
+if [ "${1:-}" = --install-only ]; then
+  exit 0
+fi
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

@@ -32,6 +32,10 @@ fi
 source "$VENV/bin/activate"
 python -m pip install -q --upgrade pip
 python -m pip install -q mitsuba==3.9.1 drjit==1.5.0 numpy==2.4.6 maturin==1.16.0 pytest==9.2.0
+# .ci/run installs ahead, in the background, while the Rust stages run.
+if [ "${1:-}" = --install-only ]; then
+  exit 0
+fi
 
 echo "== maturin develop --release (the module strata_bsdf)"
 # pyo3's features of shared dependencies differ from the workspace build's, so
