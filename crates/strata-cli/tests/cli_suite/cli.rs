@@ -8,33 +8,9 @@ use crate::common;
 use cli_common::*;
 use common::reference::fresnel;
 use serde_json::Value;
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::Output;
 use strata_bsdf::LayerStack;
-
-/// Runs the binary with `args` and `stdin`.
-fn run(args: &[&str], stdin: &str) -> Output {
-    let mut child = Command::new(EXE)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn strata");
-    // strata stops at the first bad query line, possibly before reading the
-    // rest of its input: a broken pipe here is expected, not a failure.
-    match child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(stdin.as_bytes())
-    {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => panic!("write stdin: {e}"),
-        _ => {}
-    }
-    child.wait_with_output().expect("wait for strata")
-}
 
 /// Asserts success and returns stdout.
 #[track_caller]

@@ -1,8 +1,8 @@
-//! Helpers of the tests that run the built binary (`cli.rs`,
-//! `cli_robustness.rs`).
+//! Helpers of the tests that run the built binary.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Output;
+use std::process::{Command, Output, Stdio};
 
 /// The binary under test.
 pub const EXE: &str = env!("CARGO_BIN_EXE_strata");
@@ -56,4 +56,27 @@ pub fn assert_fails_with(out: &Output, needles: &[&str]) {
     for n in needles {
         assert!(err.contains(n), "stderr lacks {n:?}: {err}");
     }
+}
+
+/// Runs the binary with `args` and `stdin`.
+pub fn run(args: &[&str], stdin: &str) -> Output {
+    let mut child = Command::new(EXE)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn strata");
+    // strata stops at the first bad query line, possibly before reading the
+    // rest of its input: a broken pipe here is expected, not a failure.
+    match child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(stdin.as_bytes())
+    {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => panic!("write stdin: {e}"),
+        _ => {}
+    }
+    child.wait_with_output().expect("wait for strata")
 }

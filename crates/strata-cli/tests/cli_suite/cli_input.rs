@@ -5,31 +5,9 @@
 use crate::cli_common;
 use cli_common::*;
 use std::io::{BufRead, BufReader, Write};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
-
-/// Runs the binary with `args` and `stdin` (written whole; a broken pipe
-/// after a bad line is expected).
-fn run(args: &[&str], stdin: &str) -> Output {
-    let mut child = Command::new(EXE)
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn strata");
-    match child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(stdin.as_bytes())
-    {
-        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => panic!("write stdin: {e}"),
-        _ => {}
-    }
-    child.wait_with_output().expect("wait for strata")
-}
 
 /// `strata eval` answers a line written to a pipe before the next one is
 /// written, with the answers it gives the same lines read from a file (it
