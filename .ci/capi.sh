@@ -3,8 +3,8 @@
 #  1. the committed header include/strata.h is what cbindgen makes of the
 #     crate now (else: a diff, and a failure);
 #  2. the crate builds in release (libstrata_capi.a and .so);
-#  3. the C examples and the C abuse test compile against the static library
-#     with -Wall -Werror and run, exiting 0.
+#  3. the C examples and the C tests (abuse, fork) compile against the
+#     static library with -Wall -Werror and run, exiting 0.
 # The Rust tests of the crate (tests/*.rs) run in the workspace's cargo test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -67,6 +67,7 @@ run() {
 run eval_sample "$crate/examples/c/eval_sample.c"
 run textured "$crate/examples/c/textured.c"
 run abuse "$crate/tests/c/abuse.c"
+run fork "$crate/tests/c/fork.c"
 
 # The header also compiles as C++ (its extern "C" guard).
 if command -v c++ >/dev/null 2>&1; then

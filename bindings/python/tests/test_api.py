@@ -357,6 +357,46 @@ def test_gil_released_during_a_batch(materials):
     assert len(during) >= 10, (len(during), t1 - t0)
 
 
+# The BSDF and queries of test_a_forked_child_runs_the_parents_batch, which its
+# forked children inherit (as a renderer's forked workers would).
+_FORKED = {}
+
+
+def _forked_batch(_):
+    """The batch of the test below: eval, sample and pdf (run in a child)."""
+    b, wi, wo = _FORKED["bsdf"], _FORKED["wi"], _FORKED["wo"]
+    f, se = b.eval(wi, wo)
+    return f, se, b.sample(wi), b.pdf(wi, wo)
+
+
+def test_a_forked_child_runs_the_parents_batch(materials):
+    # Issue 39: after a batch on the thread pool, the same batch in a forked
+    # child (multiprocessing's default start method on Linux) never returned:
+    # the child's pool had no threads. Now it returns the parent's numbers.
+    import multiprocessing
+
+    rng = np.random.default_rng(39)
+    n = 4096
+    wi, wo = rng.normal(size=(2, n, 3)).astype(np.float32)
+    wi[:, 2] = np.abs(wi[:, 2]) + 0.05
+    wo[:, 2] = np.abs(wo[:, 2]) + 0.05
+    _FORKED.update(bsdf=Bsdf.from_path(materials / "coated_copper.toml", samples=64, seed=7), wi=wi, wo=wo)
+    try:
+        parent = _forked_batch(0)
+        with multiprocessing.get_context("fork").Pool(2) as pool:
+            # Bounded: a child that waits on the parent's pool fails, not hangs.
+            children = pool.map_async(_forked_batch, range(2)).get(timeout=60)
+    finally:
+        _FORKED.clear()
+
+    def flat(r):
+        return [np.asarray(x) for x in (r[0], r[1], *r[2], r[3])]
+
+    for child in children:
+        for want, got in zip(flat(parent), flat(child)):
+            np.testing.assert_array_equal(got, want)
+
+
 # ----------------------------------------------------------------------- errors
 
 

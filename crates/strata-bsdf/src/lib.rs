@@ -70,6 +70,7 @@ pub mod medium;
 pub mod microfacet;
 #[doc(hidden)]
 pub mod phase;
+mod pool;
 pub mod query;
 #[doc(hidden)]
 pub mod rng;

@@ -368,7 +368,10 @@ int32_t strata_bsdf_set_pdf_walks(struct StrataBsdf *b,
  * allocation-free once that thread is warm; results never depend on it. A large batch runs on the pool while its
  * caller waits, so a pool of its own bounds how many cores a BSDF's batches
  * use; calls from several threads share it. Configure a BSDF before sharing
- * it: this call must not run while another thread uses `b`.
+ * it: this call must not run while another thread uses `b`. Safe across
+ * `fork()`: in a forked child, the batches that ran on a pool in the parent
+ * (its own or the default one) run on a pool of the same size built for the
+ * child, with the parent's results.
  *
  * # Safety
  * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other

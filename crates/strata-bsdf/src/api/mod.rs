@@ -179,8 +179,8 @@ enum Threads {
     Current,
     /// The calling thread, every batch ([`LayeredBsdf::threads`]`(1)`).
     Calling,
-    /// A pool of the BSDF's own.
-    Pool(Arc<rayon::ThreadPool>),
+    /// A pool of the BSDF's own (in a forked child, one of the child's).
+    Pool(Arc<crate::pool::OwnPool>),
 }
 
 impl LayeredBsdf {
@@ -407,6 +407,13 @@ impl LayeredBsdf {
     /// [`SERIAL_WALKS`] walks (and pdf batches of at most [`PDF_CHUNK`]
     /// queries) run on the calling thread whatever the pool. Results do not
     /// depend on it. At most [`MAX_THREADS`].
+    ///
+    /// Safe across `fork()`: a pool's threads stay in the process that built
+    /// it, so in a forked child a batch runs on a pool of the same size that
+    /// strata builds for the child on its first such batch (one per process
+    /// and size, kept until exit; on the calling thread if none can be
+    /// built), with the parent's results. This holds for rayon's global pool
+    /// too if strata used it before the fork (docs/embedding.md, *Threads*).
     pub fn threads(mut self, n: usize) -> Result<Self, ThreadsError> {
         if n > MAX_THREADS {
             return Err(ThreadsError::TooMany(n));
@@ -415,10 +422,7 @@ impl LayeredBsdf {
             self.threads = Threads::Calling;
             return Ok(self);
         }
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .map_err(ThreadsError::Pool)?;
+        let pool = crate::pool::OwnPool::new(n).map_err(ThreadsError::Pool)?;
         self.threads = Threads::Pool(Arc::new(pool));
         Ok(self)
     }
@@ -454,7 +458,7 @@ impl LayeredBsdf {
     /// Runs `f` on this BSDF's pool, if it has one and `parallel` is set.
     fn install_if<R: Send>(&self, parallel: bool, f: impl FnOnce() -> R + Send) -> R {
         match &self.threads {
-            Threads::Pool(p) if parallel && p.current_num_threads() > 1 => p.install(f),
+            Threads::Pool(p) if parallel && p.threads() > 1 => p.install(f),
             _ => f(),
         }
     }
@@ -465,8 +469,8 @@ impl LayeredBsdf {
     pub(super) fn serial(&self) -> bool {
         match &self.threads {
             Threads::Calling => true,
-            Threads::Pool(p) => p.current_num_threads() == 1,
-            Threads::Current => rayon::current_num_threads() == 1,
+            Threads::Pool(p) => p.threads() == 1,
+            Threads::Current => crate::pool::current_threads() == 1,
         }
     }
 
@@ -720,9 +724,7 @@ impl LayeredBsdf {
         let large = (n as u64).saturating_mul(samples) > SERIAL_WALKS && (0..n).any(sampled);
         if without_walks && large && !self.serial() {
             // Query by query, over the pool's threads.
-            use rayon::prelude::*;
-            let est: Vec<Estimate> =
-                self.install(n, samples, || (0..n).into_par_iter().map(one).collect());
+            let est = self.install(n, samples, || crate::pool::par_map(n, one));
             est.into_iter().enumerate().for_each(|(k, e)| out(k, e));
             return;
         }
@@ -894,8 +896,7 @@ impl LayeredBsdf {
             let rough =
                 |k: usize| matches!(self.exact_sampler(per, k), Some(CoatLambertian::Rough(_)));
             if n as u64 > SERIAL_WALKS && !self.serial() && (0..n).any(rough) {
-                use rayon::prelude::*;
-                let s: Vec<_> = self.install(n, 1, || (0..n).into_par_iter().map(one).collect());
+                let s = self.install(n, 1, || crate::pool::par_map(n, one));
                 s.into_iter().enumerate().for_each(|(k, s)| out(k, s));
             } else {
                 (0..n).for_each(|k| out(k, one(k)));

@@ -15,7 +15,6 @@ use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers, Tracing, Ve
 use crate::estimator::Estimate;
 use crate::lane::{LaneMask, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
-use rayon::prelude::*;
 
 /// A unit's walks between their tracing and their connections.
 #[derive(Default)]
@@ -273,7 +272,7 @@ impl<W: Wide> Wavefront<W> {
                     c.red[u.query as usize].push_block(&b);
                 }
             } else {
-                let blocks: Vec<(Unit, MeanVar)> = (0..count).into_par_iter().map(run).collect();
+                let blocks: Vec<(Unit, MeanVar)> = crate::pool::par_map(count, run);
                 for (u, b) in &blocks {
                     c.red[u.query as usize].push_block(b);
                 }

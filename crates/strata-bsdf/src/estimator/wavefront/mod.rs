@@ -57,7 +57,6 @@ use super::{Albedo, Estimate, Settings, WalkSample};
 use crate::interface::InterfaceLanes;
 use crate::lane::{F32x8, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
-use rayon::prelude::*;
 use stages::{PdfScratch, TaskBuffers};
 use std::borrow::Cow;
 use std::cell::RefCell;
@@ -618,12 +617,12 @@ impl<W: Wide> Wavefront<W> {
         if count == 0 {
             return Stats::default();
         }
-        let serial = serial || rayon::current_num_threads() == 1;
         let threads = if serial {
             1
         } else {
-            rayon::current_num_threads()
+            crate::pool::current_threads()
         };
+        let serial = threads == 1;
         // Results do not depend on which units share a task: a unit's walks
         // and their reduction are its own, and units reach the sink in order.
         let walks_per_unit = unit(0).count.max(1) as u64;
@@ -693,7 +692,7 @@ impl<W: Wide> Wavefront<W> {
             let results: Vec<_> = if nt == 1 {
                 vec![task(0)]
             } else {
-                (0..nt).into_par_iter().map(task).collect()
+                crate::pool::par_map(nt, task)
             };
             // Back in unit order for the sink.
             let mut ordered: Vec<Option<(Unit, R)>> = (first..end).map(|_| None).collect();
@@ -1159,10 +1158,10 @@ impl<W: Wide> Wavefront<W> {
             // One chunk: on the calling thread (see `SERIAL_WALKS`).
             return chunk(0..n);
         }
-        (0..n.div_ceil(PDF_CHUNK))
-            .into_par_iter()
-            .flat_map_iter(|c| chunk(c * PDF_CHUNK..((c + 1) * PDF_CHUNK).min(n)))
-            .collect()
+        let chunks = crate::pool::par_map(n.div_ceil(PDF_CHUNK), |c| {
+            chunk(c * PDF_CHUNK..((c + 1) * PDF_CHUNK).min(n))
+        });
+        chunks.into_iter().flatten().collect()
     }
 }
 
