@@ -68,6 +68,7 @@ run eval_sample "$crate/examples/c/eval_sample.c"
 run textured "$crate/examples/c/textured.c"
 run abuse "$crate/tests/c/abuse.c"
 run fork "$crate/tests/c/fork.c"
+run per_query_memory "$crate/tests/c/per_query_memory.c"
 
 # The header also compiles as C++ (its extern "C" guard).
 if command -v c++ >/dev/null 2>&1; then

@@ -9,7 +9,7 @@
 //! library's slice calls ([`LayeredBsdf::eval_into`] and the others), so the
 //! numbers are bit for bit those of the Rust API for the same seed and keys.
 //! With `params` (per-query parameter arrays, e.g. a texture's values at
-//! every hit) a batch runs through [`Materials::per_query`] instead, query
+//! every hit) a batch runs through [`PerQuery`] instead, query
 //! `k` on the material with row `k`'s values (one helper, `Bsdf::run`, for
 //! every method).
 
@@ -25,7 +25,7 @@ use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, MaterialError as StackMaterialError, Materials, PdfWalks, SetError, SetPath,
+    LayeredBsdf, MaterialError as StackMaterialError, PdfWalks, PerQuery, SetError, SetPath,
     Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
@@ -58,7 +58,10 @@ fn query_err(py: Python<'_>, message: String, index: Option<usize>) -> PyErr {
 
 /// A `QueryError` exception from a batch error.
 fn batch_err(py: Python<'_>, e: BatchError) -> PyErr {
-    query_err(py, e.to_string(), e.index)
+    match e.error {
+        strata_bsdf::QueryError::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
+        _ => query_err(py, e.to_string(), e.index),
+    }
 }
 
 /// A whole-number argument, taken as any Python int (`i128`) so that a
@@ -398,11 +401,11 @@ fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Par
 }
 
 /// What answers a batch: the BSDF's own material, or one material per
-/// query (its own with query `k`'s `params` row, [`Materials::per_query`]).
+/// query (its own with query `k`'s `params` row, [`PerQuery`]: built a
+/// bounded chunk at a time).
 enum Answerer<'a> {
     Own(&'a LayeredBsdf),
-    /// Query `k` on material `ids[k]`.
-    PerQuery(Materials, Vec<u32>),
+    PerQuery(PerQuery<'a>),
 }
 
 /// Why a call with `params` did not run.
@@ -458,6 +461,7 @@ fn columns_err(py: Python<'_>, e: ColumnsError, columns: &[Column<'_>]) -> PyErr
         ColumnsError::Query { query, error } => {
             query_err(py, format!("query {query}: {error}"), Some(query))
         }
+        ColumnsError::OutOfMemory { .. } => PyMemoryError::new_err(format!("params: {e}")),
         e => PyValueError::new_err(format!("params: {e}")),
     }
 }
@@ -476,7 +480,7 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.eval_into(wi, wo, keys, f, Some(se)),
-            Answerer::PerQuery(m, ids) => m.eval_into(ids, wi, wo, keys, f, Some(se)),
+            Answerer::PerQuery(m) => m.eval_into(wi, wo, keys, f, Some(se)),
         }
     }
 
@@ -491,14 +495,14 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.sample_into(wi, keys, wo, weight, pdf, flags),
-            Answerer::PerQuery(m, ids) => m.sample_into(ids, wi, keys, wo, weight, pdf, flags),
+            Answerer::PerQuery(m) => m.sample_into(wi, keys, wo, weight, pdf, flags),
         }
     }
 
     fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.pdf_into(wi, wo, pdf),
-            Answerer::PerQuery(m, ids) => m.pdf_into(ids, wi, wo, pdf),
+            Answerer::PerQuery(m) => m.pdf_into(wi, wo, pdf),
         }
     }
 
@@ -512,7 +516,7 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
-            Answerer::PerQuery(m, ids) => m.pdf_unbiased_into(ids, wi, wo, samples, pdf, stderr),
+            Answerer::PerQuery(m) => m.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
         }
     }
 
@@ -525,7 +529,7 @@ impl Answerer<'_> {
     ) -> Result<(), BatchError> {
         match self {
             Answerer::Own(b) => b.albedo_records(wi, n, keys, out),
-            Answerer::PerQuery(m, ids) => m.albedo_records(ids, wi, n, keys, out),
+            Answerer::PerQuery(m) => m.albedo_records(wi, n, keys, out),
         }
     }
 }
@@ -533,7 +537,7 @@ impl Answerer<'_> {
 impl Bsdf {
     /// Runs `call` with the GIL released on the answerer `params` makes
     /// for `n` queries: the BSDF itself without params, else one material
-    /// per query ([`Materials::per_query`], every row checked first). The
+    /// per query ([`PerQuery`], every row checked first). The
     /// one path of every batch method.
     fn run<R: Send>(
         &self,
@@ -555,11 +559,11 @@ impl Bsdf {
             let answerer = if columns.is_empty() {
                 Answerer::Own(bsdf)
             } else {
-                // Equal rows (a texture's repeated texels) share one
-                // material: `per_query` builds each distinct row once.
-                let materials = Materials::per_query(bsdf, n, &columns)
+                // A bounded chunk of rows' materials at a time (equal rows
+                // of a chunk share one): memory bounded whatever `n`.
+                let q = PerQuery::new(bsdf, n, &columns)
                     .map_err(|e| CallError::Columns(Box::new(e)))?;
-                Answerer::PerQuery(materials, Materials::identity(n))
+                Answerer::PerQuery(q)
             };
             Ok(call(&answerer)?)
         })

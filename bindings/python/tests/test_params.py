@@ -224,3 +224,47 @@ def test_triple_for_a_number_names_path_and_shape(method):
     with pytest.raises(QueryError) as e:
         call(method, {"layers[0].medium.sigma_t": v})
     assert str(e.value).startswith("query 2: set `layers[0].medium.sigma_t` = inf"), str(e.value)
+
+
+OOM_SNIPPET = r"""
+import resource, sys
+import numpy as np
+from strata_bsdf import Bsdf
+
+COATED_COPPER = '''
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
+medium = { thickness = 0.5, sigma_t = [0.2, 0.6, 1.2], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
+'''
+n = 10**6
+b = Bsdf.from_toml(COATED_COPPER, samples=1)
+wi = np.tile(np.float32([0.0, 0.6, 0.8]), (n, 1))
+th = (np.float32(0.05) + np.arange(n, dtype=np.float32) * np.float32(1e-6)).astype(np.float32)
+p = {"layers[0].medium.thickness": th}
+b.pdf(wi[:64], wi[:64], params={"layers[0].medium.thickness": th[:64]})  # threads, buffers
+mapped = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+# Room for the results (n floats, a page more) and no more: the call's
+# working memory (its chunk's buffers) is what is refused.
+room = mapped + 4 * n + (64 << 10)
+resource.setrlimit(resource.RLIMIT_AS, (room, room))
+try:
+    b.pdf(wi, wi, params=p)
+except MemoryError as e:
+    print("MemoryError:", e)
+    sys.exit(0)
+print("no MemoryError")
+sys.exit(1)
+"""
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="RLIMIT_AS, /proc")
+def test_out_of_memory_is_a_memory_error():
+    """A `params=` call that cannot have its working memory (under a lowered
+    address-space limit) raises MemoryError naming the bytes, not an abort."""
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-c", OOM_SNIPPET], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, (r.returncode, r.stdout, r.stderr)
+    assert "MemoryError:" in r.stdout and "out of memory" in r.stdout and "bytes" in r.stdout, r.stdout

@@ -78,10 +78,11 @@ pub mod stack;
 
 pub use api::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Direction, Engine, Estimator,
-    EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, QueryError, Sample, SampleFlags,
-    SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut, MAX_QUERIES,
-    MAX_THREADS, MAX_WALKS,
+    EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, PerQuery, QueryError, Sample,
+    SampleFlags, SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut,
+    MAX_QUERIES, MAX_THREADS, MAX_WALKS,
 };
+pub use api::{CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS};
 pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
 pub use estimator::{Albedo, Estimate, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, SetError, SetPath, Shape, StackError};

@@ -51,6 +51,15 @@
 #define STRATA_ERR_IO -4
 
 /**
+ * The call's working memory could not be allocated: the process is out
+ * of memory or of address space (`RLIMIT_AS`). The message names the call
+ * and the bytes asked for; nothing was written, or (if it was refused
+ * between two chunks of a `*_columns` call) the outputs of the queries
+ * before the chunk were; the BSDF is still usable.
+ */
+#define STRATA_ERR_OUT_OF_MEMORY -5
+
+/**
  * strata panicked: a bug. The panic was caught at the boundary; the BSDF is
  * still usable. Please report the message.
  */
@@ -173,6 +182,17 @@ typedef struct StrataStackInfo {
  * `STRATA_ERR_INVALID_ARGUMENT` (``columns: query 1: set
  * `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
  * its textures, or drops the query and calls again for the rest.
+ *
+ * Memory: a `*_columns` call builds the materials of a bounded chunk of
+ * queries at a time (at most 65536 queries and `min(4096, max(1, 65536 /
+ * layers))` distinct rows), answers them and drops them, so its working
+ * memory is at most that many materials (a few KB each on a two-layer
+ * stack, about 1.7 KB per layer on a deep one) plus a few hundred bytes per
+ * query of a chunk, whatever `n` and however many rows differ: about 20 MB
+ * on a two-layer stack (`strata::PerQuery` in the Rust docs). Every row is
+ * checked (a chunk at a time) before the first chunk runs. If the working
+ * memory cannot be allocated the status is `STRATA_ERR_OUT_OF_MEMORY` and
+ * `strata_last_error()` names the call and the bytes.
  */
 typedef struct StrataColumn {
   /**

@@ -18,7 +18,7 @@
 //!
 //! Per-query parameters (a renderer's textures) are `StrataColumn`s, taken by
 //! the `*_columns` form of every batch call: the call builds one material per
-//! query with [`Materials::per_query`] and answers query `k` as a BSDF made
+//! query with [`PerQuery`] (a bounded chunk of them at a time) and answers query `k` as a BSDF made
 //! from a material file with row `k`'s values (`tests/abi_suite/columns.rs`). Each
 //! batch call has one body that both its forms share.
 
@@ -34,8 +34,8 @@ use std::thread::AccessError;
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, Materials, PdfWalks, SampleRecord, SetError, SetPath, Transport, Vectors,
-    VectorsMut,
+    LayeredBsdf, PdfWalks, PerQuery, QueryError, SampleRecord, SetError, SetPath, Transport,
+    Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -58,6 +58,12 @@ pub const STRATA_ERR_INVALID_ARGUMENT: i32 = -2;
 pub const STRATA_ERR_MATERIAL: i32 = -3;
 /// A material file could not be read (the message names the path).
 pub const STRATA_ERR_IO: i32 = -4;
+/// The call's working memory could not be allocated: the process is out
+/// of memory or of address space (`RLIMIT_AS`). The message names the call
+/// and the bytes asked for; nothing was written, or (if it was refused
+/// between two chunks of a `*_columns` call) the outputs of the queries
+/// before the chunk were; the BSDF is still usable.
+pub const STRATA_ERR_OUT_OF_MEMORY: i32 = -5;
 /// strata panicked: a bug. The panic was caught at the boundary; the BSDF is
 /// still usable. Please report the message.
 pub const STRATA_ERR_PANIC: i32 = -99;
@@ -220,6 +226,17 @@ pub struct StrataStackInfo {
 /// `STRATA_ERR_INVALID_ARGUMENT` (``columns: query 1: set
 /// `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
 /// its textures, or drops the query and calls again for the rest.
+///
+/// Memory: a `*_columns` call builds the materials of a bounded chunk of
+/// queries at a time (at most 65536 queries and `min(4096, max(1, 65536 /
+/// layers))` distinct rows), answers them and drops them, so its working
+/// memory is at most that many materials (a few KB each on a two-layer
+/// stack, about 1.7 KB per layer on a deep one) plus a few hundred bytes per
+/// query of a chunk, whatever `n` and however many rows differ: about 20 MB
+/// on a two-layer stack (`strata::PerQuery` in the Rust docs). Every row is
+/// checked (a chunk at a time) before the first chunk runs. If the working
+/// memory cannot be allocated the status is `STRATA_ERR_OUT_OF_MEMORY` and
+/// `strata_last_error()` names the call and the bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StrataColumn {
@@ -255,7 +272,11 @@ impl Failure {
 
 impl From<BatchError> for Failure {
     fn from(e: BatchError) -> Self {
-        Failure::invalid(e.to_string())
+        let code = match e.error {
+            QueryError::OutOfMemory { .. } => STRATA_ERR_OUT_OF_MEMORY,
+            _ => STRATA_ERR_INVALID_ARGUMENT,
+        };
+        Failure::new(code, e.to_string())
     }
 }
 
@@ -977,7 +998,7 @@ impl Columns<'_> {
     /// What the call's `n` queries run on: `bsdf` itself without columns,
     /// else one material per query (every row checked first: the error
     /// names the query, the path and the value).
-    fn target<'b>(&self, bsdf: &'b LayeredBsdf, n: usize) -> Result<Target<'b>, Failure> {
+    fn target<'b>(&'b self, bsdf: &'b LayeredBsdf, n: usize) -> Result<Target<'b>, Failure> {
         if self.paths.is_empty() {
             return Ok(Target::Own(bsdf));
         }
@@ -988,7 +1009,7 @@ impl Columns<'_> {
                 values,
             })
             .collect();
-        match Materials::per_query(bsdf, n, &columns) {
+        match PerQuery::new(bsdf, n, &columns) {
             Ok(m) => Ok(Target::PerQuery(m)),
             // A fault of the whole column (its path, its width): named as
             // the argument it is.
@@ -1005,6 +1026,7 @@ impl Columns<'_> {
                         error: SetError::Invalid { .. },
                         ..
                     } => STRATA_ERR_MATERIAL,
+                    ColumnsError::OutOfMemory { .. } => STRATA_ERR_OUT_OF_MEMORY,
                     _ => STRATA_ERR_INVALID_ARGUMENT,
                 };
                 Err(Failure::new(code, format!("columns: {e}")))
@@ -1018,8 +1040,8 @@ enum Target<'a> {
     /// The BSDF's own parameters: its slice calls.
     Own(&'a LayeredBsdf),
     /// One material per query (query `k` on material `k`), with the BSDF's
-    /// configuration.
-    PerQuery(Materials),
+    /// configuration, built a bounded chunk at a time.
+    PerQuery(PerQuery<'a>),
 }
 
 /// Where samples go.
@@ -1036,7 +1058,7 @@ enum SampleOut<'a> {
 }
 
 // Both kinds of target run the library's slice calls: the BSDF's own, or
-// `Materials`' with query `k` on material `k` (keyed and indexed as the own
+// `PerQuery`'s with query `k` on its own row (keyed and indexed as the own
 // ones are, so that query `k` answers what a BSDF of its material does).
 impl Target<'_> {
     fn eval(
@@ -1049,15 +1071,14 @@ impl Target<'_> {
     ) -> Result<(), Failure> {
         Ok((match self {
             Target::Own(b) => b.eval_into(wi, wo, keys, f, se),
-            Target::PerQuery(m) => m.eval_into(&ids(&wi), wi, wo, keys, f, se),
+            Target::PerQuery(m) => m.eval_into(wi, wo, keys, f, se),
         })?)
     }
 
     fn sample(&self, wi: Vectors, keys: Option<&[u64]>, out: SampleOut) -> Result<(), Failure> {
-        let ids = ids(&wi);
         Ok((match (self, out) {
             (Target::Own(b), SampleOut::Records(out)) => b.sample_records(wi, keys, out),
-            (Target::PerQuery(m), SampleOut::Records(out)) => m.sample_records(&ids, wi, keys, out),
+            (Target::PerQuery(m), SampleOut::Records(out)) => m.sample_records(wi, keys, out),
             (
                 Target::Own(b),
                 SampleOut::Soa {
@@ -1075,14 +1096,14 @@ impl Target<'_> {
                     pdf,
                     flags,
                 },
-            ) => m.sample_into(&ids, wi, keys, wo, weight, pdf, flags),
+            ) => m.sample_into(wi, keys, wo, weight, pdf, flags),
         })?)
     }
 
     fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), Failure> {
         Ok((match self {
             Target::Own(b) => b.pdf_into(wi, wo, pdf),
-            Target::PerQuery(m) => m.pdf_into(&ids(&wi), wi, wo, pdf),
+            Target::PerQuery(m) => m.pdf_into(wi, wo, pdf),
         })?)
     }
 
@@ -1096,7 +1117,7 @@ impl Target<'_> {
     ) -> Result<(), Failure> {
         Ok((match self {
             Target::Own(b) => b.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
-            Target::PerQuery(m) => m.pdf_unbiased_into(&ids(&wi), wi, wo, walks, pdf, stderr),
+            Target::PerQuery(m) => m.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
         })?)
     }
 
@@ -1109,14 +1130,9 @@ impl Target<'_> {
     ) -> Result<(), Failure> {
         Ok((match self {
             Target::Own(b) => b.albedo_records(wi, walks, keys, out),
-            Target::PerQuery(m) => m.albedo_records(&ids(&wi), wi, walks, keys, out),
+            Target::PerQuery(m) => m.albedo_records(wi, walks, keys, out),
         })?)
     }
-}
-
-/// Query `k` on material `k`.
-fn ids(wi: &Vectors) -> Vec<u32> {
-    Materials::identity(wi.len())
 }
 
 // ------------------------------------------------------------------- batches

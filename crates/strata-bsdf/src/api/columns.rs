@@ -9,11 +9,12 @@
 //! [`Column`]). This is the one implementation behind the
 //! C ABI's and the Python module's per-query arrays.
 
-use super::{LayeredBsdf, Materials};
+use super::{BatchError, LayeredBsdf, Materials, QueryError};
 use crate::stack::{LayerStack, SetError, SetPath};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::fmt;
+use std::ops::Range;
 
 /// One parameter's values, `width` floats per query (1 for a number, 3 for
 /// an RGB triple or a normal), query after query. A value sets the number
@@ -67,6 +68,11 @@ pub enum ColumnsError {
         /// The number of queries.
         queries: usize,
     },
+    /// The working memory of the rows could not be allocated.
+    OutOfMemory {
+        /// The bytes asked for.
+        bytes: usize,
+    },
 }
 
 /// The most queries [`Materials::per_query`] takes: their materials are
@@ -96,6 +102,10 @@ impl fmt::Display for ColumnsError {
             ColumnsError::TooManyQueries { queries } => {
                 write!(f, "{queries} queries: at most {MAX_QUERIES}")
             }
+            ColumnsError::OutOfMemory { bytes } => write!(
+                f,
+                "out of memory: cannot allocate {bytes} bytes of per-query working memory"
+            ),
         }
     }
 }
@@ -124,6 +134,14 @@ impl Materials {
     /// (a renderer clamps its textures, or drops the query and retries the
     /// rest; nothing is answered silently for it).
     ///
+    /// Memory: the materials of all distinct rows are held at once, a few
+    /// KB each on a two-layer stack and about 1.7 KB per layer on a deep one
+    /// (10^6 distinct rows of a coated conductor: about 4 GB). A batch whose
+    /// rows are many should run through [`PerQuery`], which builds them a
+    /// bounded chunk at a time and answers the same numbers. The per-query
+    /// index (4 bytes a query) is allocated fallibly
+    /// ([`ColumnsError::OutOfMemory`]).
+    ///
     /// ```
     /// use strata_bsdf::{Column, LayerStack, LayeredBsdf, Materials};
     /// let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(
@@ -144,25 +162,12 @@ impl Materials {
         queries: usize,
         columns: &[Column],
     ) -> Result<Materials, ColumnsError> {
-        if queries > MAX_QUERIES {
-            return Err(ColumnsError::TooManyQueries { queries });
-        }
-        for c in columns {
-            let fits = c.width.checked_mul(queries) == Some(c.values.len());
-            if !(c.width == 1 || c.width == 3) || !fits {
-                return Err(ColumnsError::Length {
-                    path: c.path.to_string(),
-                    width: c.width,
-                    len: c.values.len(),
-                    queries,
-                });
-            }
-        }
-        check_columns(template.stack(), columns)?;
+        check_lengths(template, queries, columns)?;
         // Equal rows (bit for bit: a texture's texels repeat) share one
         // material, built once.
         let mut first: HashMap<Vec<u32>, u32> = HashMap::new();
-        let (mut stacks, mut of) = (Vec::new(), Vec::with_capacity(queries));
+        let (mut stacks, mut of) = (Vec::new(), Vec::new());
+        reserve(&mut of, queries).map_err(|bytes| ColumnsError::OutOfMemory { bytes })?;
         for k in 0..queries {
             let row: Vec<u32> = (columns.iter())
                 .flat_map(|c| c.values[k * c.width..(k + 1) * c.width].iter())
@@ -188,6 +193,259 @@ impl Materials {
     pub fn identity(n: usize) -> Vec<u32> {
         (0..n.min(MAX_QUERIES) as u32).collect()
     }
+}
+
+/// The most distinct rows a chunk of a [`PerQuery`] batch holds the
+/// materials of at once (fewer on a deep stack: see [`CHUNK_LAYERS`]).
+pub const CHUNK_ROWS: usize = 4096;
+
+/// The most layers' worth of materials a chunk of a [`PerQuery`] batch
+/// holds at once: a stack of `L` layers has at most `max(1, CHUNK_LAYERS /
+/// L)` distinct rows a chunk (and at most [`CHUNK_ROWS`]).
+pub const CHUNK_LAYERS: usize = 1 << 16;
+
+/// The most queries a chunk of a [`PerQuery`] batch holds (its directions,
+/// keys and answers are copied per chunk).
+pub const CHUNK_QUERIES: usize = 1 << 16;
+
+/// Per-query columns answered a chunk at a time, with memory bounded by
+/// the chunk, not by the batch's rows.
+///
+/// [`Materials::per_query`] holds one material per distinct row; a
+/// renderer's textures can make every row of a million-query batch
+/// distinct, and a material is a few KB on a two-layer stack, 1.7 MB on a
+/// 1000-layer one. `PerQuery` cuts the batch into contiguous chunks of at
+/// most [`CHUNK_QUERIES`] queries and `R = min(CHUNK_ROWS, max(1,
+/// CHUNK_LAYERS / L))` distinct rows (`L` the stack's layers), builds only
+/// the chunk's materials, answers its queries (in parallel, as any batch),
+/// drops them and goes on. Its working memory is therefore at most
+///
+/// `R × (one material of the stack) + CHUNK_QUERIES × (a few hundred bytes:
+/// a query's directions, keys, index and answer)`
+///
+/// plus the caller's inputs and outputs, whatever the batch's size: about
+/// 20 MB on a two-layer stack, 110 MB on a 1000-layer one. A query's
+/// answer is keyed by the query alone (its key, its row), so the chunks
+/// change no number: every call answers bit for bit what
+/// [`Materials::per_query`] and the [`Materials`] call of the same name
+/// answer (`tests/api/per_query_chunks.rs`). Equal rows share one material
+/// within a chunk.
+///
+/// Every row is checked by [`PerQuery::new`], and every argument by each
+/// call, before anything runs or is written. The working memory of each
+/// call is allocated fallibly when it starts: a refusal is
+/// [`ColumnsError::OutOfMemory`] or [`QueryError::OutOfMemory`] naming the
+/// call and the bytes, not an abort. (The numbers inside one material are
+/// allocated as any Rust value; the chunk bounds how many exist at once.)
+///
+/// ```
+/// use strata_bsdf::{Column, LayerStack, LayeredBsdf, PerQuery, Vectors, VectorsMut};
+/// let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(
+///     "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
+///      medium = { thickness = 1, sigma_t = 0.5 }\n\
+///      [[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.8 }\n",
+/// ).unwrap());
+/// let path = "layers[0].medium.thickness".parse().unwrap();
+/// let thickness = [0.1, 0.5, 2.0];
+/// let q = PerQuery::new(&bsdf, 3, &[Column { path: &path, width: 1, values: &thickness }]).unwrap();
+/// let wi = [[0.0, 0.0, 1.0]; 3];
+/// let mut f = [[0.0f32; 3]; 3];
+/// q.eval_into(Vectors::Aos(&wi), Vectors::Aos(&wi), None, VectorsMut::Aos(&mut f), None).unwrap();
+/// assert!(f.iter().all(|v| v[0] > 0.0));
+/// ```
+#[derive(Clone, Debug)]
+pub struct PerQuery<'a> {
+    pub(super) template: &'a LayeredBsdf,
+    pub(super) queries: usize,
+    columns: Vec<Column<'a>>,
+    /// The most distinct rows a chunk holds.
+    rows: usize,
+}
+
+impl<'a> PerQuery<'a> {
+    /// `queries` queries of `template`'s material with row `k` of every
+    /// column as query `k`'s values, answered with `template`'s
+    /// configuration: the same checks and the same answers as
+    /// [`Materials::per_query`] (see it for the rules), with memory bounded
+    /// as the type says. Every row is checked here, a chunk at a time
+    /// (each distinct row's material built and dropped): the first query
+    /// whose values are invalid is an error naming it.
+    pub fn new(
+        template: &'a LayeredBsdf,
+        queries: usize,
+        columns: &[Column<'a>],
+    ) -> Result<Self, ColumnsError> {
+        check_lengths(template, queries, columns)?;
+        let layers = template.stack().desc().layers.len().max(1);
+        let q = PerQuery {
+            template,
+            queries,
+            columns: columns.to_vec(),
+            rows: (CHUNK_LAYERS / layers).clamp(1, CHUNK_ROWS),
+        };
+        let mut rows = Rows::new(&q).map_err(|bytes| ColumnsError::OutOfMemory { bytes })?;
+        let mut start = 0;
+        while start < queries {
+            start = rows.next(&q, start, false)?;
+        }
+        Ok(q)
+    }
+
+    /// The same, with at most `rows` (at least 1) distinct rows a chunk:
+    /// fewer to hold less memory, more for fewer, larger parallel batches.
+    pub fn with_chunk_rows(mut self, rows: usize) -> Self {
+        self.rows = rows.max(1);
+        self
+    }
+
+    /// The most distinct rows a chunk holds.
+    pub fn chunk_rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Number of queries.
+    pub fn len(&self) -> usize {
+        self.queries
+    }
+
+    /// No queries.
+    pub fn is_empty(&self) -> bool {
+        self.queries == 0
+    }
+
+    /// Runs `run` on every chunk, in order: its materials, each query's
+    /// material among them, and its range of queries. Errors name the
+    /// query's index in the whole batch; `call` names the call in an
+    /// out-of-memory error.
+    pub(super) fn chunks(
+        &self,
+        call: &'static str,
+        mut run: impl FnMut(&Materials, &[u32], Range<usize>) -> Result<(), BatchError>,
+    ) -> Result<(), BatchError> {
+        let oom = |bytes| BatchError::call(QueryError::OutOfMemory { call, bytes });
+        let mut rows = Rows::new(self).map_err(oom)?;
+        let mut start = 0;
+        while start < self.queries {
+            let end = match rows.next(self, start, true) {
+                Ok(end) => end,
+                Err(ColumnsError::OutOfMemory { bytes }) => return Err(oom(bytes)),
+                // `new` built every row with the same function.
+                Err(e) => unreachable!("rows are checked by PerQuery::new: {e}"),
+            };
+            let m = Materials::building(self.template, rows.stacks.drain(..), true);
+            run(&m, &rows.of, start..end).map_err(|e| BatchError {
+                index: e.index.map(|i| i + start),
+                ..e
+            })?;
+            start = end;
+        }
+        Ok(())
+    }
+
+    /// A buffer for a chunk's values (one per query), allocated fallibly.
+    pub(super) fn buffer<T>(&self, call: &'static str) -> Result<Vec<T>, BatchError> {
+        let mut v = Vec::new();
+        reserve(&mut v, self.queries.min(CHUNK_QUERIES))
+            .map_err(|bytes| BatchError::call(QueryError::OutOfMemory { call, bytes }))?;
+        Ok(v)
+    }
+}
+
+/// The rows of one chunk: its distinct rows' materials, and each query's
+/// among them. Its buffers are allocated once, for the largest chunk.
+struct Rows {
+    /// Each distinct row's bits, and its index.
+    first: HashMap<Vec<u32>, u32>,
+    /// The current query's row.
+    row: Vec<u32>,
+    /// The distinct rows' stacks.
+    stacks: Vec<LayerStack>,
+    /// Per query of the chunk: its row's index.
+    of: Vec<u32>,
+}
+
+impl Rows {
+    /// Buffers for `q`'s chunks, or the bytes the allocator refused.
+    fn new(q: &PerQuery) -> Result<Self, usize> {
+        let rows = q.rows.min(q.queries);
+        let width: usize = q.columns.iter().map(|c| c.width).sum();
+        let mut r = Rows {
+            first: HashMap::new(),
+            row: Vec::new(),
+            stacks: Vec::new(),
+            of: Vec::new(),
+        };
+        r.first
+            .try_reserve(rows)
+            .map_err(|_| rows.saturating_mul(std::mem::size_of::<(Vec<u32>, u32)>() + width * 4))?;
+        reserve(&mut r.row, width)?;
+        reserve(&mut r.stacks, rows)?;
+        reserve(&mut r.of, q.queries.min(CHUNK_QUERIES))?;
+        Ok(r)
+    }
+
+    /// Reads the chunk that starts at query `start` (at most `q.rows`
+    /// distinct rows and [`CHUNK_QUERIES`] queries), building each distinct
+    /// row's stack (kept if `keep`, else only checked); returns its end.
+    fn next(&mut self, q: &PerQuery, start: usize, keep: bool) -> Result<usize, ColumnsError> {
+        self.first.clear();
+        self.stacks.clear();
+        self.of.clear();
+        let end = q.queries.min(start.saturating_add(CHUNK_QUERIES));
+        for k in start..end {
+            self.row.clear();
+            for c in &q.columns {
+                let v = &c.values[k * c.width..(k + 1) * c.width];
+                self.row.extend(v.iter().map(|x| x.to_bits()));
+            }
+            let u = match self.first.get(&self.row[..]) {
+                Some(&u) => u,
+                None if self.first.len() == q.rows => return Ok(k),
+                None => {
+                    let st = query_stack(q.template.stack(), &q.columns, k)?;
+                    let u = self.first.len() as u32;
+                    if keep {
+                        self.stacks.push(st);
+                    }
+                    self.first.insert(self.row.clone(), u);
+                    u
+                }
+            };
+            self.of.push(u);
+        }
+        Ok(end)
+    }
+}
+
+/// Checks the columns' lengths and paths (not their rows): what
+/// [`Materials::per_query`] and [`PerQuery::new`] check first.
+fn check_lengths(
+    template: &LayeredBsdf,
+    queries: usize,
+    columns: &[Column],
+) -> Result<(), ColumnsError> {
+    if queries > MAX_QUERIES {
+        return Err(ColumnsError::TooManyQueries { queries });
+    }
+    for c in columns {
+        let fits = c.width.checked_mul(queries) == Some(c.values.len());
+        if !(c.width == 1 || c.width == 3) || !fits {
+            return Err(ColumnsError::Length {
+                path: c.path.to_string(),
+                width: c.width,
+                len: c.values.len(),
+                queries,
+            });
+        }
+    }
+    check_columns(template.stack(), columns)?;
+    Ok(())
+}
+
+/// Reserves room for `n` more values, or says how many bytes were refused.
+fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<(), usize> {
+    v.try_reserve_exact(n)
+        .map_err(|_| n.saturating_mul(std::mem::size_of::<T>()))
 }
 
 /// Checks every column against `base` before any row: its path is in the

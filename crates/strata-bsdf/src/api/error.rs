@@ -57,6 +57,15 @@ pub enum QueryError {
         /// The number of materials.
         materials: usize,
     },
+    /// The call's working memory could not be allocated (the allocator
+    /// refused: the process is out of memory or address space).
+    OutOfMemory {
+        /// The call (`"eval"`, `"sample"`, `"pdf"`, `"pdf_unbiased"`,
+        /// `"albedo"`, `"per_query"`).
+        call: &'static str,
+        /// The bytes asked for.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for QueryError {
@@ -97,6 +106,10 @@ impl fmt::Display for QueryError {
                 f,
                 "material = {value}: there are {materials} materials (0 to {})",
                 materials.saturating_sub(1)
+            ),
+            QueryError::OutOfMemory { call, bytes } => write!(
+                f,
+                "{call}: out of memory: cannot allocate {bytes} bytes of per-query working memory"
             ),
         }
     }

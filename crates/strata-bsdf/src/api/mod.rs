@@ -20,7 +20,9 @@ pub mod slices;
 mod strategy;
 mod transport;
 
-pub use columns::{Column, ColumnsError, MAX_QUERIES};
+pub use columns::{
+    Column, ColumnsError, PerQuery, CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_QUERIES,
+};
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };

@@ -17,7 +17,7 @@
 use super::sets::Per;
 use super::{
     check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Estimate,
-    LayeredBsdf, Materials, Pair, Sample,
+    LayeredBsdf, Materials, Pair, PerQuery, Sample,
 };
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::wavefront::{Sets, PDF_CHUNK};
@@ -685,6 +685,203 @@ impl Materials {
             None => self.sample_batch(material, &wis, &(0..n as u64).collect::<Vec<_>>()),
             Some(k) => self.sample_batch_keyed(material, &wis, k, &vec![0; n]),
         }
+    }
+}
+
+/// The slice calls of [`PerQuery`]: [`Materials`]' calls of the same
+/// name on the materials of [`Materials::per_query`] (query `k` on material
+/// `k`), run a chunk at a time: the same numbers, bit for bit. Every
+/// argument is checked before the first chunk runs, so nothing is written
+/// on an error; a chunk's buffers are allocated fallibly when the call
+/// starts ([`QueryError::OutOfMemory`](super::QueryError::OutOfMemory)).
+impl PerQuery<'_> {
+    /// [`Materials::eval_into`].
+    pub fn eval_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut stderr: Option<VectorsMut>,
+    ) -> Result<(), BatchError> {
+        let n = self.pairs_checked(&wi, &wo, keys)?;
+        f.check("f", n)?;
+        if let Some(s) = &stderr {
+            s.check("stderr", n)?;
+        }
+        check_walks("samples", self.template.samples).map_err(BatchError::call)?;
+        let mut pairs = self.buffer("eval")?;
+        self.chunks("eval", |m, ids, r| {
+            pairs.clear();
+            pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
+            let est = match keys {
+                None => m.eval_batch(ids, &pairs)?,
+                Some(x) => m.eval_batch_keyed(ids, &pairs, m.samples(), &x[r.clone()])?,
+            };
+            for (k, e) in r.zip(&est) {
+                f.set(k, f32x3(e.value));
+                if let Some(s) = &mut stderr {
+                    s.set(k, f32x3(e.stderr));
+                }
+            }
+            Ok(())
+        })
+    }
+
+    /// [`Materials::sample_into`].
+    pub fn sample_into(
+        &self,
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        mut wo: VectorsMut,
+        mut weight: VectorsMut,
+        pdf: &mut [f32],
+        flags: &mut [u32],
+    ) -> Result<(), BatchError> {
+        let n = self.directions_checked(&wi, keys)?;
+        wo.check("wo", n)?;
+        weight.check("weight", n)?;
+        one_each("pdf", pdf.len(), n)?;
+        one_each("flags", flags.len(), n)?;
+        self.samples_of(&wi, keys, |k, s| {
+            let r = SampleRecord::of(s);
+            wo.set(k, r.wo);
+            weight.set(k, r.weight);
+            pdf[k] = r.pdf;
+            flags[k] = r.flags;
+        })
+    }
+
+    /// [`Materials::sample_records`].
+    pub fn sample_records(
+        &self,
+        wi: Vectors,
+        keys: Option<&[u64]>,
+        out: &mut [SampleRecord],
+    ) -> Result<(), BatchError> {
+        let n = self.directions_checked(&wi, keys)?;
+        one_each("out", out.len(), n)?;
+        self.samples_of(&wi, keys, |k, s| out[k] = SampleRecord::of(s))
+    }
+
+    /// [`Materials::pdf_into`].
+    pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
+        let n = self.pairs_checked(&wi, &wo, None)?;
+        one_each("pdf", pdf.len(), n)?;
+        let mut pairs = self.buffer("pdf")?;
+        self.chunks("pdf", |m, ids, r| {
+            pairs.clear();
+            pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
+            pdf[r].copy_from_slice(&m.pdf_batch(ids, &pairs)?);
+            Ok(())
+        })
+    }
+
+    /// [`Materials::pdf_unbiased_into`].
+    pub fn pdf_unbiased_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        samples: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> Result<(), BatchError> {
+        let n = self.pairs_checked(&wi, &wo, None)?;
+        one_each("pdf", pdf.len(), n)?;
+        one_each("stderr", stderr.len(), n)?;
+        check_walks("samples", samples).map_err(BatchError::call)?;
+        let mut pairs = self.buffer("pdf_unbiased")?;
+        self.chunks("pdf_unbiased", |m, ids, r| {
+            pairs.clear();
+            pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
+            let est = m.pdf_unbiased_batch(ids, &pairs, samples)?;
+            for (k, e) in r.zip(&est) {
+                pdf[k] = e.value as f32;
+                stderr[k] = e.stderr as f32;
+            }
+            Ok(())
+        })
+    }
+
+    /// [`Materials::albedo_records`].
+    pub fn albedo_records(
+        &self,
+        wi: Vectors,
+        n: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> Result<(), BatchError> {
+        let m = self.directions_checked(&wi, keys)?;
+        one_each("out", out.len(), m)?;
+        check_walks("n", n).map_err(BatchError::call)?;
+        let (mut wis, mut own) = (self.buffer("albedo")?, self.buffer("albedo")?);
+        self.chunks("albedo", |mats, ids, r| {
+            wis.clear();
+            wis.extend(r.clone().map(|k| wi.get(k)));
+            let keys = match keys {
+                Some(x) => &x[r.clone()],
+                None => {
+                    own.clear();
+                    own.extend(wis.iter().map(|&w| direction_key(w, w)));
+                    &own[..]
+                }
+            };
+            for (k, a) in r.zip(&mats.albedo_batch_keyed(ids, &wis, n, keys)?) {
+                out[k] = AlbedoRecord::of(a);
+            }
+            Ok(())
+        })
+    }
+
+    /// The samples of every query, keyed and indexed as
+    /// [`Materials::sample_into`] does (an unkeyed query `k` of the whole
+    /// batch draws sample index `k`), handed to `out` in query order.
+    fn samples_of(
+        &self,
+        wi: &Vectors,
+        keys: Option<&[u64]>,
+        mut out: impl FnMut(usize, Option<&Sample>),
+    ) -> Result<(), BatchError> {
+        let (mut wis, mut index) = (self.buffer("sample")?, self.buffer("sample")?);
+        self.chunks("sample", |m, ids, r| {
+            wis.clear();
+            wis.extend(r.clone().map(|k| wi.get(k)));
+            index.clear();
+            let s = match keys {
+                None => {
+                    index.extend(r.clone().map(|k| k as u64));
+                    m.sample_batch(ids, &wis, &index)?
+                }
+                Some(x) => {
+                    index.resize(r.len(), 0);
+                    m.sample_batch_keyed(ids, &wis, &x[r.clone()], &index)?
+                }
+            };
+            for (k, s) in r.zip(&s) {
+                out(k, s.as_ref());
+            }
+            Ok(())
+        })
+    }
+
+    /// Checks a call on pairs before anything runs: one pair per query, each
+    /// of two directions, and keys (if given) one per query.
+    fn pairs_checked(
+        &self,
+        wi: &Vectors,
+        wo: &Vectors,
+        keys: Option<&[u64]>,
+    ) -> Result<usize, BatchError> {
+        let n = Vectors::check_pairs(wi, wo, keys)?;
+        one_each("wi", n, self.queries)?;
+        Ok(n)
+    }
+
+    /// [`PerQuery::pairs_checked`] for a call on incident directions.
+    fn directions_checked(&self, wi: &Vectors, keys: Option<&[u64]>) -> Result<usize, BatchError> {
+        let n = Vectors::check_directions(wi, keys)?;
+        one_each("wi", n, self.queries)?;
+        Ok(n)
     }
 }
 

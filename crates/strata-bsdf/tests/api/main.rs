@@ -11,5 +11,6 @@ mod api_embedding;
 mod layered_settings;
 mod material_set;
 mod param_sets;
+mod per_query_chunks;
 mod proptest_api;
 mod readme_example;
