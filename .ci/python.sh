@@ -3,8 +3,8 @@
 # the module with maturin into a venv, builds the CLI the tests compare
 # against, and runs pytest (bit identity with the Rust API, errors, and
 # renders against Mitsuba's built-in BSDFs in scalar_rgb and llvm_ad_rgb).
-# The module's formatting and lints are .ci/run's (cargo fmt --all, cargo
-# clippy --workspace).
+# Its lints run here (after maturin's build, whose build scripts and proc
+# macros they reuse); its formatting is .ci/run's (cargo fmt --all).
 #
 # Runs from any directory, on a fresh Debian bookworm with Python 3.11 and
 # rustup's cargo. As root it installs what it needs with apt-get (libLLVM 19
@@ -38,9 +38,12 @@ if [ "${1:-}" = --install-only ]; then
 fi
 
 echo "== maturin develop --release (the module strata_bsdf)"
-# pyo3's features of shared dependencies differ from the workspace build's, so
-# the library compiles again here: without debug info, which nothing reads.
-CARGO_PROFILE_RELEASE_DEBUG=0 maturin develop --release -m bindings/python/Cargo.toml
+# (pyo3's features of shared dependencies differ from the workspace build's, so
+# the library compiles again here.)
+maturin develop --release -m bindings/python/Cargo.toml
+
+echo "== cargo clippy --release -p strata-bsdf-python -- -D warnings"
+cargo clippy --release -p strata-bsdf-python --all-targets -- -D warnings
 
 echo "== cargo build --release -p strata-cli (the tests compare with it)"
 cargo build --release -p strata-cli

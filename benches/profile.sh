@@ -17,7 +17,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 target=${CARGO_TARGET_DIR:-target}/profiling
-cargo build --release --quiet -p strata-cli --features profiling --target-dir "$target"
+CARGO_PROFILE_RELEASE_DEBUG=line-tables-only \
+  cargo build --release --quiet -p strata-cli --features profiling --target-dir "$target"
 bin=$target/release/strata
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

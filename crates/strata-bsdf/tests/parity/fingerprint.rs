@@ -1,11 +1,14 @@
-//! Prints a digest of strata's answers on every built-in material: eval on
-//! both engines and both estimators, sample with its pdf, the approximate and
-//! unbiased pdfs, and the albedo, for a fixed set of directions. Two builds
-//! that print the same lines give the same answers bit for bit; CI compares
-//! the repository's AVX2 build with baseline x86-64 this way (.ci/run), since
-//! results must not depend on the target (docs/architecture.md).
+//! A digest of strata's answers on every built-in material: eval on both
+//! engines and both estimators, sample with its pdf, the approximate and
+//! unbiased pdfs, and the albedo, for a fixed set of directions.
 //!
-//! `cargo run --release -p strata-bsdf --example fingerprint`
+//! The test asserts that the two engines' digests are equal on every
+//! material (walk-by-walk parity through the public API). With
+//! `STRATA_FINGERPRINT=FILE` it also writes the digests, a line per material:
+//! two builds that write the same lines give the same answers bit for bit.
+//! CI compares the repository's AVX2 build with baseline x86-64 this way
+//! (.ci/run), since results must not depend on the target
+//! (docs/architecture.md).
 
 use glam::Vec3;
 use strata_bsdf::{Engine, Estimator, LayeredBsdf};
@@ -40,7 +43,9 @@ fn directions() -> Vec<Vec3> {
     d
 }
 
-fn main() {
+#[test]
+fn every_builtin_material_answers_alike_on_both_engines() {
+    let mut lines = Vec::new();
     let dirs = directions();
     let pairs: Vec<(Vec3, Vec3)> = dirs
         .iter()
@@ -51,6 +56,7 @@ fn main() {
         let stack = strata_bsdf::materials::builtin(name).expect("built-in materials are valid");
         let base = LayeredBsdf::new(stack).seed(5).samples(64);
         let mut line = String::from(name);
+        let mut engines = Vec::new();
         let runs = [
             ("scalar-uni", Engine::Scalar, Estimator::Unidirectional),
             (
@@ -74,7 +80,16 @@ fn main() {
                 h.f64s(&e.stderr);
             }
             line += &format!(" {label}:{:016x}", h.0);
+            engines.push(h.0);
         }
+        assert_eq!(
+            engines[0], engines[1],
+            "{name}: unidirectional eval, scalar ≠ wavefront"
+        );
+        assert_eq!(
+            engines[2], engines[3],
+            "{name}: bidirectional eval, scalar ≠ wavefront"
+        );
         let b = base.clone();
         let mut h = Digest(0xcbf2_9ce4_8422_2325);
         for s in b.sample_batch(&dirs, &index).expect("valid directions") {
@@ -96,6 +111,10 @@ fn main() {
             h.f64s(&a.transmitted.value);
         }
         line += &format!(" sample-pdf-albedo:{:016x}", h.0);
-        println!("{line}");
+        lines.push(line);
+    }
+    if let Some(path) = std::env::var_os("STRATA_FINGERPRINT") {
+        let text = lines.join("\n") + "\n";
+        std::fs::write(&path, text).unwrap_or_else(|e| panic!("{path:?}: {e}"));
     }
 }
