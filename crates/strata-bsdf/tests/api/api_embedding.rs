@@ -21,10 +21,7 @@ use crate::common::{COATED_COPPER, SCATTERING_SLAB as SLAB};
 
 /// A rough dielectric interface alone: air above, glass below (exteriors of
 /// different IOR, so the two transport modes differ in transmission).
-const ROUGH_GLASS: &str = r#"
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-"#;
+const ROUGH_GLASS: &str = crate::common::ROUGH_GLASS;
 
 /// A smooth coat over a scattering medium over glass: delta lobes, media
 /// and transmission between different exteriors.

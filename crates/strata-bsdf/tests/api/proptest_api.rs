@@ -118,13 +118,7 @@ fn subjects() -> Vec<Subject> {
     let mats = [
         (
             "rough coat over copper, absorbing medium (one-sided)",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
-            medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
-            [[layers]]
-            interface = { kind = "conductor", preset = "Cu", roughness = 0.1 }
-            "#,
+            crate::common::ROUGH_COAT_ABSORBER_COPPER,
         ),
         (
             "smooth coat over a scattering medium and a Lambertian base, two-sided",

@@ -62,6 +62,83 @@ medium = { thickness = 1.0, sigma_t = 4.0, albedo = [0.6, 0.95, 0.7], phase = { 
 interface = { kind = "diffuse", albedo = 0.5 }
 "#;
 
+/// A rough dielectric interface alone (IOR 1.5, GGX α 0.3): air above, glass
+/// below.
+pub const ROUGH_GLASS: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
+"#;
+
+/// A rough coat (α 0.2) over a tinted absorber over smoother copper (α 0.1):
+/// not the built-in coated copper (α 0.1 over 0.2, σt 0.2/0.6/1.2).
+pub const ROUGH_COAT_ABSORBER_COPPER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
+medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", preset = "Cu", roughness = 0.1 }
+"#;
+
+/// A smooth coat (IOR 1.5) over a Lambertian base of albedo 0.8: a closed-
+/// form stack.
+pub const SMOOTH_COAT_OVER_DIFFUSE: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.8 }
+"#;
+
+/// pbrt-v4's smooth coat over a weak scatterer (τ 0.01, albedo 0.9, HG 0.5)
+/// over a Lambertian base.
+pub const SMOOTH_WEAK_SCATTERER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.8 }
+"#;
+
+/// pbrt-v4's rough coat (α 0.1) over a weak scatterer (τ 0.01, albedo 0.9, HG
+/// 0.5) over a Lambertian base.
+pub const ROUGH_WEAK_SCATTERER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
+medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.8 }
+"#;
+
+/// A rough scattering coat over a smooth absorbing coat over rough gold.
+pub const TWO_COATS_OVER_GOLD: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.4, roughness = 0.05 }
+medium = { thickness = 0.3, sigma_t = 1.0, albedo = 0.9 }
+[[layers]]
+interface = { kind = "dielectric", ior = 1.8 }
+medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", preset = "Au", roughness = 0.1 }
+"#;
+
+/// A transmissive slab: a rough coat over a chromatic scattering layer (HG
+/// 0.5) over a rough exit into IOR 1.33.
+pub const ROUGH_SCATTERING_SLAB: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
+medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
+[[layers]]
+interface = { kind = "dielectric", ior = 1.33, roughness = 0.2 }
+"#;
+
+/// A smooth coat (IOR 1.5) over a Lambertian base of albedo 0.7: a closed-
+/// form stack.
+pub const SMOOTH_COAT_OVER_GREY: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.7 }
+"#;
+
 /// A stack from TOML text (panics with the error: test inputs are valid).
 pub fn stack(toml: &str) -> LayerStack {
     LayerStack::from_toml_str(toml).unwrap_or_else(|e| panic!("test material: {e}"))

@@ -17,12 +17,7 @@ use strata_bsdf::Settings;
 pub const STACKS: &[(&str, &str)] = &[
     (
         "smooth coat over Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::SMOOTH_COAT_OVER_DIFFUSE,
     ),
     (
         "rough coat over rough copper",

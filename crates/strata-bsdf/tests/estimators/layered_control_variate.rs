@@ -37,13 +37,7 @@ use strata_bsdf::{Engine, Estimator, EvalStart, LayeredBsdf, Settings};
 pub const STACKS: &[(&str, &str)] = &[
     (
         "pbrt-v4's weak scatterer (τ 0.01)",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::SMOOTH_WEAK_SCATTERER,
     ),
     (
         "white base, τ 0.03 (inside the rule; unbounded boosts diverge here)",
@@ -184,13 +178,7 @@ pub const STACKS: &[(&str, &str)] = &[
     ),
     (
         "rough: pbrt-v4's rough weak scatterer (α 0.1, τ 0.01)",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-        medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::ROUGH_WEAK_SCATTERER,
     ),
     (
         "rough: α 0.3, IOR 1.3, chromatic τ 0.1–0.3, backward g, coloured base",

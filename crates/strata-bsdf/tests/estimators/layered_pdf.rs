@@ -36,12 +36,7 @@ use strata_bsdf::{PdfKind, Settings};
 const STACKS: [(&str, &str); 6] = [
     (
         "smooth coat / diffuse",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::SMOOTH_COAT_OVER_DIFFUSE,
     ),
     ("coated conductor", COATED_COPPER),
     (
@@ -74,19 +69,7 @@ const STACKS: [(&str, &str); 6] = [
         interface = { kind = "dielectric", ior = 1.0 }
         "#,
     ),
-    (
-        "3 interfaces",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.4, roughness = 0.05 }
-        medium = { thickness = 0.3, sigma_t = 1.0, albedo = 0.9 }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.8 }
-        medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Au", roughness = 0.1 }
-        "#,
-    ),
+    ("3 interfaces", crate::common::TWO_COATS_OVER_GOLD),
 ];
 
 /// Incident directions: from above, and from below for transmissive stacks.

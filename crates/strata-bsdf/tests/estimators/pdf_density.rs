@@ -41,19 +41,7 @@ const STACKS: [(&str, &str); 11] = [
         interface = { kind = "dielectric", ior = 1.0 }
         "#,
     ),
-    (
-        "3 interfaces",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.4, roughness = 0.05 }
-        medium = { thickness = 0.3, sigma_t = 1.0, albedo = 0.9 }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.8 }
-        medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Au", roughness = 0.1 }
-        "#,
-    ),
+    ("3 interfaces", crate::common::TWO_COATS_OVER_GOLD),
     (
         "tilted normals: smooth coat / rough inner / rough copper",
         r#"

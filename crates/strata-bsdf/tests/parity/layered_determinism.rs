@@ -9,13 +9,7 @@ use strata_bsdf::estimator::scalar::{Scalar, ScalarEngine};
 use strata_bsdf::rng::{Stream, WalkRng};
 use strata_bsdf::{LayeredBsdf, Settings};
 
-const SLAB: &str = r#"
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-    medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.33, roughness = 0.2 }
-"#;
+const SLAB: &str = crate::common::ROUGH_SCATTERING_SLAB;
 
 fn same_and_different<S: Scalar>() {
     let st = stack(SLAB);

@@ -30,22 +30,11 @@ use strata_bsdf::{LayerStack, PdfKind, PdfWalks, Settings};
 const STACKS: &[(&str, &str)] = &[
     (
         "clear coat over Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::SMOOTH_COAT_OVER_DIFFUSE,
     ),
     (
         "rough coat over copper, tinted absorber",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
-        medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Cu", roughness = 0.1 }
-        "#,
+        crate::common::ROUGH_COAT_ABSORBER_COPPER,
     ),
     (
         "scattering varnish, chromatic",
@@ -570,17 +559,7 @@ fn general_walk_agrees_with_specialized() {
 #[test]
 fn eval_walk_by_walk_with_the_control_variate() {
     let stacks = [
-        (
-            "thin (τ 0.01)",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5 }
-            medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-            [[layers]]
-            interface = { kind = "diffuse", albedo = 0.8 }
-            "#,
-            100,
-        ),
+        ("thin (τ 0.01)", crate::common::SMOOTH_WEAK_SCATTERER, 100),
         (
             "chromatic, two-sided",
             r#"
@@ -606,13 +585,7 @@ fn eval_walk_by_walk_with_the_control_variate() {
         ),
         (
             "rough coat, thin (τ 0.01)",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-            medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-            [[layers]]
-            interface = { kind = "diffuse", albedo = 0.8 }
-            "#,
+            crate::common::ROUGH_WEAK_SCATTERER,
             100,
         ),
         (

@@ -114,16 +114,7 @@ fn check_lossless(toml: &str, label: &str, n: u64) {
 
 #[test]
 fn smooth_coat_over_white_lambertian_is_lossless() {
-    check_lossless(
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 1.0 }
-        "#,
-        "coat 1.5 / white",
-        20_000,
-    );
+    check_lossless(crate::common::SMOOTH_COAT_WHITE, "coat 1.5 / white", 20_000);
     // Strong total internal reflection and a scattering layer: long walks.
     check_lossless(
         r#"

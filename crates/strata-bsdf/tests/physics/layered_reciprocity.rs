@@ -144,13 +144,7 @@ fn reflection_is_symmetric_on_rough_and_scattering_stacks() {
     );
 }
 
-const SLAB: &str = r#"
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-    medium = { thickness = 1.0, sigma_t = [0.5, 1.0, 2.0], albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.33, roughness = 0.2 }
-"#;
+const SLAB: &str = crate::common::ROUGH_SCATTERING_SLAB;
 
 #[test]
 fn reflection_is_symmetric_on_both_sides_of_a_transmissive_slab() {
@@ -243,13 +237,7 @@ fn transmission_obeys_the_eta_squared_relation() {
 fn reflection_is_symmetric_with_the_control_variate() {
     check_reflection_with(
         "weak scatterer under a smooth coat",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
+        crate::common::SMOOTH_WEAK_SCATTERER,
         false,
         11,
         true,

@@ -13,13 +13,10 @@ use strata_bsdf::{
 };
 use strata_capi::*;
 
-const COATED_COPPER: &str = include_str!("../../../../examples/materials/coated_copper.toml");
+use crate::common::COATED_COPPER;
 /// A rough dielectric slab with glass below: transmission between exteriors
 /// of different IOR, where the transport mode matters.
-const GLASS: &str = r#"
-[[layers]]
-interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-"#;
+const GLASS: &str = crate::common::ROUGH_GLASS;
 
 /// A BSDF made through the C ABI, freed on drop.
 struct Capi(*mut StrataBsdf);

@@ -5,13 +5,7 @@ use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
 use strata_capi::*;
 
-const GOOD: &str = r#"
-[[layers]]
-interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-medium = { thickness = 0.5, sigma_t = [0.2, 0.6, 1.2], albedo = 0.0 }
-[[layers]]
-interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
-"#;
+const GOOD: &str = crate::common::COATED_COPPER;
 
 fn last_error() -> String {
     // SAFETY: `strata_last_error` returns a NUL-terminated string valid

@@ -3,6 +3,9 @@
 //! thread-local destructor (thread_exit). One binary, so that the
 //! suite links once; each module's doc says what it checks.
 
+#[path = "../../../strata-bsdf/tests/common/mod.rs"]
+mod common;
+
 mod abi;
 mod columns;
 mod errors;

@@ -1,12 +1,7 @@
 //! `strata converge` from the command line: its report files and its
 //! argument errors (the machinery itself is tested in strata-reports).
 
-const COAT: &str = r#"
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.5 }
-    [[layers]]
-    interface = { kind = "diffuse", albedo = 0.7 }
-"#;
+const COAT: &str = crate::common::SMOOTH_COAT_OVER_GREY;
 
 /// `strata converge` writes its CSV, markdown and PNG, and rejects bad
 /// arguments with a message naming them.

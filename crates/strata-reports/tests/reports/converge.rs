@@ -8,12 +8,7 @@ use common::*;
 use strata_bsdf::Settings;
 use strata_reports::converge::*;
 
-const COAT: &str = r#"
-    [[layers]]
-    interface = { kind = "dielectric", ior = 1.5 }
-    [[layers]]
-    interface = { kind = "diffuse", albedo = 0.7 }
-"#;
+const COAT: &str = crate::common::SMOOTH_COAT_OVER_GREY;
 
 /// Ten BSDF queries from two incident directions, in and off the plane of
 /// incidence, and the albedo from eight directions (those two among them).
