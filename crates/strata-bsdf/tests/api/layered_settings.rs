@@ -11,7 +11,6 @@
 
 use crate::common;
 use common::*;
-use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::Settings;
 
 const STACKS: [(&str, &str); 3] = [
@@ -60,10 +59,7 @@ const PAIRS: [(f64, f64, f64, f64); 4] = [
 fn agree(a: Settings, b: Settings, what: &str) {
     for (s, (label, toml)) in STACKS.into_iter().enumerate() {
         let st = stack(toml);
-        let (ea, eb) = (
-            ScalarEngine::<f32>::new(&st, a),
-            ScalarEngine::<f32>::new(&st, b),
-        );
+        let (ea, eb) = (Walks::new(&st, a), Walks::new(&st, b));
         for (q, &(ti, pi, to, po)) in PAIRS.iter().enumerate() {
             if to > 90.0 && !st.transmissive() {
                 continue;
@@ -117,8 +113,8 @@ fn russian_roulette_start_does_not_bias() {
 #[test]
 fn depth_cap_only_loses_energy() {
     let st = stack(STACKS[0].1);
-    let full = ScalarEngine::<f32>::new(&st, Settings::default());
-    let capped = ScalarEngine::<f32>::new(
+    let full = Walks::new(&st, Settings::default());
+    let capped = Walks::new(
         &st,
         Settings {
             max_depth: Some(3),

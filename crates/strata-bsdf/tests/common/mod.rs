@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
+use strata_bsdf::estimator::WalkSample;
 use strata_bsdf::lane::F32x8;
 use strata_bsdf::{Albedo, Estimate, LayerStack, Settings};
 
@@ -220,6 +221,16 @@ impl Walks {
         Walks(Wavefront::new(stack, settings, Plan::Specialized))
     }
 
+    /// With the control variate of `Estimator::Auto` on or off.
+    pub fn with_control_variate(self, on: bool) -> Self {
+        Walks(self.0.with_control_variate(on))
+    }
+
+    /// Whether the control variate is on.
+    pub fn control_variate(&self) -> bool {
+        self.0.control_variate()
+    }
+
     /// `ScalarEngine::eval`: `n` unidirectional walks of query `query`.
     pub fn eval(&self, wi: [f64; 3], wo: [f64; 3], n: u64, seed: u64, query: u64) -> Estimate {
         self.0.eval_batch(&[(wi, wo)], n, seed, &[query]).0[0]
@@ -235,6 +246,15 @@ impl Walks {
         query: u64,
     ) -> Estimate {
         self.0.eval_bidir_batch(&[(wi, wo)], n, seed, &[query])[0]
+    }
+
+    /// `ScalarEngine::sample` `n` times: walk `k` draws from the stream
+    /// `(seed, query, k)`, as `WalkRng::new(seed, query, k, Stream::Walk)`.
+    pub fn samples(&self, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Vec<Option<WalkSample>> {
+        let wis = vec![wi; n as usize];
+        let keys = vec![query; n as usize];
+        let index: Vec<u64> = (0..n).collect();
+        self.0.sample_batch(&wis, seed, &keys, &index).0
     }
 
     /// `ScalarEngine::albedo`: `n` walks from `wi`.

@@ -323,7 +323,7 @@ fn bidirectional_matches_the_clear_coat_closed_form() {
         "#,
     );
     let exact = SmoothCoatLambertian::of(&st, &Settings::default()).expect("closed form");
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     for (q, (wi, wo)) in pairs(false).into_iter().enumerate() {
         let b = eng.eval_bidir(wi, wo, 20_000, 3, q as u64);
         let x = exact.eval(wi, wo);
@@ -395,7 +395,7 @@ fn efficiency_ratios() {
 fn near_specular_bidirectional_is_reciprocal() {
     for (name, toml) in NEAR_SPECULAR {
         let st = stack(toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (q, (wi, wo)) in pairs(false).into_iter().enumerate() {
             let a = eng.eval_bidir(wi, wo, 40_000, 21, q as u64);
             let b = eng.eval_bidir(wo, wi, 40_000, 22, q as u64);
@@ -421,7 +421,7 @@ fn scatter_order_cap_agrees() {
         };
         for (name, toml) in [STACKS[3], STACKS[5]] {
             let st = stack(toml);
-            let eng = ScalarEngine::<f32>::new(&st, settings);
+            let eng = Walks::new(&st, settings);
             for (q, (wi, wo)) in pairs(st.transmissive()).into_iter().enumerate() {
                 let u = eng.eval(wi, wo, 40_000, 31, q as u64);
                 let b = eng.eval_bidir(wi, wo, 40_000, 32, q as u64);

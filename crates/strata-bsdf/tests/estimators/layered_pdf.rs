@@ -1,4 +1,5 @@
-//! The approximate pdf of `sample()` (`ScalarEngine::pdf`, method.md §6).
+//! The approximate pdf of `sample()` (`estimator::pdf`, method.md §6), on
+//! the wavefront engine (the scalar engine's pdf walk by walk: tests/parity).
 //!
 //! It is an estimate of the density of `sample()`'s walks of at most
 //! `APPROX_EVENTS` events (tests/estimators/pdf_density.rs checks the density walk
@@ -29,7 +30,6 @@ use crate::common;
 use common::reference::SplitMix;
 use common::*;
 use strata_bsdf::estimator::pdf::UNIFORM_FRACTION;
-use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::lane::V3;
 use strata_bsdf::{PdfKind, Settings};
 
@@ -85,28 +85,33 @@ fn incidents(transmissive: bool) -> Vec<[f64; 3]> {
 fn pdf_is_finite_and_positive_where_eval_is() {
     for (label, toml) in STACKS {
         let st = stack(toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (q, wi) in incidents(st.transmissive()).into_iter().enumerate() {
             let (mut positive_f, mut checked) = (0, 0);
-            for i in 0..18 {
-                // θ from 2.5° to 177.5°, avoiding exactly grazing directions.
-                let theta = 2.5 + 10.0 * i as f64;
-                for j in 0..24 {
-                    let wo = dir(theta, 15.0 * j as f64 + 7.0);
-                    let key = (q * 1000 + i * 24 + j) as u64;
-                    let p = eng.pdf(wi, wo, 4, 1, key);
-                    let f = eng.eval(wi, wo, 32, 2, key);
-                    let what = format!("{label} wi {wi:?} wo θ {theta} φ {}", 15 * j + 7);
-                    assert!(p.is_finite() && p >= 0.0, "{what}: pdf {p}");
-                    checked += 1;
-                    if f.value.iter().any(|&v| v > 0.0) {
-                        positive_f += 1;
-                        assert!(p > 0.0, "{what}: pdf 0 where f = {:?}", f.value);
-                        assert!(
-                            p >= 0.999 * UNIFORM_FRACTION / (4.0 * std::f64::consts::PI),
-                            "{what}: pdf {p} below the uniform floor"
-                        );
-                    }
+            // θ from 2.5° to 177.5°, avoiding exactly grazing directions; one
+            // batch of pdfs (4 walks) and one of evals (32 walks).
+            let grid: Vec<(f64, usize, [f64; 3])> = (0..18)
+                .flat_map(|i| {
+                    let theta = 2.5 + 10.0 * i as f64;
+                    (0..24).map(move |j| (theta, 15 * j + 7, dir(theta, (15 * j + 7) as f64)))
+                })
+                .collect();
+            let wos: Vec<[f64; 3]> = grid.iter().map(|g| g.2).collect();
+            let keys: Vec<u64> = (0..grid.len()).map(|k| (q * 1000 + k) as u64).collect();
+            let ps = pdfs(&eng, wi, &wos, 4, 1, &keys);
+            let pairs: Vec<_> = wos.iter().map(|&wo| (wi, wo)).collect();
+            let fs = eng.0.eval_batch(&pairs, 32, 2, &keys).0;
+            for (((theta, phi, _), p), f) in grid.iter().zip(ps).zip(fs) {
+                let what = format!("{label} wi {wi:?} wo θ {theta} φ {phi}");
+                assert!(p.is_finite() && p >= 0.0, "{what}: pdf {p}");
+                checked += 1;
+                if f.value.iter().any(|&v| v > 0.0) {
+                    positive_f += 1;
+                    assert!(p > 0.0, "{what}: pdf 0 where f = {:?}", f.value);
+                    assert!(
+                        p >= 0.999 * UNIFORM_FRACTION / (4.0 * std::f64::consts::PI),
+                        "{what}: pdf {p} below the uniform floor"
+                    );
                 }
             }
             // The implication must have been exercised on most of the grid.
@@ -209,25 +214,26 @@ fn pdf_of_a_lone_rough_interface_is_its_density() {
         interface = { kind = "dielectric", ior = 1.6, roughness = 0.25 }
         "#,
     );
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     let it = st.interface_lanes::<f32>(0);
     let v = |w: [f64; 3]| V3::new(w[0] as f32, w[1] as f32, w[2] as f32);
     let uniform = UNIFORM_FRACTION / (4.0 * std::f64::consts::PI);
     let mut informative = 0;
+    // The exits of the k-th point, keyed k, in one batch per incidence.
+    let wos: Vec<[f64; 3]> = (0..12)
+        .flat_map(|i| (0..8).map(move |j| dir(5.0 + 15.0 * i as f64, 45.0 * j as f64 + 3.0)))
+        .collect();
+    let keys: Vec<u64> = (0..wos.len() as u64).collect();
     for wi in [dir(20.0, 0.0), dir(70.0, 0.0), dir(160.0, 0.0)] {
-        for i in 0..12 {
-            for j in 0..8 {
-                let wo = dir(5.0 + 15.0 * i as f64, 45.0 * j as f64 + 3.0);
-                let p = eng.pdf(wi, wo, 4, 1, (i * 8 + j) as u64);
-                let pi = it.pdf(v(wi), v(wo), false) as f64;
-                let expect = (1.0 - UNIFORM_FRACTION) * pi + uniform;
-                assert!(
-                    (p - expect).abs() <= 1e-5 * expect,
-                    "wi {wi:?} wo {wo:?}: pdf {p} vs {expect}"
-                );
-                if pi > 0.1 {
-                    informative += 1;
-                }
+        for (&wo, p) in wos.iter().zip(pdfs(&eng, wi, &wos, 4, 1, &keys)) {
+            let pi = it.pdf(v(wi), v(wo), false) as f64;
+            let expect = (1.0 - UNIFORM_FRACTION) * pi + uniform;
+            assert!(
+                (p - expect).abs() <= 1e-5 * expect,
+                "wi {wi:?} wo {wo:?}: pdf {p} vs {expect}"
+            );
+            if pi > 0.1 {
+                informative += 1;
             }
         }
     }

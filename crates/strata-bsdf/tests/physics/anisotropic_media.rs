@@ -24,8 +24,6 @@
 use crate::common;
 use common::reference::Acc;
 use common::*;
-use strata_bsdf::estimator::scalar::ScalarEngine;
-use strata_bsdf::rng::{Stream, WalkRng};
 use strata_bsdf::Settings;
 
 fn sggx(flakes: &str, axis: [f64; 3], r: f64, scattering: &str) -> String {
@@ -78,7 +76,7 @@ fn absorbing_sggx_layer_transmits_exactly() {
             sggx(flakes, axis, r, "specular")
         );
         let st = stack(&toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (theta, phi) in [
             (0.0, 0.0),
             (30.0, 10.0),
@@ -104,12 +102,10 @@ fn absorbing_sggx_layer_transmits_exactly() {
 }
 
 /// R + T per walk, from `n` walks of `sample`.
-fn energy(eng: &ScalarEngine<f32>, wi: [f64; 3], n: u64, query: u64) -> Acc {
+fn energy(eng: &Walks, wi: [f64; 3], n: u64, query: u64) -> Acc {
     let mut acc = Acc::default();
-    for k in 0..n {
-        let mut rng = WalkRng::new(11, query, k, Stream::Walk);
-        let w = eng.sample(wi, &mut rng).map_or(0.0, |s| s.weight[1] as f64);
-        acc.push(w);
+    for s in eng.samples(wi, n, 11, query) {
+        acc.push(s.map_or(0.0, |s| s.weight[1] as f64));
     }
     acc
 }
@@ -129,7 +125,7 @@ fn lossless_sggx_slab_conserves_energy() {
             sggx(flakes, axis, r, scattering)
         );
         let st = stack(&toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (q, (theta, side)) in [(0.0, 1.0), (85.0, 1.0), (0.0, -1.0), (85.0, -1.0)]
             .into_iter()
             .enumerate()
@@ -160,8 +156,8 @@ fn sggx_spheres_are_the_isotropic_phase() {
         "specular",
     )));
     let (a, b) = (
-        ScalarEngine::<f32>::new(&iso, Settings::default()),
-        ScalarEngine::<f32>::new(&sph, Settings::default()),
+        Walks::new(&iso, Settings::default()),
+        Walks::new(&sph, Settings::default()),
     );
     for (q, (wi, wo)) in [
         (dir(0.0, 0.0), dir(30.0, 90.0)),
@@ -199,7 +195,7 @@ fn reflection_off_sggx_is_reciprocal() {
             sggx("fiber", unit([1.0, 0.2, 1.0]), 0.3, scattering)
         );
         let st = stack(&toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for (q, (wi, wo)) in [
             (dir(20.0, 0.0), dir(50.0, 120.0)),
             (dir(70.0, 45.0), dir(30.0, 270.0)),
@@ -234,8 +230,8 @@ fn a_mixture_of_equal_lobes_is_the_lobe() {
          { weight = 0.75, kind = \"hg\", g = 0.6 }] }",
     ));
     let (a, b) = (
-        ScalarEngine::<f32>::new(&one, Settings::default()),
-        ScalarEngine::<f32>::new(&two, Settings::default()),
+        Walks::new(&one, Settings::default()),
+        Walks::new(&two, Settings::default()),
     );
     let (wi, wo) = (dir(30.0, 0.0), dir(40.0, 160.0));
     let (x, y) = (a.eval(wi, wo, 20_000, 7, 0), b.eval(wi, wo, 20_000, 8, 0));

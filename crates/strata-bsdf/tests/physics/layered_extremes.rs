@@ -180,7 +180,7 @@ fn lossless_deep_medium_under_a_high_index_coat() {
         Some((1e4, 1.0, 0.99)),
         r#"{ kind = "diffuse", albedo = 1.0 }"#,
     ));
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     let (wi, wo) = ([0.0, 0.0, 1.0], [0.6, 0.0, 0.8]);
     let e = eng.eval(wi, wo, 2, 1, 1);
     assert!(

@@ -4,7 +4,7 @@
 //!   white Lambertian base or a transmissive bottom) reflect and transmit all
 //!   the light: R + T = 1 for every incidence from 0° to 89°, within 3 standard
 //!   errors of R + T (its per-walk variance, accumulated here from
-//!   `ScalarEngine::sample`, which is what `albedo` averages; `albedo` itself
+//!   the walks of `sample` (on the wavefront), which `albedo` averages; `albedo` itself
 //!   is checked against 1 with the conservative σ_R + σ_T ≥ σ_{R+T}). Where
 //!   every event has weight exactly 1 (grey media) the standard error is 0 and
 //!   R + T must be 1 to rounding.
@@ -30,8 +30,6 @@
 use crate::common;
 use common::reference::{rough_conductor, rough_dielectric, sphere_integral, Acc};
 use common::*;
-use strata_bsdf::estimator::scalar::{Scalar, ScalarEngine};
-use strata_bsdf::rng::{Stream, WalkRng};
 use strata_bsdf::{LayerStack, Settings};
 
 /// R, T and R + T per channel from `n` walks of `sample`.
@@ -41,16 +39,15 @@ struct Energy {
     sum: [Acc; 3],
 }
 
-fn energy<S: Scalar>(eng: &ScalarEngine<S>, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Energy {
+fn energy(eng: &Walks, wi: [f64; 3], n: u64, seed: u64, query: u64) -> Energy {
     let mut e = Energy {
         r: [Acc::default(); 3],
         t: [Acc::default(); 3],
         sum: [Acc::default(); 3],
     };
-    for k in 0..n {
-        let mut rng = WalkRng::new(seed, query, k, Stream::Walk);
+    for s in eng.samples(wi, n, seed, query) {
         let (mut r, mut t) = ([0.0; 3], [0.0; 3]);
-        if let Some(s) = eng.sample(wi, &mut rng) {
+        if let Some(s) = s {
             let w = s.weight.map(f64::from);
             // The flag and the direction must agree.
             assert_eq!(s.reflection, (s.wo.z > 0.0) == (wi[2] > 0.0), "{s:?}");
@@ -74,7 +71,7 @@ const ANGLES: [f64; 7] = [0.0, 20.0, 45.0, 60.0, 75.0, 85.0, 89.0];
 /// R + T = 1 within 3σ, from above (and from below when transmissive).
 fn check_lossless(toml: &str, label: &str, n: u64) {
     let st = stack(toml);
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     let sides: &[f64] = if st.transmissive() {
         &[1.0, -1.0]
     } else {
@@ -196,7 +193,7 @@ fn lone_rough_interface_loses_only_its_own_energy() {
             interface = {{ kind = "dielectric", ior = {n1}, roughness = {alpha} }}
             "#
         ));
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         for side in [1.0, -1.0] {
             for (q, theta) in [0.0, 40.0, 70.0, 89.0].into_iter().enumerate() {
                 let mut wi = dir(theta, 0.0);
@@ -218,7 +215,7 @@ fn lone_rough_interface_loses_only_its_own_energy() {
     let st = stack(&format!(
         "[[layers]]\ninterface = {{ kind = \"conductor\", eta = {eta}, k = {k}, roughness = {alpha} }}\n"
     ));
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     for (q, theta) in [0.0, 60.0, 85.0].into_iter().enumerate() {
         let wi = dir(theta, 0.0);
         let (expect, se) =
@@ -292,7 +289,7 @@ fn every_stack_conserves_energy() {
     ];
     for (label, toml) in stacks {
         let st: LayerStack = stack(toml);
-        let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+        let eng = Walks::new(&st, Settings::default());
         let sides: &[f64] = if st.transmissive() {
             &[1.0, -1.0]
         } else {

@@ -193,8 +193,8 @@ fn opaque_interface_from_below() {
     let two = stack(
         "two_sided = true\n[[layers]]\ninterface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.3 }\n",
     );
-    let e1 = ScalarEngine::<f32>::new(&one, Settings::default());
-    let e2 = ScalarEngine::<f32>::new(&two, Settings::default());
+    let e1 = Walks::new(&one, Settings::default());
+    let e2 = Walks::new(&two, Settings::default());
     let mirror = |w: [f64; 3]| [w[0], w[1], -w[2]];
     let (wi, wo) = (dir(150.0, 0.0), dir(120.0, 200.0));
     assert_eq!(e1.eval(wi, wo, 8, 1, 1).value, [0.0; 3]);

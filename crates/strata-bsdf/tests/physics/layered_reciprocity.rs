@@ -14,7 +14,6 @@
 
 use crate::common;
 use common::*;
-use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::Settings;
 
 /// Direction pairs (θ1, φ1, θ2, φ2) in degrees, both above.
@@ -72,7 +71,7 @@ fn check_reflection(label: &str, toml: &str, from_below: bool, seed: u64) {
 /// (`cv`) or off.
 fn check_reflection_with(label: &str, toml: &str, from_below: bool, seed: u64, cv: bool) {
     let st = stack(toml);
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default()).with_control_variate(cv);
+    let eng = Walks::new(&st, Settings::default()).with_control_variate(cv);
     assert_eq!(eng.control_variate(), cv, "{label}");
     let flip = |mut w: [f64; 3]| {
         if from_below {
@@ -160,7 +159,7 @@ fn check_transmission(label: &str, toml: &str, seed: u64) {
         (n_above - n_below).abs() > 0.2,
         "{label}: the test needs different exteriors"
     );
-    let eng = ScalarEngine::<f32>::new(&st, Settings::default());
+    let eng = Walks::new(&st, Settings::default());
     let mut nonzero = 0;
     for (q, &(t1, p1, t2, p2)) in PAIRS.iter().enumerate() {
         let w1 = dir(t1, p1);

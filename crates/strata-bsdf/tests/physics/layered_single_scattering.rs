@@ -156,7 +156,7 @@ fn full_estimator_bounds_single_scattering() {
         (0.0, [0.5, 0.9, 0.99]),
     ] {
         let tau = [1.0, 0.5, 3.0];
-        let eng = ScalarEngine::<f32>::new(&slab(tau, albedo, g, 1.0), Settings::default());
+        let eng = Walks::new(&slab(tau, albedo, g, 1.0), Settings::default());
         let p_max = hg(g, 1.0);
         for (q, &(ti, pi, to, po)) in PAIRS.iter().enumerate() {
             let (wi, wo) = (dir(ti, pi), dir(to, po));
