@@ -1052,16 +1052,17 @@ fn engines_and_thread_counts_print_the_same_answers() {
     );
 }
 
-/// The command-line examples in README.md print what the binary prints (so
-/// the README cannot go stale): each `$ ...` line of its example block is run
+/// The command-line examples in docs/guide.md print what the binary prints
+/// (so the guide cannot go stale): each `$ ...` line of its example block is run
 /// (an `echo '...' |` prefix becomes stdin) and its output compared line by line.
 #[test]
 fn readme_examples_match_the_binary() {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../README.md"))
-        .expect("README.md");
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/guide.md"))
+            .expect("docs/guide.md");
     let start = readme
         .find("```sh\n$ echo")
-        .expect("the README's example block");
+        .expect("the guide's example block");
     let block = &readme[start + 6..];
     let block = &block[..block.find("```").expect("end of block")];
     let mut runs: Vec<(String, Vec<String>)> = Vec::new();
@@ -1072,7 +1073,7 @@ fn readme_examples_match_the_binary() {
             last.1.push(line.to_string());
         }
     }
-    assert!(runs.len() >= 3, "README examples found: {}", runs.len());
+    assert!(runs.len() >= 3, "guide examples found: {}", runs.len());
     let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
     for (cmd, expected) in runs {
         let (stdin, cmd) = match cmd.split_once(" | ") {
@@ -1090,7 +1091,7 @@ fn readme_examples_match_the_binary() {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let out = assert_ok(&run(&args, &stdin));
         let got: Vec<&str> = out.lines().collect();
-        assert_eq!(got, expected, "README example `{cmd}`");
+        assert_eq!(got, expected, "guide example `{cmd}`");
     }
 }
 
