@@ -10,6 +10,15 @@ use strata_reports::converge::*;
 
 const COAT: &str = crate::common::SMOOTH_COAT_OVER_GREY;
 
+/// A rough coat (IOR 1.5, α 0.3) over a Lambertian base of albedo 0.6: no
+/// closed form.
+const ROUGH_COAT: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.6 }
+"#;
+
 /// Ten BSDF queries from two incident directions, in and off the plane of
 /// incidence, and the albedo from eight directions (those two among them).
 fn queries() -> QuerySet {
@@ -290,14 +299,7 @@ fn long_run_reference_agrees_with_the_closed_form() {
 /// hold every run.
 #[test]
 fn study_keeps_the_reference_ten_times_below_the_errors() {
-    let st = stack(
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.6 }
-        "#,
-    );
+    let st = stack(ROUGH_COAT);
     let qs = queries();
     let cfg = Config {
         estimators: vec![EstimatorKind::Scalar],
@@ -387,14 +389,7 @@ fn query_files_and_cache_keys() {
 /// query, and the reference is described by the kind it has.
 #[test]
 fn one_kind_of_query_leaves_the_other_blank() {
-    let st = stack(
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.6 }
-        "#,
-    );
+    let st = stack(ROUGH_COAT);
     let cfg = Config {
         estimators: vec![EstimatorKind::Scalar],
         ladder: fixed_ladder(64, 3),
