@@ -8,110 +8,10 @@
 //! exact value.
 
 use crate::common;
+use common::bidir::{pairs, STACKS, TILTED};
 use common::*;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::Settings;
-
-/// Stacks covering the issue's cases: smooth and rough interfaces, thick
-/// scattering, transmission, three interfaces, a conductor base.
-pub const STACKS: &[(&str, &str)] = &[
-    (
-        "smooth coat over Lambertian",
-        crate::common::SMOOTH_COAT_OVER_DIFFUSE,
-    ),
-    (
-        "rough coat over rough copper",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.3 }
-        medium = { thickness = 0.5, sigma_t = [0.2, 0.5, 1.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Cu", roughness = 0.2 }
-        "#,
-    ),
-    (
-        "smooth coat over rough copper",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Cu", roughness = 0.3 }
-        "#,
-    ),
-    (
-        "rough coat, weak scatterer, Lambertian",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-        medium = { thickness = 0.1, sigma_t = 1.0, albedo = 0.9, phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
-    ),
-    (
-        "thick scattering (τ 4, g 0.6, chromatic) under a smooth coat",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.4 }
-        medium = { thickness = 1.0, sigma_t = [3.0, 4.0, 5.0], albedo = 0.95, phase = { kind = "hg", g = 0.6 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.5 }
-        "#,
-    ),
-    (
-        "transmissive rough slab, scattering",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.33, roughness = 0.2 }
-        medium = { thickness = 1.0, sigma_t = 2.0, albedo = 0.95, phase = { kind = "hg", g = 0.7 } }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.0, roughness = 0.2 }
-        "#,
-    ),
-    (
-        "transmissive smooth-over-rough slab into a denser exterior",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.8 }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.3, roughness = 0.3 }
-        "#,
-    ),
-    (
-        "three interfaces: rough coat, absorber, anisotropic boundary, scattering film, rough gold",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.1 }
-        medium = { thickness = 0.2, sigma_t = [0.5, 0.3, 0.1], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 2.0, roughness = [0.3, 0.15] }
-        medium = { thickness = 0.5, sigma_t = 1.0, albedo = 0.8, phase = { kind = "isotropic" } }
-        [[layers]]
-        interface = { kind = "conductor", preset = "Au", roughness = 0.15, distribution = "beckmann" }
-        "#,
-    ),
-    (
-        "SGGX fibres under a smooth coat",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.5, sigma_t = 2.0, albedo = 0.9, phase = { kind = "sggx", flakes = "fiber", axis = [1.0, 0.0, 0.0], roughness = 0.3, scattering = "specular" } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.5 }
-        "#,
-    ),
-    (
-        "diffuse SGGX flakes (surface) under a rough coat",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2 }
-        medium = { thickness = 0.5, sigma_t = 2.0, albedo = 0.9, phase = { kind = "sggx", flakes = "surface", axis = [0.0, 0.0, 1.0], roughness = 0.2, scattering = "diffuse" } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.5 }
-        "#,
-    ),
-];
 
 /// More stacks for the efficiency measurement behind `Estimator::Auto`'s
 /// rule: three and four interfaces with rough or smooth interiors, and
@@ -194,23 +94,6 @@ pub const NEAR_SPECULAR: &[(&str, &str)] = &[
     ),
 ];
 
-/// Direction pairs: near normal, oblique, grazing, reflection and (for
-/// transmissive stacks) transmission.
-fn pairs(transmissive: bool) -> Vec<([f64; 3], [f64; 3])> {
-    let mut p = vec![
-        (dir(10.0, 0.0), dir(30.0, 180.0)),
-        (dir(45.0, 0.0), dir(45.0, 180.0)),
-        (dir(70.0, 0.0), dir(20.0, 90.0)),
-        (dir(85.0, 0.0), dir(60.0, 200.0)),
-    ];
-    if transmissive {
-        let down = |d: [f64; 3]| [d[0], d[1], -d[2]];
-        p.push((dir(20.0, 0.0), down(dir(30.0, 180.0))));
-        p.push((dir(60.0, 0.0), down(dir(10.0, 45.0))));
-    }
-    p
-}
-
 #[test]
 fn bidirectional_agrees_with_unidirectional() {
     let mut worst = 0.0f64;
@@ -255,29 +138,7 @@ fn bidirectional_agrees_with_unidirectional() {
 fn wavefront_replays_the_scalar_walks() {
     use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
     use strata_bsdf::lane::F32x8;
-    let tilted = [
-        (
-            "tilted coat and base, scattering between",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5, roughness = 0.2, normal = [0.2, 0.1, 1.0] }
-            medium = { thickness = 0.3, sigma_t = 1.0, albedo = 0.8, phase = { kind = "hg", g = 0.3 } }
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.3, roughness = 0.3, normal = [-0.3, 0.0, 1.0] }
-            "#,
-        ),
-        (
-            "tilted smooth coat over a smooth gold base",
-            r#"
-            [[layers]]
-            interface = { kind = "dielectric", ior = 1.5, normal = [0.15, 0.0, 1.0] }
-            medium = { thickness = 0.2, sigma_t = 1.0, albedo = 0.5 }
-            [[layers]]
-            interface = { kind = "conductor", preset = "Au" }
-            "#,
-        ),
-    ];
-    for (name, toml) in STACKS.iter().chain(&tilted) {
+    for (name, toml) in STACKS.iter().chain(TILTED) {
         let st = stack(toml);
         let eng = ScalarEngine::<f32>::new(&st, Settings::default());
         let wave = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
@@ -442,14 +303,7 @@ fn scatter_order_cap_agrees() {
 #[test]
 fn api_estimators_agree_on_a_tilted_stack_in_both_modes() {
     use strata_bsdf::{Engine, Estimator, LayeredBsdf, Transport};
-    let toml = r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5, roughness = 0.2, normal = [0.2, 0.1, 1.0] }
-        medium = { thickness = 0.3, sigma_t = 1.0, albedo = 0.8, phase = { kind = "hg", g = 0.3 } }
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.3, roughness = 0.3, normal = [-0.3, 0.0, 1.0] }
-        "#;
-    let st = stack(toml);
+    let st = stack(TILTED[0].1);
     let base = LayeredBsdf::new(st.clone()).samples(40_000);
     assert!(
         !base.bidirectional(),
