@@ -9,6 +9,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod bidirectional;
 mod fingerprint;
 mod kernel_parity;
 mod layered_determinism;
