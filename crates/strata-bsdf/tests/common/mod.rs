@@ -179,6 +179,7 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
 
 pub mod bidir;
 pub mod chi2;
+pub mod cv;
 pub mod reference;
 
 /// A unit direction uniformly distributed in the cone of half-angle `delta`

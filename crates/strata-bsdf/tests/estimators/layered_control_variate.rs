@@ -22,11 +22,12 @@
 //! * The API: `Auto` uses it (and is not "exact"), `Unidirectional` does not.
 //!
 //! Walk-by-walk parity of the two engines with it is in
-//! `tests/parity/wavefront_parity.rs`, reciprocity in `tests/physics/layered_reciprocity.rs`.
+//! `tests/parity/wavefront_parity.rs` and `tests/parity/control_variate.rs`,
+//! reciprocity in `tests/physics/layered_reciprocity.rs`.
 
 use crate::common;
+use common::cv::{api_pairs, as_api, PAIRS, WITHOUT_SCATTERING};
 use common::*;
-use strata_bsdf::api::Direction;
 use strata_bsdf::estimator::coat_lambertian::CoatLambertian;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
@@ -304,17 +305,6 @@ const IN_AUTO: [bool; 27] = [
     false, true, false, false, false, false, false, false, false, true, true, false, false,
 ];
 
-/// Direction pairs (θi, φi, θo, φo) in degrees, above the coat: normal,
-/// oblique, grazing light with a view from the normal and the swap, both
-/// grazing.
-const PAIRS: [(f64, f64, f64, f64); 5] = [
-    (0.0, 0.0, 0.0, 0.0),
-    (30.0, 0.0, 45.0, 180.0),
-    (89.0, 0.0, 0.0, 0.0),
-    (0.0, 0.0, 89.0, 0.0),
-    (80.0, 10.0, 75.0, 200.0),
-];
-
 const N: u64 = 1 << 18;
 
 #[test]
@@ -402,112 +392,94 @@ fn control_variate_agrees_under_a_scatter_order_cap() {
 }
 
 /// No scattering: no walk ever collides, so with the control variate every
-/// walk scores exactly 0, on both engines, and the estimate is what the
-/// coat's form knows without walks: a smooth coat's closed form (standard
-/// error 0), or, bit for bit, the API's walk-free answer under a rough coat
-/// (the same first-order term and the same samples of the factorized part,
-/// `estimator::rough_coat`).
+/// walk scores exactly 0, and the estimate is what the coat's form knows
+/// without walks: a smooth coat's closed form (standard error 0), or, bit
+/// for bit, the API's walk-free answer under a rough coat (the same
+/// first-order term and the same samples of the factorized part,
+/// `estimator::rough_coat`). The scalar engine's walks are the wavefront's:
+/// `tests/parity/control_variate.rs`.
 #[test]
 fn without_scattering_the_walks_part_is_exactly_zero() {
-    for toml in [
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.8 }
-        "#,
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.9 }
-        medium = { thickness = 0.7, sigma_t = [0.5, 1.0, 3.0], albedo = 0.0, phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = [0.9, 0.5, 0.1] }
-        "#,
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.7, roughness = 0.2 }
-        medium = { thickness = 0.4, sigma_t = [0.5, 1.0, 3.0], albedo = 0.0 }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = [0.9, 0.5, 0.1] }
-        "#,
-    ] {
+    for toml in WITHOUT_SCATTERING {
         let st = stack(toml);
         let set = Settings::default();
         let coat = CoatLambertian::of(&st, &set).expect("a walk-free form");
-        let sc = ScalarEngine::<f32>::new(&st, set).with_cv(Some(coat.clone()));
+        // The walk-free form lives on the scalar engine (it runs no walk).
+        let free = ScalarEngine::<f32>::new(&st, set);
         let wf = Wavefront::<F32x8>::new(&st, set, Plan::Specialized).with_cv(Some(coat.clone()));
         let api = LayeredBsdf::new(st.clone()).seed(5);
         assert!(api.eval_without_walks());
-        // The directions as the API hands them to the engines.
-        let f = |w: [f64; 3]| Direction::new("w", vec3(w)).unwrap().get();
-        let pairs: Vec<_> = PAIRS
-            .iter()
-            .map(|&(ti, pi, to, po)| (f(dir(ti, pi)), f(dir(to, po))))
-            .collect();
+        let pairs = api_pairs();
         let keys: Vec<u64> = (0..pairs.len() as u64).collect();
         let n = 4096;
         let walks = wf.eval_walk_values(&pairs, n, 5, &keys);
         let (we, _) = wf.eval_batch(&pairs, n, 5, &keys);
         for (q, &(wi, wo)) in pairs.iter().enumerate() {
             assert!(walks[q].iter().all(|v| *v == [0.0; 3]), "wavefront walks");
-            let sv = sc.eval_walk_values(wi, wo, n, 5, keys[q]);
-            assert!(sv.iter().all(|v| *v == [0.0; 3]), "scalar walks");
-            let se = sc.eval(wi, wo, n, 5, keys[q]);
-            assert_eq!(se, we[q], "pair {q}: engines");
+            let e = we[q];
             let Some(exact) = coat.smooth() else {
                 // Rough: the factorization's samples, as the API draws them.
                 assert_eq!(
-                    se,
-                    sc.eval_without_walks(&coat, wi, wo, n, 5, keys[q]),
+                    e,
+                    free.eval_without_walks(&coat, wi, wo, n, 5, keys[q]),
                     "pair {q}"
                 );
                 let a = api.eval_with(vec3(wi), vec3(wo), n, keys[q]).unwrap();
-                assert_eq!(se, a, "pair {q}: API");
-                assert!(se.stderr.iter().all(|&s| s > 0.0), "pair {q}: sampled");
+                assert_eq!(e, a, "pair {q}: API");
+                assert!(e.stderr.iter().all(|&s| s > 0.0), "pair {q}: sampled");
                 continue;
             };
-            assert_eq!(se.stderr, [0.0; 3], "pair {q}");
+            assert_eq!(e.stderr, [0.0; 3], "pair {q}");
             // The closed form at the walks' (single-precision) directions.
             let f32dir = |w: [f64; 3]| {
                 let l = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
                 w.map(|x| (x / l) as f32 as f64)
             };
-            assert_eq!(se.value, exact.eval(f32dir(wi), f32dir(wo)), "pair {q}");
+            assert_eq!(e.value, exact.eval(f32dir(wi), f32dir(wo)), "pair {q}");
             for c in 0..3 {
                 let f = exact.eval(wi, wo)[c];
-                assert!((se.value[c] - f).abs() <= 1e-6 * f, "pair {q} ch {c}");
+                assert!((e.value[c] - f).abs() <= 1e-6 * f, "pair {q} ch {c}");
             }
         }
     }
 }
 
 /// `Auto` (the default) answers a scattering stack of the shape with the
-/// control variate: the engines' estimate, not an exact value; and
-/// `Unidirectional` with the plain walks. Both engines, every start.
+/// control variate: the engine's estimate with it, not an exact value; and
+/// `Unidirectional` with the plain walks. Both engines, each against its
+/// own walks (the engines agree: `tests/parity/control_variate.rs`), every
+/// start.
 #[test]
 fn auto_uses_the_control_variate_and_unidirectional_does_not() {
-    let st = stack(STACKS[0].1);
+    let st = stack(SMOOTH_WEAK_SCATTERER);
     let set = Settings::default();
-    let sc = ScalarEngine::<f32>::new(&st, set);
-    let sc_cv = sc.clone().with_control_variate(true);
     let (wi, wo) = (dir(30.0, 0.0), dir(60.0, 120.0));
     let n = 2048;
+    let key = 77;
+    // The engines on the directions the API hands them.
+    let own = |engine: Engine, cv: bool| {
+        let (a, b) = (as_api(wi), as_api(wo));
+        match engine {
+            Engine::Scalar => ScalarEngine::<f32>::new(&st, set)
+                .with_control_variate(cv)
+                .eval(a, b, n, 0, key),
+            _ => Walks::new(&st, set)
+                .with_control_variate(cv)
+                .eval(a, b, n, 0, key),
+        }
+    };
     for engine in [Engine::Scalar, Engine::Wavefront] {
         let bsdf = LayeredBsdf::new(st.clone())
             .engine(engine)
             .eval_start(EvalStart::Wi)
             .samples(n);
         assert!(!bsdf.eval_is_exact());
-        let key = 77;
         let auto = bsdf.eval_with(vec3(wi), vec3(wo), n, key).unwrap();
         let uni = (bsdf.clone().estimator(Estimator::Unidirectional))
             .eval_with(vec3(wi), vec3(wo), n, key)
             .unwrap();
-        // The engines on the directions the API hands them.
-        let f = |w: [f64; 3]| Direction::new("w", vec3(w)).unwrap().get();
-        assert_eq!(auto, sc_cv.eval(f(wi), f(wo), n, 0, key), "{engine:?}");
-        assert_eq!(uni, sc.eval(f(wi), f(wo), n, 0, key), "{engine:?}");
+        assert_eq!(auto, own(engine, true), "{engine:?}");
+        assert_eq!(uni, own(engine, false), "{engine:?}");
         assert!(auto.stderr[0] < uni.stderr[0], "{engine:?}");
         // Back to Auto: the control variate again.
         let back = (bsdf.clone().estimator(Estimator::Unidirectional))

@@ -10,6 +10,7 @@
 mod common;
 
 mod bidirectional;
+mod control_variate;
 mod fingerprint;
 mod kernel_parity;
 mod layered_determinism;
