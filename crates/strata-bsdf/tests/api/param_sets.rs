@@ -1,242 +1,24 @@
 //! Per-query parameter sets (issue 15): a query of a `*_batch_sets` call
 //! answers bit for bit what a BSDF built from its set's material file
 //! answers, with the same seed and key, on both engines, for every kind of
-//! parameter, in batches that mix the sets; and the two engines agree walk
-//! by walk on such batches. (The physics of each set is the physics of its
-//! own stack, which the other suites check: this file checks that a set
-//! reaches every kernel that reads a number, and nothing else.)
+//! parameter, in batches that mix the sets; and a set's walks in such
+//! batches are its own stack's, walk by walk (the scalar engine's on each
+//! stack: `tests/parity/param_sets.rs`). (The physics of each set is the
+//! physics of its own stack, which the other suites check: this file
+//! checks that a set reaches every kernel that reads a number, and nothing
+//! else.)
 
 use crate::common;
+use common::sets::*;
 use common::*;
 use strata_bsdf::estimator::coat_lambertian::CoatLambertian;
 use strata_bsdf::estimator::params::SetTable;
-use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Wavefront};
 use strata_bsdf::lane::F32x8;
-use strata_bsdf::rng::{mix64, Stream, WalkRng};
 use strata_bsdf::{
     BatchError, Engine, Estimator, LayerStack, LayeredBsdf, Materials, QueryError, SetsError,
     Settings, Transport,
 };
-
-/// A uniform number in `[lo, hi)` from a counter (no state to thread).
-fn uniform(seed: u64, k: u64, lo: f64, hi: f64) -> f64 {
-    let u = (mix64(seed.wrapping_mul(0x9e37_79b9) ^ k) >> 11) as f64 / (1u64 << 53) as f64;
-    lo + (hi - lo) * u
-}
-
-/// A family of materials of one shape: variant `v` draws every number of
-/// the material from its own stream (variant 0 is the base).
-struct Family {
-    name: &'static str,
-    toml: fn(&dyn Fn(u64, f64, f64) -> f64) -> String,
-}
-
-fn families() -> Vec<Family> {
-    vec![
-        // Every kind of number: exterior IOR, a rough anisotropic coat, a
-        // chromatic scattering HG layer, a rough conductor with eta and k.
-        Family {
-            name: "rough coat / chromatic HG layer / rough conductor",
-            toml: |r| {
-                format!(
-                    "exterior_ior = {}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, roughness = [{}, {}] }}\n\
-                     medium = {{ thickness = {}, sigma_t = [{}, {}, {}], albedo = [{}, {}, {}], phase = {{ kind = \"hg\", g = {} }} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"conductor\", eta = [{}, {}, {}], k = [{}, {}, {}], roughness = {} }}\n",
-                    r(0, 1.0, 1.3),
-                    r(1, 1.4, 1.9),
-                    r(2, 0.05, 0.5),
-                    r(3, 0.05, 0.5),
-                    r(4, 0.2, 2.0),
-                    r(5, 0.5, 1.0),
-                    r(6, 1.1, 2.0),
-                    r(7, 2.1, 3.0),
-                    r(8, 0.3, 0.95),
-                    r(9, 0.3, 0.95),
-                    r(10, 0.3, 0.95),
-                    r(11, -0.7, 0.8),
-                    r(12, 0.2, 1.5),
-                    r(13, 0.2, 1.5),
-                    r(14, 0.2, 1.5),
-                    r(15, 1.0, 4.0),
-                    r(16, 1.0, 4.0),
-                    r(17, 1.0, 4.0),
-                    r(18, 0.05, 0.6),
-                )
-            },
-        },
-        // The closed form's shape (Auto answers exactly), with its numbers.
-        Family {
-            name: "smooth coat / absorber / Lambertian",
-            toml: |r| {
-                format!(
-                    "[[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {} }}\n\
-                     medium = {{ thickness = {}, sigma_t = [{}, {}, {}], albedo = 0 }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"diffuse\", albedo = [{}, {}, {}] }}\n",
-                    r(0, 1.3, 2.0),
-                    r(1, 0.1, 1.0),
-                    r(2, 0.1, 0.5),
-                    r(3, 0.6, 1.0),
-                    r(4, 1.1, 2.0),
-                    r(5, 0.2, 0.9),
-                    r(6, 0.2, 0.9),
-                    r(7, 0.2, 0.9),
-                )
-            },
-        },
-        // The control variate's shape: smooth coat over a weak grey
-        // scatterer over Lambertian; some sets use it, some not.
-        Family {
-            name: "smooth coat / grey scatterer / Lambertian",
-            toml: |r| {
-                format!(
-                    "[[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {} }}\n\
-                     medium = {{ thickness = {}, sigma_t = {}, albedo = {}, phase = {{ kind = \"hg\", g = {} }} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"diffuse\", albedo = {} }}\n",
-                    r(0, 1.3, 1.8),
-                    r(1, 0.05, 1.0),
-                    r(2, 0.05, 1.0),
-                    r(3, 0.05, 0.9),
-                    r(4, -0.5, 0.9),
-                    r(5, 0.3, 0.95),
-                )
-            },
-        },
-        // The rough coat's factorization (Auto answers without walks), each
-        // set with its own coat and layer, so its own integral R̄.
-        Family {
-            name: "rough coat / absorber / Lambertian",
-            toml: |r| {
-                format!(
-                    "[[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {} }}\n\
-                     medium = {{ thickness = {}, sigma_t = [{}, {}, {}], albedo = 0 }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"diffuse\", albedo = [{}, {}, {}] }}\n",
-                    r(0, 1.3, 2.0),
-                    r(1, 0.05, 0.6),
-                    r(2, 0.1, 1.0),
-                    r(3, 0.1, 0.5),
-                    r(4, 0.6, 1.0),
-                    r(5, 1.1, 2.0),
-                    r(6, 0.2, 0.9),
-                    r(7, 0.2, 0.9),
-                    r(8, 0.2, 0.9),
-                )
-            },
-        },
-        // The rough coat's control variate: some sets in the rule (a weak
-        // scatterer over a bright base), some not.
-        Family {
-            name: "rough coat / weak grey scatterer / Lambertian",
-            toml: |r| {
-                format!(
-                    "[[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {} }}\n\
-                     medium = {{ thickness = {}, sigma_t = 1.0, albedo = {}, phase = {{ kind = \"hg\", g = {} }} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"diffuse\", albedo = {} }}\n",
-                    r(0, 1.3, 1.8),
-                    r(1, 0.05, 0.5),
-                    r(2, 0.005, 0.1),
-                    r(3, 0.3, 0.95),
-                    r(4, -0.5, 0.9),
-                    r(5, 0.3, 0.95),
-                )
-            },
-        },
-        // Transmissive, three interfaces, a smooth exit below (chains through
-        // delta interfaces) and different exteriors.
-        Family {
-            name: "rough slab / smooth clear layer / smooth bottom",
-            toml: |r| {
-                format!(
-                    "exterior_ior = {}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {} }}\n\
-                     medium = {{ thickness = {}, sigma_t = {}, albedo = {} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {} }}\n",
-                    r(0, 1.0, 1.2),
-                    r(1, 1.3, 1.7),
-                    r(2, 0.1, 0.6),
-                    r(3, 0.3, 2.0),
-                    r(4, 0.3, 2.0),
-                    r(5, 0.5, 0.99),
-                    r(6, 1.8, 2.2),
-                    r(7, 1.0, 1.25),
-                )
-            },
-        },
-        // A normal per interface (a normal map per layer): every interface
-        // tilted, each set its own way, through a smooth chain.
-        Family {
-            name: "tilted normals: rough coat / scatterer / smooth inner / rough conductor",
-            toml: |r| {
-                format!(
-                    "[[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, roughness = {}, normal = [{}, {}, 1] }}\n\
-                     medium = {{ thickness = {}, sigma_t = {}, albedo = {} }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"dielectric\", ior = {}, normal = [{}, {}, 1] }}\n\
-                     [[layers]]\n\
-                     interface = {{ kind = \"conductor\", preset = \"Cu\", roughness = {}, normal = [{}, {}, 1] }}\n",
-                    r(0, 1.3, 1.7),
-                    r(1, 0.1, 0.5),
-                    r(2, 0.05, 0.3),
-                    r(3, -0.3, -0.05),
-                    r(4, 0.3, 2.0),
-                    r(5, 0.3, 2.0),
-                    r(6, 0.5, 0.95),
-                    r(7, 1.1, 1.4),
-                    r(8, -0.3, -0.05),
-                    r(9, 0.05, 0.3),
-                    r(10, 0.1, 0.5),
-                    r(11, 0.05, 0.3),
-                    r(12, 0.05, 0.3),
-                )
-            },
-        },
-    ]
-}
-
-/// Variant `v` of a family, as a material file would give it.
-fn variant(f: &Family, v: u64) -> LayerStack {
-    let r = move |k: u64, lo: f64, hi: f64| uniform(v + 1, k, lo, hi);
-    stack(&(f.toml)(&r))
-}
-
-const SETS: u64 = 5;
-
-/// Queries: reflection and transmission, near-normal and grazing, each
-/// with its set (sets interleaved, so chunks mix them).
-fn queries(n: usize) -> (Vec<(glam::Vec3, glam::Vec3)>, Vec<u32>) {
-    let pairs = (0..n)
-        .map(|k| {
-            let ti = [5.0, 35.0, 65.0, 85.0, 150.0][k % 5];
-            let to = [10.0, 50.0, 80.0, 120.0, 170.0, 30.0, 60.0][k % 7];
-            (
-                vec3(dir(ti, 10.0 * k as f64)),
-                vec3(dir(to, 200.0 + 7.0 * k as f64)),
-            )
-        })
-        .collect();
-    let set = (0..n).map(|k| (k as u64 * 3 % SETS) as u32).collect();
-    (pairs, set)
-}
-
-fn bits(v: [f64; 3]) -> [u64; 3] {
-    v.map(f64::to_bits)
-}
 
 /// Every call of a `*_batch_sets` batch against the same query on a BSDF
 /// of its set's own stack, on each engine and estimator, in both transport
@@ -337,12 +119,12 @@ fn sets_change_the_answers() {
     }
 }
 
-/// Walk by walk: the wavefront's walks with per-query sets are the scalar
-/// engine's walks on each set's own stack (a heterogeneous batch: sets
-/// interleaved, so chunks gather their lanes' numbers); under the general
-/// plan, the general plan's walks on each set's own stack.
+/// Walk by walk: the wavefront's walks with per-query sets are the walks of
+/// the same plan on each set's own stack (a heterogeneous batch: sets
+/// interleaved, so chunks gather their lanes' numbers). The specialized
+/// walks on each stack are the scalar engine's: `tests/parity/param_sets.rs`.
 #[test]
-fn engines_agree_walk_by_walk_with_per_query_sets() {
+fn a_set_walks_as_its_own_stack_walk_by_walk() {
     let settings = Settings::default();
     for f in families() {
         let stacks: Vec<LayerStack> = (0..SETS).map(|v| variant(&f, v)).collect();
@@ -354,14 +136,7 @@ fn engines_agree_walk_by_walk_with_per_query_sets() {
             table.push(st, cv);
         }
         let (pairs, set) = queries(17);
-        let dirs: Vec<_> = (pairs.iter())
-            .map(|(a, b)| {
-                (
-                    a.as_dvec3().normalize().to_array(),
-                    b.as_dvec3().normalize().to_array(),
-                )
-            })
-            .collect();
+        let dirs = unit_dirs(&pairs);
         let keys: Vec<u64> = (0..dirs.len() as u64).collect();
         for plan in [Plan::Specialized, Plan::General] {
             let wave = Wavefront::<F32x8>::new(&stacks[0], settings, plan);
@@ -369,18 +144,11 @@ fn engines_agree_walk_by_walk_with_per_query_sets() {
             let got = wave.eval_walk_values_in(sets, &dirs, 24, 3, &keys);
             for (k, walks) in got.iter().enumerate() {
                 let s = set[k] as usize;
-                // The scalar reference runs the specialized walk; the
-                // general plan's are the general plan's on the set's stack.
                 let cv = s % 2 == 1;
-                let want = match plan {
-                    Plan::Specialized => ScalarEngine::<f32>::new(&stacks[s], settings)
-                        .with_control_variate(cv)
-                        .eval_walk_values(dirs[k].0, dirs[k].1, 24, 3, keys[k]),
-                    Plan::General => Wavefront::<F32x8>::new(&stacks[s], settings, plan)
-                        .with_control_variate(cv)
-                        .eval_walk_values(&dirs[k..k + 1], 24, 3, &keys[k..k + 1])
-                        .remove(0),
-                };
+                let want = Wavefront::<F32x8>::new(&stacks[s], settings, plan)
+                    .with_control_variate(cv)
+                    .eval_walk_values(&dirs[k..k + 1], 24, 3, &keys[k..k + 1])
+                    .remove(0);
                 assert_eq!(walks.len(), want.len());
                 for (w, (a, b)) in walks.iter().zip(&want).enumerate() {
                     assert_eq!(bits(*a), bits(*b), "{} {plan:?} query {k} walk {w}", f.name);
@@ -392,17 +160,9 @@ fn engines_agree_walk_by_walk_with_per_query_sets() {
             let (got, _) = wave.sample_batch_in(sets, &wis, 3, &keys, &index);
             for (k, g) in got.iter().enumerate() {
                 let s = &stacks[set[k] as usize];
-                let want = match plan {
-                    Plan::Specialized => {
-                        let mut rng = WalkRng::new(3, keys[k], index[k], Stream::Walk);
-                        ScalarEngine::<f32>::new(s, settings).sample(wis[k], &mut rng)
-                    }
-                    Plan::General => {
-                        let w = Wavefront::<F32x8>::new(s, settings, plan);
-                        let (ks, ix) = (&keys[k..k + 1], &index[k..k + 1]);
-                        w.sample_batch(&wis[k..k + 1], 3, ks, ix).0[0]
-                    }
-                };
+                let w = Wavefront::<F32x8>::new(s, settings, plan);
+                let (ks, ix) = (&keys[k..k + 1], &index[k..k + 1]);
+                let want = w.sample_batch(&wis[k..k + 1], 3, ks, ix).0[0];
                 assert_eq!(*g, want, "{} {plan:?} sample {k}", f.name);
             }
         }

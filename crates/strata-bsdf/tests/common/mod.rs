@@ -181,6 +181,7 @@ pub mod bidir;
 pub mod chi2;
 pub mod cv;
 pub mod reference;
+pub mod sets;
 
 /// A unit direction uniformly distributed in the cone of half-angle `delta`
 /// around `axis`, from two uniforms of `u`.

@@ -14,4 +14,5 @@ mod control_variate;
 mod fingerprint;
 mod kernel_parity;
 mod layered_determinism;
+mod param_sets;
 mod wavefront_parity;
