@@ -850,8 +850,8 @@ pub unsafe extern "C" fn strata_bsdf_is_exact(b: *const StrataBsdf, out: *mut u3
 /// absorbing layer over a Lambertian base (its closed form:
 /// `strata_bsdf_is_exact`) or a rough, isotropic one (its factorization:
 /// the coat's reflection plus samples of the light entering from `wi` and
-/// from `wo` times a constant of the stack, integrated, in 2–15 ms, by the
-/// first eval that needs it); untilted normals, no depth cap. The samples
+/// from `wo` times a constant of the stack, integrated once, by the first
+/// eval that needs it); untilted normals, no depth cap. The samples
 /// per eval are then those draws, each much cheaper than a walk.
 ///
 /// # Safety

@@ -121,7 +121,8 @@ impl Materials {
     /// Queries whose rows are equal share one material (a texture's texels
     /// repeat). Under [`crate::Estimator::Auto`], a rough coat over a
     /// Lambertian base is answered without walks through a constant of its
-    /// coat and layer (an integral of 2–15 ms, `estimator::coat_return`):
+    /// coat and layer (an integral, `estimator::coat_return`, far costlier
+    /// than an eval):
     /// queries whose coat or layer differ from `template`'s would each need
     /// their own, so they are answered by the walks (which agree in
     /// expectation, not bit for bit, with what their material file

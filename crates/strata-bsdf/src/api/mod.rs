@@ -74,10 +74,10 @@ pub struct Sample {
 /// same f32 operations; tested); `Auto` gives one of theirs.
 ///
 /// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries and a wave, about 0.6–1.5 µs), which its lanes repay many times over
-/// on a batch, or on an `eval` of many walks, but not on a call of fewer walks
-/// than it has lanes (a single `sample` or `pdf`): there the scalar engine is
-/// the cheaper one (1.7–3.3× faster on a single `sample`; docs/performance.md).
+/// queries and a wave), which its lanes repay many times over on a batch, or
+/// on an `eval` of many walks, but not on a call of fewer walks than it has
+/// lanes (a single `sample`'s walk): there the scalar engine is the cheaper
+/// one (docs/performance.md, *criterion*).
 /// [`Engine::Auto`], the default, picks per call. Calls of at most
 /// [`SERIAL_WALKS`] walks (pdf batches of at most [`PDF_CHUNK`] queries) run
 /// on the calling thread on either engine, with or without
@@ -85,8 +85,10 @@ pub struct Sample {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Engine {
     /// Per call: the scalar engine for calls of fewer walks (queries × walks
-    /// per query) than the wavefront has lanes, and for a single `pdf` (the
-    /// wavefront's pdf runs one query per lane); the wavefront otherwise.
+    /// per query) than the wavefront has lanes, the wavefront otherwise. A
+    /// pdf counts the walks of its first round twice (a density walk costs
+    /// several eval walks), so a single `pdf` of the default walks runs on
+    /// the wavefront.
     #[default]
     Auto,
     /// The scalar reference: one walk at a time.

@@ -97,7 +97,7 @@ impl fmt::Display for SetsError {
 impl std::error::Error for SetsError {}
 
 /// Which parameter sets of a rough coat over a Lambertian base integrate
-/// their own `R̄` (`estimator::coat_return`, 2–15 ms each).
+/// their own `R̄` (an integral, `estimator::coat_return`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Returns<'a> {
     /// Every set (explicit parameter sets and materials: a handful).
@@ -151,8 +151,8 @@ impl LayeredBsdf {
     /// variate where it pays, the closed form where the shape has one), so
     /// a BSDF configured otherwise refuses them. Under a rough coat over a
     /// Lambertian base, a set whose coat or layer differs from this BSDF's
-    /// integrates its own constant `R̄` (`estimator::coat_return`, 2–15 ms)
-    /// the first time `eval` needs it.
+    /// integrates its own constant `R̄` (`estimator::coat_return`) the first
+    /// time `eval` needs it.
     pub fn param_sets(
         &self,
         stacks: impl IntoIterator<Item = LayerStack>,

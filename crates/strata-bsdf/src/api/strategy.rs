@@ -48,9 +48,8 @@ pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 /// The largest optical depth of a scattering layer for which
 /// `Estimator::Auto` runs the bidirectional estimator
 /// ([`Estimator::bidirectional_pays`]): it won at 0.5 on three interfaces
-/// (docs/results.md), lost 500× at 10 on two, and on three interfaces a
-/// layer of optical depth 8 made its walks 150× the unidirectional ones'
-/// time.
+/// and lost by far at 8 and 10, where its walks, whose cost grows with the
+/// cube of their length, are long (docs/results.md).
 pub const MAX_OPTICAL_DEPTH: f64 = 1.0;
 
 /// Which estimator answers `eval`.
@@ -154,9 +153,8 @@ impl Estimator {
     /// peak of a coated conductor (the half vector of a reflected pair
     /// within `tan θh ≤ α` of the normal, α the coat's roughness), where
     /// the walks' continuation meets the coat's lobe head on and their
-    /// cost per walk wins (against pbrt-v4 over a smooth conductor: 2.4–6.5×
-    /// its efficiency at the specular pairs, against 0.25–3.2× for the
-    /// bidirectional walks; docs/performance.md).
+    /// lower cost per walk wins (docs/performance.md, *Against pbrt-v4, with
+    /// the bidirectional estimator*).
     pub fn is_bidirectional_at(
         self,
         stack: &crate::LayerStack,

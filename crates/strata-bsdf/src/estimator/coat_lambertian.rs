@@ -21,15 +21,15 @@ use std::sync::Arc;
 /// boosted control variate ([`CoatLambertian::control_variate_pays`]).
 /// A conservative choice: the deepest measured stack inside the rule is at
 /// τ 2; a grey τ 8 one about broke even at its worst pair, and the deep
-/// example `jade` (which the other conditions leave out too) lost by half.
+/// example `jade` (which the other conditions leave out too) lost
+/// efficiency (docs/performance.md).
 pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 
 /// The darkest base (smallest albedo of a channel) over which
 /// [`crate::Estimator::Auto`] uses the control variate under a *rough* coat
 /// ([`CoatLambertian::control_variate_pays`]). Over a darker one the series
 /// of bounces that the control variate takes out of the walks is short, and
-/// sampling `f₀` costs about what it saves (a base of 0.3: 1.02× at the
-/// median, 0.91× at a pair).
+/// sampling `f₀` costs about what it saves (docs/performance.md).
 pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
 
 /// The coat and the base of `stack` if it is a dielectric coat over one
@@ -190,9 +190,9 @@ impl CoatLambertian {
     ///
     /// Under a **rough** coat, whose `f₀` is sampled, only where the medium
     /// scatters little against what the base reflects (as above) over a
-    /// base no darker than [`ROUGH_CV_MIN_BASE`]: the grey media of the
-    /// first rule lost at some pair under rough coats (0.73–0.84×), one
-    /// gained little (1.55× at the median).
+    /// base no darker than [`ROUGH_CV_MIN_BASE`]: under rough coats the grey
+    /// media of the first rule lost efficiency at some pair or gained
+    /// little.
     ///
     /// Measured in `tests/estimators/layered_control_variate.rs`
     /// (`control_variate_efficiency`; docs/performance.md).

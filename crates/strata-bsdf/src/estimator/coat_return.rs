@@ -98,7 +98,8 @@ impl Panels {
     /// The default: twice as many panels in every dimension move `R̄` by
     /// less than 3e-7 on the twelve coats of
     /// `tests::rough_return_converges` (α 0.001–1.5, relative IOR 0.5–3,
-    /// both distributions, both shadowing forms, τ 0–3), in 2–15 ms.
+    /// both distributions, both shadowing forms, τ 0–3), at a cost paid
+    /// once per coat and layer (docs/performance.md).
     pub const DEFAULT: Panels = Panels {
         outer: 1,
         psi: 2,

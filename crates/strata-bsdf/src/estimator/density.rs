@@ -66,8 +66,8 @@
 //! connects to them: each vertex's term is still an unbiased estimate (the
 //! targets are independent of the path); fresh targets at every vertex
 //! would give each term its own (less correlated terms), but cost more
-//! than their lower variance gives back (docs/performance.md, *One pair of
-//! targets per walk*).
+//! than their lower variance gives back (docs/performance.md, *The density
+//! walks' levers*).
 //!
 //! The chain itself is `sample()`'s: the same kernels, hero channel, Russian
 //! roulette and settings, on its own random stream. So each walk's sum is an

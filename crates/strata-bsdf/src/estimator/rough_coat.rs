@@ -136,7 +136,7 @@ impl RoughCoatLambertian {
             && (DOMAIN.eta.0..=DOMAIN.eta.1).contains(&eta)
     }
 
-    /// `R̄` per channel ([`coat_return::rough`]; 2–15 ms the first time).
+    /// `R̄` per channel ([`coat_return::rough`]; integrated the first time).
     pub fn r_bar(&self) -> [f64; 3] {
         *self
             .r_bar

@@ -145,9 +145,8 @@ fn put_rows8<const R: usize>(
 ///
 /// On AVX builds without AVX-512, LLVM turns "blend a new value into one just
 /// loaded from memory, store the blend back" (a masked update of a walk's
-/// field) into a masked store, `vmaskmovps`, which is slow on AMD Zen: the
-/// release binary had 191 of them, and removing them made the wavefront
-/// 8–16 % faster on the test machine (docs/performance.md). An empty `asm!`
+/// field) into a masked store, `vmaskmovps`, which is slow on AMD Zen and
+/// would slow every stack's walks (docs/performance.md). An empty `asm!`
 /// block between the blend and its uses keeps the blend a blend; it emits no
 /// instruction. With AVX-512 the masked store is a fast `vmovups {k}`, and on
 /// other targets there is none, so there this is the identity.

@@ -228,7 +228,7 @@ fn mis_with_the_approximate_pdf_is_unbiased() {
 /// the HG 0.8 layer, for the three lights. The rules share the vertices'
 /// light directions, eval walks and samples, so their differences are the
 /// weights' alone. `cargo test --release -p strata-bsdf --test
-/// mis_direct_lighting -- --ignored --nocapture` (docs/performance.md, *What
+/// estimators mis_direct_lighting:: -- --ignored --nocapture` (docs/performance.md, *What
 /// the pdf's accuracy is worth to a renderer*).
 #[test]
 #[ignore = "a measurement: prints a table"]

@@ -74,8 +74,8 @@ const TASK_WALKS: u64 = 32 * BLOCK;
 
 /// A batch of at most this many walks (queries × walks per query) runs as
 /// one task on the calling thread: handing work to another thread costs
-/// about 10 µs on the test machine, more than such a batch takes (the
-/// criterion group `small` in crates/strata-benches/benches/estimators.rs; docs/performance.md).
+/// more than such a batch takes (the criterion group `small` in
+/// crates/strata-benches/benches/estimators.rs; docs/performance.md).
 pub const SERIAL_WALKS: u64 = BLOCK;
 
 /// How much the walk is specialized to the stack.

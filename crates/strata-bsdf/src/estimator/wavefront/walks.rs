@@ -55,9 +55,8 @@ pub type LinkLanes<W> = ChainLink<W>;
 
 /// One walk's record, aligned to a cache line: its [`REC`] floats span whole
 /// lines, so none of the eight-float rows a chunk loads straddles two. (With
-/// the allocator's 16-byte alignment, which rows straddled depended on where
-/// a wave happened to be allocated: two-thread throughput moved by 2–4 %
-/// between otherwise identical builds.)
+/// the allocator's 16-byte alignment, which rows straddled depends on where
+/// a wave happens to be allocated, and two-thread throughput with it.)
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct Record([f32; REC]);
