@@ -65,11 +65,12 @@ pub struct Case {
     /// Walks of this case cost about this many times a short walk: its walk
     /// counts are divided by it.
     pub cost: f64,
-    /// A cap on events per walk (`Settings::max_depth`), the same on every
+    /// A limit of events per walk other than the default
+    /// (`Settings::max_events`), the same on every
     /// engine, for the lossless cases whose walk length has no useful bound
     /// (docs/numerics.md): the engines are then compared on the same capped
     /// estimate, and `1 - (R + T)` is the energy the cap lost.
-    pub max_depth: Option<u32>,
+    pub max_events: Option<u32>,
 }
 
 /// How many walks each engine runs per case (before division by
@@ -161,7 +162,7 @@ pub struct Row {
     /// Whether the case is lossless.
     pub lossless: bool,
     /// The cap on events per walk, if any.
-    pub max_depth: Option<u32>,
+    pub max_events: Option<u32>,
     /// `eval` on the f64 oracle, the f32 scalar reference and the wavefront.
     pub eval: [EvalRun; 3],
     /// The albedo on the same three engines.
@@ -369,7 +370,7 @@ impl Runner {
     pub fn run(&self, case: &Case) -> Result<Row, MaterialError> {
         let stack = LayerStack::from_toml_str(&case.material)?;
         let settings = Settings {
-            max_depth: case.max_depth,
+            max_events: case.max_events.unwrap_or(self.settings.max_events),
             ..self.settings
         };
         let s64 = ScalarEngine::<f64>::new(&stack, settings);
@@ -481,7 +482,7 @@ impl Runner {
         Ok(Row {
             name: case.name,
             lossless: case.lossless,
-            max_depth: case.max_depth,
+            max_events: case.max_events,
             eval,
             albedo: [a64.0, a32.0, aw.0],
             pdf,
@@ -535,10 +536,10 @@ pub fn cases() -> Vec<Case> {
         wo,
         lossless,
         cost,
-        max_depth: None,
+        max_events: None,
     };
     let capped = |case: Case, cap: u32| Case {
-        max_depth: Some(cap),
+        max_events: Some(cap),
         lossless: false,
         ..case
     };
@@ -960,7 +961,7 @@ pub fn format_table(rows: &[Row]) -> String {
         let fails = r.failures();
         s.push_str(&format!(
             "| {} | {:.4e} ± {:.1e} | {:.2} | {:.2} | {:.5} ± {:.1e} | {:.2} | {:.2} | {:.2} | {:.1} / {} / {} | {:.2} / {:.2} / {:.2} | {}/{} | {} |\n",
-            match r.max_depth {
+            match r.max_events {
                 Some(k) => format!("{} (cap {k:.0e})", r.name),
                 None => r.name.to_string(),
             },

@@ -40,17 +40,19 @@
 //! flight or a crossing to the next vertex), so that a subpath's vertices
 //! are rows of lanes (structure of arrays) and a lane whose subpath ended
 //! can begin another ([`BidirWalk::begin`]) while the others go on. Russian
-//! roulette ends them; there is no depth cap beyond the settings' optional
-//! one. The eye subpath samples interfaces from the side light leaves by and
+//! roulette ends them, or the limit of `√max_events` vertices
+//! ([`events::subpath_limit`]): a walk makes at most `max_events`
+//! connections. The eye subpath samples interfaces from the side light leaves by and
 //! weights each step with the light-sense value (`f(b → a)` rather than `f(a
 //! → b)`: the η² of refraction and the shading normal's asymmetry included);
 //! collisions need no change, as `σ_s · phase` is reciprocal.
 //!
 //! The estimator always combines its strategies by MIS (`Settings::mis`
-//! concerns the unidirectional one). The optional event cap
-//! (`Settings::max_depth`, a biased option) keeps the paths of at most that
-//! many vertices (interface events and collisions, entrance and exit
-//! included): a cut of its own, not the unidirectional walk's.
+//! concerns the unidirectional one). It keeps the paths of at most as many
+//! vertices as a subpath may have (interface events and collisions,
+//! entrance and exit included), whose every strategy the limited subpaths
+//! reach: a cut of its own, not the unidirectional walk's, which the
+//! default limit never makes on the stacks of the test suite.
 //!
 //! A phase function without a closed form (diffuse SGGX flakes) is
 //! evaluated by its unbiased one-sample estimate, on uniforms of its own;
@@ -71,8 +73,28 @@ pub struct BidirWalk<'a, L: Lane> {
     pub ifaces: &'a [InterfaceLanes<L>],
     /// Media, layer `l` between interfaces `l` and `l + 1`.
     pub media: &'a [MediumLanes<L>],
-    /// Walk settings (Russian roulette, the optional event cap).
-    pub settings: &'a Settings,
+    /// Walk settings, with the subpaths' limit of events
+    /// ([`events::subpath_limit`]) as theirs.
+    settings: Settings,
+}
+
+impl<'a, L: Lane> BidirWalk<'a, L> {
+    /// The walk of a stack's interfaces and media under `settings`.
+    pub fn new(
+        ifaces: &'a [InterfaceLanes<L>],
+        media: &'a [MediumLanes<L>],
+        settings: &Settings,
+    ) -> Self {
+        let settings = Settings {
+            max_events: events::subpath_limit(settings.max_events),
+            ..*settings
+        };
+        BidirWalk {
+            ifaces,
+            media,
+            settings,
+        }
+    }
 }
 
 /// A subpath vertex, per lane.
@@ -104,6 +126,11 @@ pub struct Vertex<L: Lane> {
     pub land_rev: L,
     /// Collisions among the subpath's vertices up to this one.
     pub order: L,
+    /// The power-heuristic terms of the strategies that split the subpath
+    /// between its first vertex and this one, relative to a strategy that
+    /// splits it right after this vertex (see `Path::weight`): a connection
+    /// reads them here instead of walking the subpath again.
+    pub tail: L,
 }
 
 /// Subpaths being traced, one per lane: the vertex each is at (`v.exists`:
@@ -117,6 +144,12 @@ pub struct Tracing<L: Lane> {
     order: L,
     /// Lanes whose vertex is their subpath's first.
     first: L::Mask,
+    /// The subpath's last finished vertex, and the density the vertex
+    /// before it sampled its direction with (for [`Vertex::tail`]).
+    prev: Vertex<L>,
+    prev_own: L,
+    /// Finished vertices of the subpath.
+    count: L,
 }
 
 impl<L: Lane> Tracing<L> {
@@ -130,6 +163,9 @@ impl<L: Lane> Tracing<L> {
             events: zero,
             order: zero,
             first: L::Mask::splat(false),
+            prev: Vertex::idle(),
+            prev_own: L::one(),
+            count: zero,
         }
     }
 
@@ -209,6 +245,7 @@ impl<L: Lane> Vertex<L> {
             land: one,
             land_rev: one,
             order: zero,
+            tail: zero,
         }
     }
 
@@ -229,6 +266,7 @@ impl<L: Lane> Vertex<L> {
             land: num(t.land, f.land),
             land_rev: num(t.land_rev, f.land_rev),
             order: num(t.order, f.order),
+            tail: num(t.tail, f.tail),
         }
     }
 
@@ -259,6 +297,7 @@ impl<L: Lane> Vertex<L> {
             land: lanes!(Lane, land),
             land_rev: lanes!(Lane, land_rev),
             order: lanes!(Lane, order),
+            tail: lanes!(Lane, tail),
         }
     }
 }
@@ -543,6 +582,7 @@ impl<L: Lane> BidirWalk<'_, L> {
         t.events = L::select(m, start.events, t.events);
         t.order = L::select(m, start.order, t.order);
         t.first = t.first | m;
+        t.count = L::select(m, zero, t.count);
     }
 
     /// One vertex of the subpath on every lane of `t` that has one (the
@@ -576,7 +616,7 @@ impl<L: Lane> BidirWalk<'_, L> {
         // scattering layer and ends in an inert one, as in every walk:
         // `events::free_flight`, `events::cross_inert`.)
         alive = alive & !(v.surface & out_s);
-        alive = events::survive(&mut beta, t.events, draw(alive), alive, self.settings);
+        alive = events::survive(&mut beta, t.events, draw(alive), alive, &self.settings);
         // The flight to the next vertex.
         let h = self.thickness(layer);
         let z0 = L::select(v.surface, L::select(up, h, zero), v.z);
@@ -621,7 +661,13 @@ impl<L: Lane> BidirWalk<'_, L> {
             land: L::select(col, p_col, p_nc),
             land_rev: L::one(),
             order: t.order,
+            tail: zero,
         };
+        v.tail = tail(&v, &t.prev, t.prev_own, t.count);
+        let done = v.exists;
+        t.prev_own = L::select(done, t.prev.own, t.prev_own);
+        t.prev = Vertex::select(done, &v, &t.prev);
+        t.count = L::select(done, t.count + L::one(), t.count);
         v
     }
 
@@ -700,13 +746,10 @@ impl<L: Lane> BidirWalk<'_, L> {
                     Some(k) => (y.order + z.order).le(L::splat(k as f64)),
                     None => L::Mask::splat(true),
                 };
-                // The event cap keeps the paths of at most that many
-                // vertices, whose every strategy the capped subpaths reach.
-                let capped = self
-                    .settings
-                    .max_depth
-                    .map(|c| c.min(events::MAX_CAP) as usize);
-                if capped.is_some_and(|c| jy + jz + 2 > c) {
+                // The limit keeps the paths of at most as many vertices
+                // as a subpath may have, whose every strategy the limited
+                // subpaths reach.
+                if jy + jz + 2 > self.settings.max_events as usize {
                     continue;
                 }
                 let m = y.exists & z.exists & within & share_layer(y, z);
@@ -759,6 +802,41 @@ impl<L: Lane> BidirWalk<'_, L> {
         }
         acc
     }
+}
+
+/// `a · b` for non-negative factors, 0 where either is 0 (no `0 · ∞`).
+#[inline(always)]
+fn mul0<L: Lane>(a: L, b: L) -> L {
+    let zero = L::zero();
+    L::select(a.gt(zero) & b.gt(zero), a * b, zero)
+}
+
+/// The squared terms of the two strategies that join vertex `v` to the
+/// vertex `prev` before it on its subpath, with the direction between them
+/// drawn by `prev` (unless `v` is a delta) or by `v` (unless `prev` is).
+#[inline(always)]
+fn joins<L: Lane>(v: &Vertex<L>, prev: &Vertex<L>) -> L {
+    let zero = L::zero();
+    let by_prev = L::select(v.delta, zero, prev.own * prev.own);
+    let by_v = L::select(prev.delta, zero, v.other * v.other);
+    by_prev + by_v
+}
+
+/// [`Vertex::tail`] of the `count`-th vertex `v` of a subpath (from 0),
+/// after `prev` and before it the vertex that sampled with density
+/// `prev_own`: the terms of the split before `v`, plus the previous tail
+/// carried across `prev` by the ratio of `prev`'s densities from its two
+/// neighbours. (`Path::weight` spells out the same sum term by term.)
+#[inline(always)]
+fn tail<L: Lane>(v: &Vertex<L>, prev: &Vertex<L>, prev_own: L, count: L) -> L {
+    let zero = L::zero();
+    let from_next = v.other * prev.land_rev;
+    let from_prev = prev_own * prev.land;
+    let rho = L::div_or_zero(from_next, from_prev, from_prev.gt(zero));
+    let carried = joins(v, prev) + mul0(rho * rho, prev.tail);
+    let first = count.lt(L::splat(0.5));
+    let second = count.lt(L::splat(1.5));
+    L::select(first, zero, L::select(second, joins(v, prev), carried))
 }
 
 /// The lanes where vertices `y` and `z` lie in a common layer (an
@@ -912,8 +990,11 @@ impl<L: Lane> Path<'_, L> {
 
     /// The power-heuristic weight of this connection's strategy (`(s, L)`
     /// where `light_draws`, else `(s, E)`), over every strategy of the path
-    /// (lanes `m`): one pass from `s` towards each end, each step one ratio
-    /// of vertex densities (O(n)).
+    /// (lanes `m`). From `s` towards each end, strategy `k`'s share is one
+    /// ratio of vertex densities per step; the connection changes the
+    /// densities of the two nearest vertices on each side only, so the
+    /// shares of the rest are the subpath's own sum, scaled
+    /// ([`Vertex::tail`]): O(1) per connection.
     fn weight(&self, c: &Conn<L>, light_draws: bool, m: L::Mask) -> L {
         let zero = L::zero();
         let cap = L::splat(RATIO_CAP);
@@ -930,18 +1011,30 @@ impl<L: Lane> Path<'_, L> {
             let e = times(times(r, c_e), inv);
             L::select(self.delta(k + 1), zero, l * l) + L::select(self.delta(k), zero, e * e)
         };
+        // Strategies beyond the connection's neighbours: a subpath's tail
+        // at its vertex next but one, carried by that vertex's share.
+        let rest = |r: L, tail: L| {
+            let q = times(r, inv);
+            mul0(q * q, tail)
+        };
         let mut sum = term(s, L::one());
         let mut r = L::one();
-        for k in s + 1..n {
+        for k in s + 1..n.min(s + 3) {
             let (f, b) = self.densities(k, c);
             r = times(r, L::div_or_zero(f, b, b.gt(zero)));
-            sum += term(k, r);
+            sum += match k == s + 1 {
+                true => term(k, r),
+                false => rest(r, self.eye[self.jz - 1].tail),
+            };
         }
         r = L::one();
-        for k in (1..s).rev() {
+        for k in (s.saturating_sub(2).max(1)..s).rev() {
             let (f, b) = self.densities(k + 1, c);
             r = times(r, L::div_or_zero(b, f, f.gt(zero)));
-            sum += term(k, r);
+            sum += match k + 1 == s {
+                true => term(k, r),
+                false => rest(r, self.light[self.jy - 1].tail),
+            };
         }
         L::select(
             m & sum.gt(zero),

@@ -12,7 +12,7 @@
 
 use super::closed_form::SmoothCoatLambertian;
 use super::rough_coat::RoughCoatLambertian;
-use super::{MeanVar, Settings, WalkSample};
+use super::{events, MeanVar, Settings, WalkSample};
 use crate::rng::WalkRng;
 use crate::stack::{Interface, InterfaceKind, LayerStack, PhaseKind};
 use std::sync::Arc;
@@ -46,7 +46,7 @@ pub(super) fn coat_and_base<'a>(
     let directional = stack
         .medium(0)
         .is_some_and(|m| m.phase_kind().directional());
-    if stack.len() != 2 || settings.max_depth.is_some() || tilted || directional {
+    if stack.len() != 2 || settings.max_events < events::MAX_EVENTS || tilted || directional {
         return None;
     }
     let (coat, base) = (stack.interface(0), stack.interface(1));

@@ -96,10 +96,28 @@ pub fn power_heuristic<L: Lane>(a: L, b: L) -> L {
     L::select(ok, L::select(a.ge(b), big, r2 * big), zero)
 }
 
-/// The largest event cap honoured exactly (see [`Settings::max_depth`]).
+/// The largest limit of events honoured exactly (see
+/// [`Settings::max_events`]): events are counted in single precision.
 pub const MAX_CAP: u32 = 1 << 24;
 
-/// Russian roulette after `rr_start` events, and the optional hard cap.
+/// The default limit of events per walk ([`Settings::max_events`]): more
+/// than five times the longest walk of the test and stress suites.
+pub const MAX_EVENTS: u32 = 1 << 20;
+
+/// `max_events` as the engines apply it: within `1..=MAX_CAP`.
+#[inline]
+pub fn event_limit(max_events: u32) -> u32 {
+    max_events.clamp(1, MAX_CAP)
+}
+
+/// The vertices a bidirectional subpath may have under `max_events`
+/// ([`Settings::max_events`]): `⌊√max_events⌋`, at least 2.
+#[inline]
+pub fn subpath_limit(max_events: u32) -> u32 {
+    event_limit(max_events).isqrt().max(2)
+}
+
+/// Russian roulette after `rr_start` events, and the limit of events `cap`.
 /// Returns the new throughput and the lanes that survive. Survivors past
 /// `rr_start` continue with probability `q = min(1, max channel of beta)` and
 /// are divided by it, so the estimate stays unbiased.
@@ -109,14 +127,9 @@ pub fn roulette<L: Lane>(
     events: L,
     u: L,
     rr_start: u32,
-    cap: Option<u32>,
+    cap: u32,
 ) -> (Rgb<L>, L::Mask) {
-    // Events are counted in single precision by the wavefront engine, exactly
-    // up to 2^24; a cap above that is treated as 2^24 by every engine.
-    let capped = match cap {
-        Some(c) => events.ge(L::splat(c.min(MAX_CAP) as f64)),
-        None => L::Mask::splat(false),
-    };
+    let capped = events.ge(L::splat(event_limit(cap) as f64));
     let early = events.lt(L::splat(rr_start as f64));
     let q = beta.max_channel().min(L::one());
     let survive = u.lt(q);
@@ -128,7 +141,7 @@ pub fn roulette<L: Lane>(
 /// [`roulette`] with a walk's settings.
 #[inline]
 pub fn walk_roulette<L: Lane>(beta: Rgb<L>, events: L, u: L, s: &Settings) -> (Rgb<L>, L::Mask) {
-    roulette(beta, events, u, s.rr_start, s.max_depth)
+    roulette(beta, events, u, s.rr_start, s.max_events)
 }
 
 /// The walk's hero channel (0, 1 or 2, as a lane value) for spectral MIS.
@@ -779,7 +792,7 @@ pub fn chain_roulette<L: Lane>(
     u: L,
     s: &Settings,
 ) -> (Connection<L>, L::Mask) {
-    let (v, alive) = roulette(c.v, events, u, s.rr_start, None);
+    let (v, alive) = roulette(c.v, events, u, s.rr_start, MAX_CAP);
     (Connection { v, ..c }, alive)
 }
 

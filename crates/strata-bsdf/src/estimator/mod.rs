@@ -41,11 +41,16 @@ pub struct Settings {
     /// Russian roulette starts after this many events (interface or medium).
     /// It is unbiased: survivors are reweighted.
     pub rr_start: u32,
-    /// Optional hard cap on events per walk. `None` (the default) means no cap.
-    /// A cap loses the energy of longer paths: it is biased, and only for
-    /// renderers that need bounded cost. Caps above 2^24
-    /// ([`events::MAX_CAP`]) act as 2^24 on every engine.
-    pub max_depth: Option<u32>,
+    /// The limit of events (interface events and collisions) per walk: a
+    /// walk that reaches it ends there, and its result counts it as cut.
+    /// The default, [`events::MAX_EVENTS`], bounds the time and memory of a
+    /// walk on any stack (docs/numerics.md, *Walk length*) without changing
+    /// an answer of the test and stress suites; below it the estimate loses
+    /// the energy of longer paths, which is biased. A bidirectional walk
+    /// connects every vertex of one subpath to every vertex of the other, so
+    /// its subpaths end at `√max_events` vertices. Values are taken in
+    /// `1..=`[`events::MAX_CAP`].
+    pub max_events: u32,
     /// Keep only paths with at most this many medium scattering events
     /// (`Some(1)` gives single scattering, the analytic check of method.md §8).
     pub max_scatter_order: Option<u32>,
@@ -60,7 +65,7 @@ impl Default for Settings {
     fn default() -> Self {
         Settings {
             rr_start: 4,
-            max_depth: None,
+            max_events: events::MAX_EVENTS,
             max_scatter_order: None,
             mis: true,
         }

@@ -628,11 +628,7 @@ impl<S: Scalar> ScalarEngine<S> {
         };
         let wi = v3::<S>(o.wi);
         let wo = v3::<S>(o.apply(wo));
-        let walk = super::bidir::BidirWalk {
-            ifaces: &self.ifaces,
-            media: &self.media,
-            settings: &self.settings,
-        };
+        let walk = super::bidir::BidirWalk::new(&self.ifaces, &self.media, &self.settings);
         let prefix = query_prefix(seed, query);
         super::bidir::with_kept_by_type(|buf: &mut super::bidir::Buffers<S>| {
             for k in 0..n {

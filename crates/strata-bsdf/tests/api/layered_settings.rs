@@ -117,7 +117,7 @@ fn depth_cap_only_loses_energy() {
     let capped = Walks::new(
         &st,
         Settings {
-            max_depth: Some(3),
+            max_events: 3,
             ..Settings::default()
         },
     );

@@ -563,7 +563,7 @@ proptest! {
         // A cap on walk length bounds the test's time (a lossless stack with
         // optical depth 1e50 has walks of unbounded expected length; the
         // stress suite measures them). Finiteness is what is tested here.
-        let settings = Settings { max_depth: Some(2_000), ..Settings::default() };
+        let settings = Settings { max_events: 2_000, ..Settings::default() };
         let base = LayeredBsdf::with_settings(st, settings).samples(8).pdf_samples(2);
         let dirs = probe_dirs();
         for b in [base.clone().engine(Engine::Scalar), base.engine(Engine::Wavefront)] {

@@ -644,7 +644,7 @@ fn pdf_walk_rules() {
 
 /// Where one density walk's variance comes from on the smooth coat over a
 /// rough inner interface over rough copper, for docs/method.md §6: the
-/// unbiased pdf of `sample()` capped at `max_depth` events (the density of
+/// unbiased pdf of `sample()` capped at `max_events` events (the density of
 /// the capped walk) at an in-lobe direction and two off-peak ones, with one
 /// walk's relative variance: `cargo test --release -p strata-bsdf --test
 /// pdf_density -- --ignored --nocapture copper_variance_by_depth`.
@@ -666,7 +666,7 @@ fn copper_variance_by_depth() {
         None,
     ] {
         let settings = Settings {
-            max_depth: cap,
+            max_events: cap.unwrap_or(Settings::default().max_events),
             ..Settings::default()
         };
         let eng = ScalarEngine::<f32>::new(&st, settings);

@@ -155,19 +155,11 @@ impl<W: Wide> Wavefront<W> {
         let qi = u.query as usize;
         let (mut ifaces, mut media) = (Vec::new(), Vec::new());
         let walk = match q.lane_sets(W::LANES, |_| u.query) {
-            None => BidirWalk {
-                ifaces: &self.ifaces,
-                media: &self.media,
-                settings: &self.settings,
-            },
+            None => BidirWalk::new(&self.ifaces, &self.media, &self.settings),
             Some(sets) => {
                 sets.ifaces_into(&self.ifaces, &mut ifaces);
                 sets.media_into(&self.media, &mut media);
-                BidirWalk {
-                    ifaces: &ifaces,
-                    media: &media,
-                    settings: &self.settings,
-                }
+                BidirWalk::new(&ifaces, &media, &self.settings)
             }
         };
         let count = u.count as usize;
