@@ -90,6 +90,13 @@ fn seed_arg(obj: &Bound<'_, PyAny>) -> PyResult<i128> {
     whole("seed", obj)
 }
 
+fn max_events_arg(obj: &Bound<'_, PyAny>) -> PyResult<Option<i128>> {
+    match obj.is_none() {
+        true => Ok(None),
+        false => whole("max_events", obj).map(Some),
+    }
+}
+
 fn n_arg(obj: &Bound<'_, PyAny>) -> PyResult<i128> {
     whole("n", obj)
 }
@@ -765,8 +772,19 @@ fn build(
     transport: &str,
     pdf_samples: Option<&Bound<'_, PyAny>>,
     estimator: &str,
+    max_events: Option<i128>,
 ) -> PyResult<Bsdf> {
     let samples = walks_arg("samples", samples).map_err(PyValueError::new_err)?;
+    let limit = strata_bsdf::estimator::events::MAX_CAP;
+    let max_events = match max_events {
+        None => strata_bsdf::estimator::events::MAX_EVENTS,
+        Some(n) if (1..=i128::from(limit)).contains(&n) => n as u32,
+        Some(n) => {
+            return Err(PyValueError::new_err(format!(
+                "max_events = {n}: expected an integer from 1 to {limit}"
+            )))
+        }
+    };
     let seed = u64_arg("seed", seed, "0 to 2^64 − 1").map_err(PyValueError::new_err)?;
     let pdf_walks = pdf_walks_in(pdf_samples)?;
     let transport: Transport = transport.parse().map_err(PyValueError::new_err)?;
@@ -777,7 +795,8 @@ fn build(
             .seed(seed)
             .pdf_walks(pdf_walks)
             .transport(transport)
-            .estimator(estimator),
+            .estimator(estimator)
+            .max_events(max_events),
     })
 }
 
@@ -792,11 +811,13 @@ impl Bsdf {
     /// round: 8 walks, then 8 to 64 fresh ones for a relative standard error
     /// of 0.15), `estimator` the estimator of `eval`: "auto" (a closed form where the stack has one,
     /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
-    /// unidirectional walks elsewhere), "uni" or "bidir". Raises
+    /// unidirectional walks elsewhere), "uni" or "bidir", `max_events` the
+    /// limit of events per walk (1 to 2^24; by default 2^20, which no walk of
+    /// the test and stress suites reaches). Raises
     /// `MaterialError` (a ValueError) naming the layer, the field and the
     /// value.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto", max_events=None))]
     fn from_toml(
         text: &str,
         #[pyo3(from_py_with = samples_arg)] samples: i128,
@@ -804,14 +825,23 @@ impl Bsdf {
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
+        #[pyo3(from_py_with = max_events_arg)] max_events: Option<i128>,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_toml_str(text).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples, estimator)
+        build(
+            stack,
+            samples,
+            seed,
+            transport,
+            pdf_samples,
+            estimator,
+            max_events,
+        )
     }
 
     /// A BSDF from a JSON material description; arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
+    #[pyo3(signature = (text, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto", max_events=None))]
     fn from_json(
         text: &str,
         #[pyo3(from_py_with = samples_arg)] samples: i128,
@@ -819,15 +849,24 @@ impl Bsdf {
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
+        #[pyo3(from_py_with = max_events_arg)] max_events: Option<i128>,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_json_str(text).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples, estimator)
+        build(
+            stack,
+            samples,
+            seed,
+            transport,
+            pdf_samples,
+            estimator,
+            max_events,
+        )
     }
 
     /// A BSDF from a material file (`.json` as JSON, anything else as TOML);
     /// arguments as `from_toml`.
     #[staticmethod]
-    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto"))]
+    #[pyo3(signature = (path, samples=1, seed=0, transport="radiance", pdf_samples=None, estimator="auto", max_events=None))]
     fn from_path(
         path: std::path::PathBuf,
         #[pyo3(from_py_with = samples_arg)] samples: i128,
@@ -835,9 +874,18 @@ impl Bsdf {
         transport: &str,
         pdf_samples: Option<&Bound<'_, PyAny>>,
         estimator: &str,
+        #[pyo3(from_py_with = max_events_arg)] max_events: Option<i128>,
     ) -> PyResult<Self> {
         let stack = LayerStack::from_path(path).map_err(material_err)?;
-        build(stack, samples, seed, transport, pdf_samples, estimator)
+        build(
+            stack,
+            samples,
+            seed,
+            transport,
+            pdf_samples,
+            estimator,
+            max_events,
+        )
     }
 
     /// The same material and settings in another transport mode
@@ -856,6 +904,12 @@ impl Bsdf {
         Ok(Bsdf {
             inner: self.inner.clone().estimator(e),
         })
+    }
+
+    /// The limit of events per walk.
+    #[getter]
+    fn max_events(&self) -> u32 {
+        self.inner.settings().max_events
     }
 
     /// The estimator of `eval` as chosen ("auto", "uni" or "bidir").

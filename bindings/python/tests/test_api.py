@@ -679,3 +679,25 @@ for name, call in [("eval", lambda: b.eval(wi, wi)), ("sample", lambda: b.sample
     assert status == 0, out
     for name in ("eval", "sample", "albedo"):
         assert f"{name} MemoryError Bsdf.{name}: cannot allocate its results" in out, out
+
+
+def test_max_events_sets_the_walks_limit(materials):
+    # max_events is the Rust API's limit of events per walk: it reads back,
+    # survives the with_* copies, and at 3 events a scattering slab reflects
+    # less than under the default (2**20); a limit outside 1..2**24 is a
+    # ValueError naming it.
+    path = materials / "scattering_slab.toml"
+    wi = np.array([[0.3, 0.0, 0.95], [0.0, 0.6, 0.8]], dtype=np.float32)
+    full = Bsdf.from_path(path, seed=3)
+    three = Bsdf.from_path(path, seed=3, max_events=3)
+    assert full.max_events == 2**20 and three.max_events == 3
+    assert three.with_transport("importance").with_estimator("uni").max_events == 3
+    r_full, _, se_full, _ = full.albedo(wi, 20000)
+    r_three, _, se_three, _ = three.albedo(wi, 20000)
+    z = (r_full - r_three) / np.hypot(se_full, se_three)
+    assert np.all(z > 5), z
+    for bad in (0, -1, 2**24 + 1, 2**200):
+        with pytest.raises(ValueError, match=f"max_events = {bad}"):
+            Bsdf.from_path(path, max_events=bad)
+    with pytest.raises(TypeError, match="max_events = 1.5"):
+        Bsdf.from_path(path, max_events=1.5)

@@ -357,6 +357,22 @@ int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
 int32_t strata_bsdf_set_pdf_samples(struct StrataBsdf *b, uint32_t n);
 
 /**
+ * Sets the limit of events (interface events and collisions) per walk,
+ * from 1 to 2^24: a walk that reaches it ends there. The default, 2^20, is
+ * more than five times the longest walk of the library's test and stress
+ * suites and bounds the time of a walk on any stack; a bidirectional
+ * walk's subpaths end at its square root. Any other `n` is
+ * `STRATA_ERR_INVALID_ARGUMENT`, naming it, and leaves the BSDF as it was.
+ * Configure a BSDF before sharing it: this call must not run while another
+ * thread uses `b`.
+ *
+ * # Safety
+ * `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+ * thread uses during the call.
+ */
+int32_t strata_bsdf_set_max_events(struct StrataBsdf *b, uint32_t n);
+
+/**
  * Sets an adaptive rule for the approximate pdf's density walks (the pdf
  * that `strata_pdf_batch` returns and that the samples carry): a pilot of
  * `pilot` walks (at least 2) measures one walk's relative variance, then

@@ -730,6 +730,35 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32)
     })
 }
 
+/// Sets the limit of events (interface events and collisions) per walk,
+/// from 1 to 2^24: a walk that reaches it ends there. The default, 2^20, is
+/// more than five times the longest walk of the library's test and stress
+/// suites and bounds the time of a walk on any stack; a bidirectional
+/// walk's subpaths end at its square root. Any other `n` is
+/// `STRATA_ERR_INVALID_ARGUMENT`, naming it, and leaves the BSDF as it was.
+/// Configure a BSDF before sharing it: this call must not run while another
+/// thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_set_max_events(b: *mut StrataBsdf, n: u32) -> i32 {
+    guard("strata_bsdf_set_max_events", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
+        let limit = strata_bsdf::estimator::events::MAX_CAP;
+        if !(1..=limit).contains(&n) {
+            return Err(Failure::invalid(format!(
+                "n = {n}: the limit of events per walk is from 1 to {limit}"
+            )));
+        }
+        *b = b.clone().max_events(n);
+        Ok(())
+    })
+}
+
 /// Sets an adaptive rule for the approximate pdf's density walks (the pdf
 /// that `strata_pdf_batch` returns and that the samples carry): a pilot of
 /// `pilot` walks (at least 2) measures one walk's relative variance, then

@@ -65,6 +65,15 @@ fn at_most(text: &str, max: u64, unit: &str) -> Result<u64, String> {
 /// down first).
 pub const MAX_THREADS: u64 = strata_bsdf::MAX_THREADS as u64;
 
+/// Parses `--max-events`: a whole number in 1..=2^24, the library's
+/// largest limit of events per walk.
+pub fn max_events(text: &str) -> Result<u64, String> {
+    at_most(text, MAX_EVENTS_LIMIT, " events per walk")
+}
+
+/// The largest `--max-events`.
+const MAX_EVENTS_LIMIT: u64 = strata_bsdf::estimator::events::MAX_CAP as u64;
+
 /// Parses `--threads`: a whole number in 1..=MAX_THREADS.
 pub fn threads(text: &str) -> Result<u64, String> {
     at_most(text, MAX_THREADS, " threads")
@@ -131,12 +140,21 @@ pub struct EngineArgs {
     /// They differ only for transmission between exteriors of different IOR.
     #[arg(long, default_value = "radiance")]
     pub transport: strata_bsdf::Transport,
+    /// The limit of events (interface events and collisions) per walk, at
+    /// most 2^24: a walk that reaches it ends there (default 2^20, which no
+    /// walk of the test and stress suites reaches; a bidirectional walk's
+    /// subpaths end at its square root).
+    #[arg(long, value_parser = max_events)]
+    pub max_events: Option<u64>,
 }
 
 impl EngineArgs {
     /// Applies the flags to a BSDF.
     pub fn apply(self, bsdf: strata_bsdf::LayeredBsdf) -> Result<strata_bsdf::LayeredBsdf, String> {
-        let bsdf = bsdf.engine(self.engine).transport(self.transport);
+        let mut bsdf = bsdf.engine(self.engine).transport(self.transport);
+        if let Some(n) = self.max_events {
+            bsdf = bsdf.max_events(n as u32);
+        }
         match self.threads {
             Some(n) => bsdf
                 .threads(n as usize)

@@ -55,6 +55,7 @@ class Bsdf:
         transport: Transport = "radiance",
         pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
+        max_events: Optional[int] = None,
     ) -> Bsdf: ...
     @staticmethod
     def from_json(
@@ -64,6 +65,7 @@ class Bsdf:
         transport: Transport = "radiance",
         pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
+        max_events: Optional[int] = None,
     ) -> Bsdf: ...
     @staticmethod
     def from_path(
@@ -73,6 +75,7 @@ class Bsdf:
         transport: Transport = "radiance",
         pdf_samples: PdfSamples = None,
         estimator: Estimator = "auto",
+        max_events: Optional[int] = None,
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
     def with_estimator(self, estimator: Estimator) -> Bsdf: ...
@@ -100,6 +103,9 @@ class Bsdf:
         """(R, T, R_stderr, T_stderr) from n walks per direction."""
     @property
     def estimator(self) -> Estimator: ...
+    @property
+    def max_events(self) -> int:
+        """The limit of events per walk."""
     @property
     def pdf_samples(self) -> PdfSamples:
         """The density walks per approximate pdf as pdf_samples takes them: None for the

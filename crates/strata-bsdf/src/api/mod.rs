@@ -224,6 +224,22 @@ impl LayeredBsdf {
     /// samples, seed, estimator, engine, transport, start side and threads
     /// (its engines are built for `stack`).
     pub fn with_stack(&self, stack: LayerStack) -> Self {
+        self.rebuilt(stack, self.settings)
+    }
+
+    /// Sets the limit of events per walk ([`Settings::max_events`]; taken
+    /// in `1..=`[`crate::estimator::events::MAX_CAP`]).
+    #[must_use]
+    pub fn max_events(self, n: u32) -> Self {
+        let settings = Settings {
+            max_events: crate::estimator::events::event_limit(n),
+            ..self.settings
+        };
+        self.rebuilt(self.stack().clone(), settings)
+    }
+
+    /// This BSDF's configuration over `stack` with walk settings `settings`.
+    fn rebuilt(&self, stack: LayerStack, settings: Settings) -> Self {
         let b = LayeredBsdf {
             engine: self.engine,
             samples: self.samples,
@@ -231,7 +247,7 @@ impl LayeredBsdf {
             seed: self.seed,
             eval_start: self.eval_start,
             threads: self.threads.clone(),
-            ..Self::with_settings(stack, self.settings)
+            ..Self::with_settings(stack, settings)
         };
         b.estimator(self.estimator).transport(self.transport)
     }

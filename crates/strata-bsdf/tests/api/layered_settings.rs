@@ -11,7 +11,7 @@
 
 use crate::common;
 use common::*;
-use strata_bsdf::Settings;
+use strata_bsdf::{LayeredBsdf, Settings};
 
 const STACKS: [(&str, &str); 3] = [
     (
@@ -129,5 +129,40 @@ fn depth_cap_only_loses_energy() {
         let (y, sy) = (b.reflected.value[c], b.reflected.stderr[c]);
         let z = (x - y) / sx.hypot(sy);
         assert!(z > 5.0, "ch {c}: capped {y} ± {sy} not below {x} ± {sx}");
+    }
+}
+
+/// `LayeredBsdf::max_events` sets the walks' limit: the answers of a BSDF
+/// built with those settings, bit for bit, and limits outside `1..=2^24`
+/// are taken at the nearest end.
+#[test]
+fn max_events_is_the_walk_setting() {
+    use strata_bsdf::estimator::events::{MAX_CAP, MAX_EVENTS};
+    let st = stack(STACKS[0].1);
+    let set = LayeredBsdf::new(st.clone()).max_events(3);
+    let built = LayeredBsdf::with_settings(
+        st.clone(),
+        Settings {
+            max_events: 3,
+            ..Settings::default()
+        },
+    );
+    assert_eq!(
+        LayeredBsdf::new(st.clone()).settings().max_events,
+        MAX_EVENTS
+    );
+    assert_eq!(set.settings().max_events, 3);
+    let wi = glam::Vec3::from(dir(30.0, 0.0).map(|x| x as f32));
+    let (a, b) = (
+        set.albedo(wi, 20_000).unwrap(),
+        built.albedo(wi, 20_000).unwrap(),
+    );
+    assert_eq!(a, b);
+    let full = LayeredBsdf::new(st.clone()).albedo(wi, 20_000).unwrap();
+    assert!(a.reflected.value[0] < full.reflected.value[0]);
+    let ends = [(0, 1), (u32::MAX, MAX_CAP)];
+    for (n, taken) in ends {
+        let b = LayeredBsdf::new(st.clone()).max_events(n);
+        assert_eq!(b.settings().max_events, taken, "max_events({n})");
     }
 }

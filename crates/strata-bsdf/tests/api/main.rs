@@ -8,6 +8,7 @@
 mod common;
 
 mod api_embedding;
+mod bounded_walks;
 mod layered_settings;
 mod material_set;
 mod param_sets;

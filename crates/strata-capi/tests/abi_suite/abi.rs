@@ -13,7 +13,7 @@ use strata_bsdf::{
 };
 use strata_capi::*;
 
-use crate::common::COATED_COPPER;
+use crate::common::{COATED_COPPER, SCATTERING_SLAB};
 /// A rough dielectric slab with glass below: transmission between exteriors
 /// of different IOR, where the transport mode matters.
 const GLASS: &str = crate::common::ROUGH_GLASS;
@@ -1077,4 +1077,59 @@ fn the_estimator_is_the_rust_apis() {
         "strata_bsdf_set_estimator: estimator = 3: expected 0 (STRATA_ESTIMATOR_AUTO), 1 \
          (STRATA_ESTIMATOR_UNIDIRECTIONAL) or 2 (STRATA_ESTIMATOR_BIDIRECTIONAL)"
     );
+}
+
+/// `strata_bsdf_set_max_events` is the Rust API's `max_events`: the same
+/// albedos bit for bit (and, at 3 events, less reflected light than the
+/// default's on a scattering slab); a limit outside 1..=2^24 is an error
+/// naming it that leaves the BSDF as it was.
+#[test]
+fn max_events_is_the_rust_apis() {
+    let albedo = |c: &Capi| {
+        let wi = flat(&directions(N, 3, false));
+        let mut out = vec![StrataAlbedo::default(); N];
+        // SAFETY: wi holds 3 N floats, out N records.
+        let status =
+            unsafe { strata_albedo_batch(c.0, N, wi.as_ptr(), 400, null(), out.as_mut_ptr()) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        out.iter().map(|a| a.reflected[0]).collect::<Vec<f32>>()
+    };
+    let want = |n: u32| {
+        let wi = directions(N, 3, false);
+        let mut w = vec![AlbedoRecord::default(); N];
+        let r = rust(SCATTERING_SLAB, 16, 4).max_events(n);
+        r.albedo_records(Vectors::Aos(&wi), 400, None, &mut w)
+            .unwrap();
+        w.iter().map(|a| a.reflected[0]).collect::<Vec<f32>>()
+    };
+    let c = Capi::toml(SCATTERING_SLAB, 16, 4);
+    let full = albedo(&c);
+    // SAFETY: `c.0` is a live BSDF used by this thread only.
+    assert_eq!(unsafe { strata_bsdf_set_max_events(c.0, 3) }, STRATA_OK);
+    let three = albedo(&c);
+    assert_eq!(bits(&three), bits(&want(3)));
+    assert_eq!(bits(&full), bits(&want(1 << 20)));
+    let (sum3, sum) = (three.iter().sum::<f32>(), full.iter().sum::<f32>());
+    assert!(sum3 < sum, "3 events {sum3}, default {sum}");
+    for (n, message) in [(0, "n = 0: "), ((1 << 24) + 1, "n = 16777217: ")] {
+        // SAFETY: as above.
+        let status = unsafe { strata_bsdf_set_max_events(c.0, n) };
+        assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT);
+        let e = last_error();
+        assert!(
+            e.starts_with("strata_bsdf_set_max_events: ") && e.contains(message),
+            "{e}"
+        );
+    }
+    assert_eq!(
+        bits(&albedo(&c)),
+        bits(&three),
+        "a bad limit changed the BSDF"
+    );
+    // SAFETY: NULL is an error, not a dereference.
+    assert_eq!(
+        unsafe { strata_bsdf_set_max_events(null_mut(), 3) },
+        STRATA_ERR_NULL
+    );
+    assert_eq!(last_error(), "strata_bsdf_set_max_events: b is NULL");
 }

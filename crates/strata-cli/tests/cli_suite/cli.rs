@@ -1411,3 +1411,43 @@ fn eval_lines_and_sample_set_values_of_their_own() {
     );
     assert_fails_with(&out, &["--set", "x"]);
 }
+
+/// `--max-events` is the library's limit of events per walk: at 3 events a
+/// scattering slab reflects less than under the default, whose answers are
+/// those of `--max-events 1048576`; a limit outside 1..=2^24 fails naming it.
+#[test]
+fn max_events_limits_the_walks() {
+    let m = example("scattering_slab.toml");
+    let albedo = |extra: &[&str]| {
+        let args = [
+            &[
+                "albedo",
+                "--material",
+                &m,
+                "--theta",
+                "40",
+                "--samples",
+                "20000",
+            ][..],
+            extra,
+        ]
+        .concat();
+        assert_ok(&run(&args, ""))
+    };
+    let full = albedo(&[]);
+    assert_eq!(full, albedo(&["--max-events", "1048576"]));
+    let three = albedo(&["--max-events", "3"]);
+    let reflected = |out: &str| -> (f64, f64) {
+        let v: Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
+        (
+            v["R"][0].as_f64().unwrap(),
+            v["stderr_R"][0].as_f64().unwrap(),
+        )
+    };
+    let ((a, sa), (b, sb)) = (reflected(&full), reflected(&three));
+    assert!((a - b) / sa.hypot(sb) > 5.0, "{three}\n{full}");
+    for bad in ["0", "16777217", "x"] {
+        let args = ["albedo", "--material", &m, "--max-events", bad];
+        assert_fails_with(&run(&args, ""), &["--max-events", bad]);
+    }
+}
