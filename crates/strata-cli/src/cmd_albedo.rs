@@ -1,6 +1,7 @@
 //! `strata albedo`: reflected and transmitted fractions for one incident direction.
 //!
-//! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`.
+//! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`,
+//! with `"truncated":n` when the limit of events (`--max-events`) ended `n` walks.
 
 use crate::common::EngineArgs;
 use crate::common::{load_material, stdout_failure};
@@ -57,9 +58,13 @@ pub fn run(args: Args) -> Result<(), String> {
     let a = bsdf
         .albedo(wi, args.samples)
         .map_err(|e| format!("--theta {} --phi {}: {e}", args.theta, args.phi))?;
-    let line = serde_json::json!({
+    let mut line = serde_json::json!({
         "R": a.reflected.value, "T": a.transmitted.value,
         "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
     });
+    // Walks the limit of events ended, when some were.
+    if a.reflected.truncated > 0 {
+        line["truncated"] = a.reflected.truncated.into();
+    }
     writeln!(std::io::stdout(), "{line}").or_else(stdout_failure)
 }

@@ -4,7 +4,8 @@
 //! normal, both directions pointing away from the surface; normalized on input;
 //! blank lines are skipped). Output: one line per query,
 //! `{"f":[r,g,b],"stderr":[r,g,b],"pdf":p}`, `f` without the cosine; with
-//! `--pdf unbiased` the line ends with `"pdf_stderr":s`. The first
+//! `--pdf unbiased` the line ends with `"pdf_stderr":s`, and `"truncated":n`
+//! when the limit of events (`--max-events`) ended `n` of the line's walks. The first
 //! bad line (malformed JSON, a missing or extra field, not three numbers, a zero
 //! or non-finite direction) stops the run with an error naming its line number;
 //! the answers to the lines before it have already been printed. Lines are
@@ -104,6 +105,14 @@ struct Answer {
     pdf: f32,
     #[serde(skip_serializing_if = "Option::is_none")]
     pdf_stderr: Option<f32>,
+    /// Walks of `f` (and of an unbiased pdf) that the limit of events
+    /// ended; present only when some were.
+    #[serde(skip_serializing_if = "is_zero")]
+    truncated: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// Runs `strata eval`.
@@ -315,14 +324,14 @@ fn answer_with(
         Batch::Mixed(m, of) => m.eval_batch_keyed(of, pairs, args.samples, &keys),
     }
     .map_err(fail)?;
-    let p: Vec<(f32, Option<f32>)> = match args.pdf {
+    let p: Vec<(f32, Option<f32>, u64)> = match args.pdf {
         PdfKind::Approximate => match batch {
             Batch::One(b) => b.pdf_batch(pairs),
             Batch::Mixed(m, of) => m.pdf_batch(of, pairs),
         }
         .map_err(fail)?
         .into_iter()
-        .map(|p| (p, None))
+        .map(|p| (p, None, 0))
         .collect(),
         PdfKind::Unbiased => {
             let n = args.unbiased_pdf_walks;
@@ -332,16 +341,17 @@ fn answer_with(
             }
             .map_err(fail)?
             .into_iter()
-            .map(|p| (p.value as f32, Some(p.stderr as f32)))
+            .map(|p| (p.value as f32, Some(p.stderr as f32), p.truncated))
             .collect()
         }
     };
-    for (e, (pdf, pdf_stderr)) in f.iter().zip(p) {
+    for (e, (pdf, pdf_stderr, pdf_cut)) in f.iter().zip(p) {
         let line = Answer {
             f: e.value,
             stderr: e.stderr,
             pdf,
             pdf_stderr,
+            truncated: e.truncated + pdf_cut,
         };
         let line = serde_json::to_string(&line).map_err(|e| Err(format!("cannot format: {e}")))?;
         writeln!(out, "{line}").map_err(stdout_failure)?;

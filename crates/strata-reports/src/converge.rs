@@ -588,6 +588,7 @@ fn zero_estimate() -> Estimate {
         value: [0.0; 3],
         stderr: [0.0; 3],
         samples: 0,
+        truncated: 0,
     }
 }
 

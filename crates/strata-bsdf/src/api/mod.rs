@@ -869,6 +869,7 @@ impl LayeredBsdf {
             value,
             stderr: [0.0; 3],
             samples: n,
+            truncated: 0,
         }
     }
 
@@ -1163,6 +1164,7 @@ impl LayeredBsdf {
             value,
             stderr: 0.0,
             samples,
+            truncated: 0,
         }
     }
 

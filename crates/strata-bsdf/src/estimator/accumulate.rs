@@ -8,6 +8,8 @@ pub struct MeanVar {
     n: u64,
     mean: [f64; 3],
     m2: [f64; 3],
+    /// Walks that reached the limit of events ([`Estimate::truncated`]).
+    cut: u64,
 }
 
 impl MeanVar {
@@ -22,6 +24,12 @@ impl MeanVar {
             n,
             ..Self::default()
         }
+    }
+    /// Adds one walk's value; `cut`: the walk reached the limit of events.
+    #[inline]
+    pub fn push_walk(&mut self, x: [f64; 3], cut: bool) {
+        self.cut += u64::from(cut);
+        self.push(x);
     }
     /// Adds one sample.
     #[inline]
@@ -46,6 +54,7 @@ impl MeanVar {
             *self = *o;
             return;
         }
+        self.cut += o.cut;
         let n = (self.n + o.n) as f64;
         for c in 0..3 {
             let d = o.mean[c] - self.mean[c];
@@ -72,6 +81,7 @@ impl MeanVar {
             value: self.mean,
             stderr: [se(0), se(1), se(2)],
             samples: self.n,
+            truncated: self.cut,
         }
     }
     /// The estimate shifted by a deterministic term (e.g. the first-order
@@ -108,7 +118,12 @@ impl BlockReducer {
     /// Adds the next sample's value.
     #[inline]
     pub fn push(&mut self, x: [f64; 3]) {
-        self.block.push(x);
+        self.push_walk(x, false);
+    }
+    /// Adds the next walk's value; `cut`: it reached the limit of events.
+    #[inline]
+    pub fn push_walk(&mut self, x: [f64; 3], cut: bool) {
+        self.block.push_walk(x, cut);
         if self.block.count() == BLOCK {
             self.total.merge(&self.block);
             self.block = MeanVar::new();

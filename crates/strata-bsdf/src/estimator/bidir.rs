@@ -150,6 +150,8 @@ pub struct Tracing<L: Lane> {
     prev_own: L,
     /// Finished vertices of the subpath.
     count: L,
+    /// Lanes whose subpath the limit of events ended.
+    cut: L::Mask,
 }
 
 impl<L: Lane> Tracing<L> {
@@ -166,12 +168,18 @@ impl<L: Lane> Tracing<L> {
             prev: Vertex::idle(),
             prev_own: L::one(),
             count: zero,
+            cut: L::Mask::splat(false),
         }
     }
 
     /// The lanes whose subpath goes on.
     pub fn active(&self) -> L::Mask {
         self.v.exists
+    }
+
+    /// The lanes whose subpath the limit of events ended.
+    pub fn cut(&self) -> L::Mask {
+        self.cut
     }
 }
 
@@ -583,6 +591,7 @@ impl<L: Lane> BidirWalk<'_, L> {
         t.order = L::select(m, start.order, t.order);
         t.first = t.first | m;
         t.count = L::select(m, zero, t.count);
+        t.cut = t.cut & !m;
     }
 
     /// One vertex of the subpath on every lane of `t` that has one (the
@@ -616,6 +625,7 @@ impl<L: Lane> BidirWalk<'_, L> {
         // scattering layer and ends in an inert one, as in every walk:
         // `events::free_flight`, `events::cross_inert`.)
         alive = alive & !(v.surface & out_s);
+        t.cut = t.cut | (alive & events::reached_limit(t.events, &self.settings));
         alive = events::survive(&mut beta, t.events, draw(alive), alive, &self.settings);
         // The flight to the next vertex.
         let h = self.thickness(layer);
@@ -673,37 +683,40 @@ impl<L: Lane> BidirWalk<'_, L> {
 
     /// Traces a subpath from `w` (pointing away from the stack) on every
     /// lane, in step: the light subpath from `wi`, or (`eye`) the eye
-    /// subpath from `wo`.
+    /// subpath from `wo`. Returns the lanes whose subpath the limit of
+    /// events ended.
     fn trace(
         &self,
         w: V3<L>,
         eye: bool,
         out: &mut Vec<Vertex<L>>,
         draw: &mut impl FnMut(L::Mask) -> L,
-    ) {
+    ) -> L::Mask {
         out.clear();
         let mut t = Tracing::idle();
         self.begin(w, L::Mask::splat(true), &mut t, draw);
         while t.active().any() {
             out.push(self.step(&mut t, eye, draw));
         }
+        t.cut()
     }
 
     /// One bidirectional walk per lane: its estimate of `f(wi, wo)` without
     /// the first-order term (the entrance alone, which the engines add
-    /// exactly). `draw(m)` returns a uniform for every lane of `m`.
+    /// exactly), and the lanes where the limit of events ended a subpath.
+    /// `draw(m)` returns a uniform for every lane of `m`.
     pub fn run(
         &self,
         wi: V3<L>,
         wo: V3<L>,
         buf: &mut Buffers<L>,
         mut draw: impl FnMut(L::Mask) -> L,
-    ) -> Rgb<L> {
+    ) -> (Rgb<L>, L::Mask) {
         if !self.connects() {
-            return Rgb::zero();
+            return (Rgb::zero(), L::Mask::splat(false));
         }
-        self.trace_both(wi, wo, buf, &mut draw);
-        self.connect(buf, draw)
+        let cut = self.trace_both(wi, wo, buf, &mut draw);
+        (self.connect(buf, draw), cut)
     }
 
     /// Whether the lengths of subpaths vary much from walk to walk: in a
@@ -720,16 +733,17 @@ impl<L: Lane> BidirWalk<'_, L> {
     }
 
     /// The first half of [`Self::run`]: the light subpath from `wi`, then
-    /// the eye subpath from `wo`, into `buf`.
+    /// the eye subpath from `wo`, into `buf`; the lanes where the limit of
+    /// events ended either.
     fn trace_both(
         &self,
         wi: V3<L>,
         wo: V3<L>,
         buf: &mut Buffers<L>,
         mut draw: impl FnMut(L::Mask) -> L,
-    ) {
-        self.trace(wi, false, &mut buf.light, &mut draw);
-        self.trace(wo, true, &mut buf.eye, &mut draw);
+    ) -> L::Mask {
+        let light = self.trace(wi, false, &mut buf.light, &mut draw);
+        light | self.trace(wo, true, &mut buf.eye, &mut draw)
     }
 
     /// The second half of [`Self::run`]: every connection of the traced

@@ -170,6 +170,9 @@ pub struct WalkLanes<L: Lane> {
     pub p: L,
     /// The lanes whose walk goes on.
     pub alive: L::Mask,
+    /// The lanes whose walk the limit of events ended
+    /// ([`crate::estimator::Settings::max_events`]).
+    pub cut: L::Mask,
     st: State<L>,
     /// Collisions so far.
     order: L,
@@ -196,6 +199,7 @@ impl<L: Lane> WalkLanes<L> {
         WalkLanes {
             p: v(a.p, b.p),
             alive: (m & a.alive) | (!m & b.alive),
+            cut: (m & a.cut) | (!m & b.cut),
             st: State {
                 beta: rgb(a.st.beta, b.st.beta),
                 ratios: rgb(a.st.ratios, b.st.ratios),
@@ -449,13 +453,14 @@ impl<L: Lane> DensityWalk<'_, L> {
 
     /// One walk per lane from `wi` (stack frame, pointing away from the
     /// stack): its estimate of the density of `wo` (see the module docs).
-    /// `draw(m)` returns a uniform for every lane of `m`.
-    pub fn run(&self, wi: V3<L>, wo: V3<L>, mut draw: impl FnMut(L::Mask) -> L) -> L {
+    /// `draw(m)` returns a uniform for every lane of `m`. Also returns the
+    /// lanes whose walk the limit of events ended.
+    pub fn run(&self, wi: V3<L>, wo: V3<L>, mut draw: impl FnMut(L::Mask) -> L) -> (L, L::Mask) {
         let mut w = self.begin(wi, wo, L::Mask::splat(true), &mut draw);
         while w.alive.any() {
             self.step(&mut w, &mut draw);
         }
-        w.p
+        (w.p, w.cut)
     }
 
     /// A walk from `wi` towards `wo` on each lane of `m`, before its first
@@ -473,6 +478,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         WalkLanes {
             p: zero,
             alive: m,
+            cut: L::Mask::splat(false),
             st: State {
                 beta: s0.beta,
                 ratios: s0.ratios,
@@ -558,6 +564,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         let up = d.z.gt(zero);
         let (l, out) = layout.enter(i, up);
         alive = alive & !out;
+        w.cut = w.cut | (alive & events::reached_limit(st.events, self.settings));
         alive = alive & self.survive(&mut st, alive, draw(alive));
         // Cross the layer until the walk reaches one of its interfaces.
         if alive.any() {
@@ -624,6 +631,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                         rho = L::select(hit, h, rho);
                         straight = straight | hit;
                         events::after_collision(&mut d, &mut st.events, dn, hit);
+                        w.cut = w.cut | (hit & events::reached_limit(st.events, self.settings));
                         let keep = self.survive(&mut st, hit, draw(hit));
                         alive = alive & !(hit & !keep);
                         flying = flying & !(hit & !keep);

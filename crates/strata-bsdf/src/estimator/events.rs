@@ -104,6 +104,13 @@ pub const MAX_CAP: u32 = 1 << 24;
 /// than five times the longest walk of the test and stress suites.
 pub const MAX_EVENTS: u32 = 1 << 20;
 
+/// The lanes whose walk has made as many events as `s` allows: its next
+/// roulette ends it, and it counts as cut.
+#[inline]
+pub fn reached_limit<L: Lane>(events: L, s: &Settings) -> L::Mask {
+    events.ge(L::splat(event_limit(s.max_events) as f64))
+}
+
 /// `max_events` as the engines apply it: within `1..=MAX_CAP`.
 #[inline]
 pub fn event_limit(max_events: u32) -> u32 {

@@ -81,6 +81,10 @@ pub struct Estimate {
     pub stderr: [f64; 3],
     /// Number of independent walks.
     pub samples: u64,
+    /// How many of them reached the limit of events
+    /// ([`Settings::max_events`]) and ended there: their paths' energy
+    /// beyond it is missing from `value`.
+    pub truncated: u64,
 }
 
 /// What an eval adds to the mean of its walks: deterministic terms (the

@@ -17,6 +17,7 @@
 
 use super::density::DensityWalk;
 use super::scalar::{v3, Scalar, ScalarEngine};
+use crate::lane::LaneMask;
 use crate::rng::{query_prefix, Stream, WalkRng};
 
 /// Weight of the uniform density in the approximate pdf's mixture.
@@ -178,6 +179,7 @@ impl PdfWalks {
                 value: w * pilot.value + (1.0 - w) * fresh.value,
                 stderr: (w * pilot.stderr).hypot((1.0 - w) * fresh.stderr),
                 samples: pilot.samples + fresh.samples,
+                truncated: pilot.truncated + fresh.truncated,
             }
         };
         match kind {
@@ -185,7 +187,7 @@ impl PdfWalks {
             PdfKind::Approximate => PdfEstimate {
                 value: mix_uniform(e.value),
                 stderr: (1.0 - UNIFORM_FRACTION) * e.stderr,
-                samples: e.samples,
+                ..e
             },
         }
     }
@@ -308,6 +310,9 @@ pub struct PdfEstimate {
     pub stderr: f64,
     /// Number of walks in `value`, a pilot round's included.
     pub samples: u64,
+    /// How many of them reached the limit of events
+    /// ([`crate::estimator::Settings::max_events`]) and ended there.
+    pub truncated: u64,
 }
 
 /// Sums of density walks, in walk order (so that engines agree bit for bit).
@@ -316,6 +321,7 @@ pub struct DensitySums {
     sum: f64,
     sum_sq: f64,
     n: u64,
+    cut: u64,
 }
 
 impl DensitySums {
@@ -325,6 +331,12 @@ impl DensitySums {
         self.sum += x;
         self.sum_sq += x * x;
         self.n += 1;
+    }
+
+    /// Counts a walk the limit of events ended.
+    #[inline]
+    pub fn count_cut(&mut self, cut: bool) {
+        self.cut += u64::from(cut);
     }
 
     /// The walks' mean and sample variance (0 from fewer than two walks).
@@ -352,6 +364,7 @@ impl DensitySums {
             value: mean,
             stderr: (var / self.n.max(1) as f64).sqrt(),
             samples: self.n,
+            truncated: self.cut,
         }
     }
 }
@@ -406,7 +419,9 @@ impl<S: Scalar> ScalarEngine<S> {
                         S::zero()
                     }
                 };
-                sums.push(walk.run(wi, wo, draw).lane(0));
+                let (p, cut) = walk.run(wi, wo, draw);
+                sums.push(p.lane(0));
+                sums.count_cut(cut.lane(0));
             }
             sums
         };

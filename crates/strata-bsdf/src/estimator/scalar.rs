@@ -89,7 +89,8 @@ struct Exit<S: Lane> {
 }
 
 /// Counts a walk's events (interface events and collisions), for the walk
-/// length statistics of the stability reports.
+/// length statistics of the stability reports and the walks the limit of
+/// events cut.
 #[derive(Clone, Copy, Debug, Default)]
 struct Counter(u32);
 
@@ -248,6 +249,12 @@ impl<S: Scalar> ScalarEngine<S> {
             return events::survive_boosted(beta, events, u, true, &self.settings, scale);
         }
         events::survive(beta, events, u, true, &self.settings)
+    }
+
+    /// Whether a walk that made `length` events and ended with `exit`
+    /// reached the limit of events inside the stack: the limit cut it.
+    fn cut<T>(&self, exit: &Option<T>, length: Counter) -> bool {
+        exit.is_none() && length.0 >= events::event_limit(self.settings.max_events)
     }
 
     /// Whether walks that leave out the control variate's paths (`cv`)
@@ -439,7 +446,10 @@ impl<S: Scalar> ScalarEngine<S> {
         for k in 0..n {
             let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
             let (mut xr, mut xt) = ([0.0; 3], [0.0; 3]);
-            if let Some(s) = self.sample(wi, &mut rng) {
+            let mut length = Counter::default();
+            let s = self.sample_inner(wi, &mut rng, &mut length);
+            let cut = self.cut(&s, length);
+            if let Some(s) = s {
                 let w = s.weight.map(|x| x as f64);
                 if s.reflection {
                     xr = w;
@@ -447,8 +457,8 @@ impl<S: Scalar> ScalarEngine<S> {
                     xt = w;
                 }
             }
-            r.push(xr);
-            t.push(xt);
+            r.push_walk(xr, cut);
+            t.push_walk(xt, cut);
         }
         Albedo {
             reflected: r.finish().estimate(),
@@ -551,13 +561,13 @@ impl<S: Scalar> ScalarEngine<S> {
         wi: [f64; 3],
         wo: [f64; 3],
         n: u64,
-        walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> Terms,
+        walks: impl FnOnce(&mut dyn FnMut([f64; 3], bool)) -> Terms,
     ) -> Estimate {
         if super::orient(&self.stack, wi, Some(wo)).is_none() {
             return MeanVar::zeros(n).estimate();
         }
         let mut red = BlockReducer::new();
-        let terms = walks(&mut |x| red.push(x));
+        let terms = walks(&mut |x, cut| red.push_walk(x, cut));
         red.finish().estimate_with(&terms)
     }
 
@@ -571,10 +581,10 @@ impl<S: Scalar> ScalarEngine<S> {
         n: u64,
         seed: u64,
         query: u64,
-        f: &mut dyn FnMut([f64; 3]),
+        f: &mut dyn FnMut([f64; 3], bool),
     ) -> Terms {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
-            (0..n).for_each(|_| f([0.0; 3]));
+            (0..n).for_each(|_| f([0.0; 3], false));
             return Terms::default();
         };
         let wi = v3::<S>(o.wi);
@@ -601,8 +611,9 @@ impl<S: Scalar> ScalarEngine<S> {
                     from_collisions: Rgb::zero(),
                 };
                 let mut rng = WalkRng::from_prefix(prefix, k, Stream::Walk);
-                self.walk(wi, Some(&mut c), &mut rng, &mut Counter::default());
-                f(rgb_f64(c.acc + c.from_collisions));
+                let mut length = Counter::default();
+                let exit = self.walk(wi, Some(&mut c), &mut rng, &mut length);
+                f(rgb_f64(c.acc + c.from_collisions), self.cut(&exit, length));
             }
         });
         // First-order term: the entrance alone, when it is also the exit.
@@ -620,10 +631,10 @@ impl<S: Scalar> ScalarEngine<S> {
         n: u64,
         seed: u64,
         query: u64,
-        f: &mut dyn FnMut([f64; 3]),
+        f: &mut dyn FnMut([f64; 3], bool),
     ) -> Terms {
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
-            (0..n).for_each(|_| f([0.0; 3]));
+            (0..n).for_each(|_| f([0.0; 3], false));
             return Terms::default();
         };
         let wi = v3::<S>(o.wi);
@@ -634,7 +645,8 @@ impl<S: Scalar> ScalarEngine<S> {
             for k in 0..n {
                 let mut rng = WalkRng::from_prefix(prefix, k, Stream::Bidir);
                 let draw = |m: bool| if m { Self::u(&mut rng) } else { S::zero() };
-                f(rgb_f64(walk.run(wi, wo, buf, draw)));
+                let (x, cut) = walk.run(wi, wo, buf, draw);
+                f(rgb_f64(x), cut);
             }
         });
         let e_in = self.layout.outer(wi.z > S::zero());
@@ -644,9 +656,12 @@ impl<S: Scalar> ScalarEngine<S> {
 }
 
 /// The `n` walk values `walks` hands to its argument, in order.
-fn walk_values(n: u64, walks: impl FnOnce(&mut dyn FnMut([f64; 3])) -> Terms) -> Vec<[f64; 3]> {
+fn walk_values(
+    n: u64,
+    walks: impl FnOnce(&mut dyn FnMut([f64; 3], bool)) -> Terms,
+) -> Vec<[f64; 3]> {
     let mut v = Vec::with_capacity(n as usize);
-    walks(&mut |x| v.push(x));
+    walks(&mut |x, _| v.push(x));
     v
 }
 

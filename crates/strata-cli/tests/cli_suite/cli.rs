@@ -1451,3 +1451,60 @@ fn max_events_limits_the_walks() {
         assert_fails_with(&run(&args, ""), &["--max-events", bad]);
     }
 }
+
+/// Where the limit of events ends walks, the JSON line says how many
+/// (`"truncated"`): on a lossless slab of optical depth 1e4 every walk that
+/// leaves has weight 1, so `R + T` is the fraction the limit did not end.
+/// Under the default limit the field is absent.
+#[test]
+fn the_json_counts_the_walks_the_limit_ended() {
+    let m = format!(
+        "{}/../strata-bsdf/tests/data/lossless_slab_tau_1e4.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let args = [
+        "albedo",
+        "--material",
+        &m,
+        "--theta",
+        "30",
+        "--samples",
+        "1000",
+        "--max-events",
+        "64",
+    ];
+    let out = assert_ok(&run(&args, ""));
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let cut = v["truncated"].as_u64().expect("a count");
+    assert!(cut > 0 && cut < 1000, "{out}");
+    let kept = v["R"][0].as_f64().unwrap() + v["T"][0].as_f64().unwrap();
+    assert!((kept * 1000.0 - (1000 - cut) as f64).abs() < 1e-6, "{out}");
+    let query = "{\"wi\":[0.3,0,1],\"wo\":[-0.2,0.1,1]}\n";
+    let eval = [
+        "eval",
+        "--material",
+        &m,
+        "--samples",
+        "64",
+        "--max-events",
+        "64",
+    ];
+    let out = assert_ok(&run(&eval, query));
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    assert!(
+        v["truncated"].as_u64().is_some_and(|n| n > 0 && n <= 64),
+        "{out}"
+    );
+    let plain = example("scattering_slab.toml");
+    let args = [
+        "albedo",
+        "--material",
+        &plain,
+        "--theta",
+        "30",
+        "--samples",
+        "1000",
+    ];
+    let out = assert_ok(&run(&args, ""));
+    assert!(!out.contains("truncated"), "{out}");
+}

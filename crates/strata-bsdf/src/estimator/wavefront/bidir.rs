@@ -56,6 +56,8 @@ struct Traced {
     light: Span,
     eye: Span,
     state: [u32; 4],
+    /// The limit of events ended one of its subpaths.
+    cut: bool,
 }
 
 /// Traces one subpath of each walk of `walks` from `w` into `rows`: the
@@ -99,6 +101,7 @@ fn trace_refilled<W: Wide>(
                     false => traced.light = span,
                 }
                 traced.state = rng.lane_state(j);
+                traced.cut |= t.cut().lane(j);
             }
             if next < count {
                 slot[j] = Some((next, cursor[j]));
@@ -150,7 +153,7 @@ impl<W: Wide> Wavefront<W> {
         q: &Queries,
         u: Unit,
         g: &mut Regrouped<W>,
-        mut push: impl FnMut([f64; 3]),
+        mut push: impl FnMut([f64; 3], bool),
     ) {
         let qi = u.query as usize;
         let (mut ifaces, mut media) = (Vec::new(), Vec::new());
@@ -164,7 +167,7 @@ impl<W: Wide> Wavefront<W> {
         };
         let count = u.count as usize;
         if !walk.connects() {
-            (0..count).for_each(|_| push([0.0; 3]));
+            (0..count).for_each(|_| push([0.0; 3], false));
             return;
         }
         let s = |c: &[Vec<f32>; 3]| {
@@ -187,8 +190,8 @@ impl<W: Wide> Wavefront<W> {
             for first in (0..count).step_by(W::LANES) {
                 let lanes = (count - first).min(W::LANES);
                 let mut rng = chunk_rng(first, lanes);
-                let v = walk.run(wi, wo, &mut g.chunk, |m| rng.uniform(m));
-                (0..lanes).for_each(|j| push([v.r.lane(j), v.g.lane(j), v.b.lane(j)]));
+                let (v, cut) = walk.run(wi, wo, &mut g.chunk, |m| rng.uniform(m));
+                (0..lanes).for_each(|j| push([v.r.lane(j), v.g.lane(j), v.b.lane(j)], cut.lane(j)));
             }
             return;
         }
@@ -225,7 +228,7 @@ impl<W: Wide> Wavefront<W> {
                 values[w as usize] = [v.r.lane(j), v.g.lane(j), v.b.lane(j)];
             }
         }
-        values[..count].iter().for_each(|&v| push(v));
+        (values[..count].iter().zip(&walks[..count])).for_each(|(&v, t)| push(v, t.cut));
     }
 
     /// Bidirectional eval of the `m` queries `query(k) = (pair, key)` with
@@ -253,7 +256,9 @@ impl<W: Wide> Wavefront<W> {
             let run = |u: usize| {
                 let u = unit(u);
                 let mut b = MeanVar::new();
-                with_kept_by_type(|g: &mut Regrouped<W>| self.bidir_values(q, u, g, |x| b.push(x)));
+                with_kept_by_type(|g: &mut Regrouped<W>| {
+                    self.bidir_values(q, u, g, |x, cut| b.push_walk(x, cut))
+                });
                 (u, b)
             };
             c.red.clear();
@@ -327,7 +332,7 @@ impl<W: Wide> Wavefront<W> {
                 first,
                 count,
             };
-            self.bidir_values(&q, u, &mut g, |x| v.push(x));
+            self.bidir_values(&q, u, &mut g, |x, _| v.push(x));
         }
         v
     }

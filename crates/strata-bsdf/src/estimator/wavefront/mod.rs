@@ -251,6 +251,9 @@ pub(crate) struct WalkOut {
     pub reflection: bool,
     /// Sample: every event was a delta.
     pub specular: bool,
+    /// The walk reached the limit of events inside the stack: the limit
+    /// ended it.
+    pub cut: bool,
 }
 
 thread_local! {
@@ -751,7 +754,7 @@ impl<W: Wide> Wavefront<W> {
         // A block's walks in sample order, as the scalar engine pushes them.
         let block = |o: &[WalkOut]| {
             let mut b = MeanVar::new();
-            o.iter().for_each(|o| b.push(value(o)));
+            o.iter().for_each(|o| b.push_walk(value(o), o.cut));
             b
         };
         let sink = |u: Unit, b: MeanVar| red[u.query as usize].push_block(&b);
@@ -972,8 +975,8 @@ impl<W: Wide> Wavefront<W> {
                 for o in o {
                     let w = o.value.map(|x| x as f64);
                     let (refl, trans) = (o.exited && o.reflection, o.exited && !o.reflection);
-                    r.push(if refl { w } else { [0.0; 3] });
-                    t.push(if trans { w } else { [0.0; 3] });
+                    r.push_walk(if refl { w } else { [0.0; 3] }, o.cut);
+                    t.push_walk(if trans { w } else { [0.0; 3] }, o.cut);
                 }
                 (r, t)
             };

@@ -799,8 +799,9 @@ impl<W: Wide> Wavefront<W> {
         // a walk that left (one absorbed inside leaves 0).
         let v = if eval { c.acc } else { c.beta };
         let spec = W::select(c.specular, W::one(), W::zero());
-        let (d, z) = (c.d, W::zero());
-        let rows = lane_rows([d.x, d.y, d.z, v.r, v.g, v.b, spec, z]);
+        let d = c.d;
+        let limit = events::event_limit(self.settings.max_events) as f32;
+        let rows = lane_rows([d.x, d.y, d.z, v.r, v.g, v.b, spec, c.events]);
         for j in Chunk::<W>::set_bits(ended) {
             let r = rows[j];
             let out = if exited & (1 << j) != 0 {
@@ -811,10 +812,12 @@ impl<W: Wide> Wavefront<W> {
                     exited: true,
                     reflection: (r[2] > 0.0) == (q.wi[2][qi] > 0.0),
                     specular: r[6] > 0.5,
+                    cut: false,
                 }
             } else {
                 WalkOut {
                     value: if eval { [r[3], r[4], r[5]] } else { [0.0; 3] },
+                    cut: r[7] >= limit,
                     ..WalkOut::default()
                 }
             };
@@ -898,6 +901,7 @@ impl<W: Wide> Wavefront<W> {
             let ended = !lanes.as_ref().map_or(0, |w| W::bitmask(w.alive));
             for j in (0..W::LANES).filter(|&j| ended & (1 << j) != 0) {
                 if let (Some(w), true) = (&lanes, place[j] != IDLE) {
+                    sums[slot[j] as usize].count_cut(w.cut.lane(j));
                     in_order.hand_in(place[j], slot[j], w.p.lane(j), sums);
                     place[j] = IDLE;
                 }
