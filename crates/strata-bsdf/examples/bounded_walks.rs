@@ -2,7 +2,7 @@
 //! white medium over air), whose walks diffuse for up to ~10^8 events, under
 //! the default limit of events per walk: 36 queries × 16 walks of the
 //! bidirectional estimator, the unidirectional one and the unbiased pdf, on
-//! one thread. `cargo run --release -p strata-bsdf --example bounded_walks
+//! one thread, and how many walks the limit cut. `cargo run --release -p strata-bsdf --example bounded_walks
 //! [max_events]`.
 
 use glam::Vec3;
@@ -33,12 +33,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .eval_batch_keyed(&pairs, 16, &keys)?;
         let mean = e.iter().map(|e| e.value[0]).sum::<f64>() / e.len() as f64;
         let s = t.elapsed().as_secs_f64();
-        println!("eval {estimator:?}: {s:.2} s, mean f {mean:.4}");
+        let cut: u64 = e.iter().map(|e| e.truncated).sum();
+        println!("eval {estimator:?}: {s:.2} s, mean f {mean:.4}, {cut} walks cut");
     }
     let t = Instant::now();
     let p = bsdf.pdf_unbiased_batch(&pairs, 16)?;
     let mean = p.iter().map(|p| p.value).sum::<f64>() / p.len() as f64;
     let s = t.elapsed().as_secs_f64();
-    println!("pdf_unbiased: {s:.2} s, mean pdf {mean:.4}");
+    let cut: u64 = p.iter().map(|p| p.truncated).sum();
+    println!("pdf_unbiased: {s:.2} s, mean pdf {mean:.4}, {cut} walks cut");
     Ok(())
 }
