@@ -60,8 +60,10 @@ pub struct Sample {
     /// [`LayeredBsdf::pdf`] returns for `(wi, wo)`: a function of the two
     /// directions and the seed, not of the sample's key, so that MIS sees
     /// the same number from either strategy. For a `specular` sample it is
-    /// the density of the stack's non-delta lobes at `wo` (positive: the
-    /// pdf has a uniform floor); a renderer treats the sample as a delta.
+    /// the density of the stack's non-delta lobes at `wo` (positive
+    /// wherever light enters the stack, through the pdf's uniform floor; 0
+    /// where none can, as beyond the critical angle under an exterior denser
+    /// than the coat); a renderer treats the sample as a delta.
     pub pdf: f32,
     /// The walk left on the side it entered (reflection).
     pub reflection: bool,
