@@ -11,7 +11,14 @@
 //! dropped), or, if no thread can be started, on the calling thread. Results
 //! do not depend on the pool, so the child computes the parent's numbers.
 //! The price is a `getpid` per parallel section.
+//!
+//! A section that must not leave the calling thread (a BSDF of
+//! `threads(1)`, a batch too small to repay a hand-over) runs in
+//! [`on_calling_thread`]: there [`par_map`] maps in order on the calling
+//! thread and [`current_threads`] is 1, whichever engine path the section
+//! takes.
 
+use std::cell::Cell;
 use std::ptr;
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
 
@@ -49,19 +56,52 @@ fn current_is_live() -> bool {
     }
 }
 
-/// The number of threads of rayon's current pool (for a forked child whose
-/// global pool is its parent's, the size of the pool [`par_map`] runs on).
+thread_local! {
+    /// This thread is inside [`on_calling_thread`].
+    static CALLING_ONLY: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Runs `f` with every parallel section it starts on this thread run on
+/// this thread: [`par_map`] maps in order here, [`current_threads`] is 1.
+/// Nests; the setting ends with `f`, also when it unwinds.
+pub(crate) fn on_calling_thread<R>(f: impl FnOnce() -> R) -> R {
+    struct Restore(bool);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            CALLING_ONLY.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(CALLING_ONLY.with(|c| c.replace(true)));
+    f()
+}
+
+/// Whether this thread is inside [`on_calling_thread`].
+fn calling_only() -> bool {
+    CALLING_ONLY.with(Cell::get)
+}
+
+/// The number of threads a parallel section started here runs on: 1 inside
+/// [`on_calling_thread`], else rayon's current pool's (for a forked child
+/// whose global pool is its parent's, the size of the pool [`par_map`]
+/// runs on).
 pub(crate) fn current_threads() -> usize {
+    if calling_only() {
+        return 1;
+    }
     // Stamps the global pool with this process before rayon creates it.
     let _ = current_is_live();
     rayon::current_num_threads()
 }
 
-/// `f(0), ..., f(n - 1)` in order, computed over rayon's current pool, or,
-/// if that pool was built in another process (this is a forked child), over
-/// a pool of the same size of this process (on the calling thread if none
+/// `f(0), ..., f(n - 1)` in order: on the calling thread inside
+/// [`on_calling_thread`], else computed over rayon's current pool, or, if
+/// that pool was built in another process (this is a forked child), over a
+/// pool of the same size of this process (on the calling thread if none
 /// can be built).
 pub(crate) fn par_map<R: Send>(n: usize, f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
+    if calling_only() {
+        return (0..n).map(f).collect();
+    }
     if current_is_live() {
         return (0..n).into_par_iter().map(f).collect();
     }

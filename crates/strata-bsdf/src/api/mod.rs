@@ -469,19 +469,25 @@ impl LayeredBsdf {
         &self.wave
     }
 
-    /// Runs `f` on this BSDF's thread pool, if it has one, when the work
-    /// (`queries` queries of `walks` walks each) is more than
-    /// [`SERIAL_WALKS`]; less runs as one task on the calling thread (a
-    /// hand-over to a pool's thread costs more than such a batch).
+    /// Runs `f` where this BSDF's batches run when the work (`queries`
+    /// queries of `walks` walks each) is more than [`SERIAL_WALKS`]; less
+    /// runs on the calling thread (a hand-over to a pool's thread costs
+    /// more than such a batch). See [`LayeredBsdf::install_if`].
     fn install<R: Send>(&self, queries: usize, walks: u64, f: impl FnOnce() -> R + Send) -> R {
         self.install_if((queries as u64).saturating_mul(walks) > SERIAL_WALKS, f)
     }
 
-    /// Runs `f` on this BSDF's pool, if it has one and `parallel` is set.
+    /// Runs `f`, the one way a batch's engine call goes parallel: if
+    /// `parallel` is set, on this BSDF's pool (rayon's current pool without
+    /// one); else, or with `threads(1)` (or a pool of one thread), on the
+    /// calling thread with every parallel section inside it there too
+    /// ([`crate::pool::on_calling_thread`]), whichever path the engine
+    /// takes.
     fn install_if<R: Send>(&self, parallel: bool, f: impl FnOnce() -> R + Send) -> R {
         match &self.threads {
             Threads::Pool(p) if parallel && p.threads() > 1 => p.install(f),
-            _ => f(),
+            Threads::Current if parallel => f(),
+            _ => crate::pool::on_calling_thread(f),
         }
     }
 

@@ -15,3 +15,4 @@ mod param_sets;
 mod per_query_chunks;
 mod proptest_api;
 mod readme_example;
+mod threads;

@@ -182,6 +182,7 @@ pub mod chi2;
 pub mod cv;
 pub mod reference;
 pub mod sets;
+pub mod threads;
 
 /// A unit direction uniformly distributed in the cone of half-angle `delta`
 /// around `axis`, from two uniforms of `u`.
