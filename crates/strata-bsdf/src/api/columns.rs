@@ -294,6 +294,7 @@ impl<'a> PerQuery<'a> {
 
     /// The same, with at most `rows` (at least 1) distinct rows a chunk:
     /// fewer to hold less memory, more for fewer, larger parallel batches.
+    #[must_use]
     pub fn with_chunk_rows(mut self, rows: usize) -> Self {
         self.rows = rows.max(1);
         self

@@ -256,6 +256,7 @@ impl LayeredBsdf {
 
     /// Sets the number of walks per `eval` (at least 1; a call with more
     /// than [`MAX_WALKS`] is a [`QueryError::TooManySamples`]).
+    #[must_use]
     pub fn samples(mut self, n: u64) -> Self {
         self.samples = n.max(1);
         self
@@ -264,6 +265,7 @@ impl LayeredBsdf {
     /// Sets the number of density walks per approximate `pdf` (at least 1):
     /// a fixed cost, in place of the default pilot round
     /// ([`PdfWalks::DEFAULT`]).
+    #[must_use]
     pub fn pdf_samples(mut self, n: u32) -> Self {
         self.pdf_walks = PdfWalks::fixed(n as u64);
         self
@@ -274,12 +276,14 @@ impl LayeredBsdf {
     /// error (the default, [`PdfWalks::DEFAULT`]; [`PdfWalks::TIGHT`] for a
     /// pdf within 0.7–1.3× at nearly every direction, for about twice the
     /// walks).
+    #[must_use]
     pub fn pdf_walks(mut self, walks: PdfWalks) -> Self {
         self.pdf_walks = walks;
         self
     }
 
     /// Sets the seed of every random stream.
+    #[must_use]
     pub fn seed(mut self, seed: u64) -> Self {
         self.seed = seed;
         self
@@ -288,6 +292,7 @@ impl LayeredBsdf {
     /// Chooses what flows from `wi` to `wo` (radiance, the default, or
     /// importance); it changes transmission between exteriors of different
     /// IOR only (see [`Transport`]).
+    #[must_use]
     pub fn transport(mut self, transport: Transport) -> Self {
         self.transport = transport;
         let adjoint = self.adjoint();
@@ -304,6 +309,7 @@ impl LayeredBsdf {
 
     /// Chooses where `eval` starts its walks (see [`EvalStart`]; by
     /// default from the direction nearer the normal).
+    #[must_use]
     pub fn eval_start(mut self, start: EvalStart) -> Self {
         self.eval_start = start;
         self
@@ -311,6 +317,7 @@ impl LayeredBsdf {
 
     /// Chooses the estimator of `eval` (see [`Estimator`]; by default the
     /// exact value where the stack has a closed form).
+    #[must_use]
     pub fn estimator(mut self, estimator: Estimator) -> Self {
         self.estimator = estimator;
         // The engines' walks leave out what the control variate holds only
@@ -415,6 +422,7 @@ impl LayeredBsdf {
     }
 
     /// Chooses the engine.
+    #[must_use]
     pub fn engine(mut self, engine: Engine) -> Self {
         self.engine = engine;
         self
