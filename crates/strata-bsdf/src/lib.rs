@@ -82,7 +82,7 @@ pub use api::{
     SampleFlags, SampleRecord, SetsError, ThreadsError, Transport, Vectors, VectorsMut,
     MAX_QUERIES, MAX_THREADS, MAX_WALKS,
 };
-pub use api::{CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS};
+pub use api::{CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS};
 pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
 pub use estimator::{Albedo, Estimate, Settings};
 pub use stack::{LayerStack, MaterialDesc, MaterialError, SetError, SetPath, Shape, StackError};

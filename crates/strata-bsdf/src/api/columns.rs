@@ -68,6 +68,14 @@ pub enum ColumnsError {
         /// The number of queries.
         queries: usize,
     },
+    /// [`Materials::per_query`] would hold the materials of more than
+    /// [`MAX_MATERIAL_LAYERS`] layers: its batch runs through [`PerQuery`].
+    TooManyRows {
+        /// The distinct rows found so far (one more than fit).
+        rows: usize,
+        /// The stack's layers.
+        layers: usize,
+    },
     /// The working memory of the rows could not be allocated.
     OutOfMemory {
         /// The bytes asked for.
@@ -78,6 +86,11 @@ pub enum ColumnsError {
 /// The most queries [`Materials::per_query`] takes: their materials are
 /// numbered by `u32`.
 pub const MAX_QUERIES: usize = u32::MAX as usize;
+
+/// The most layers' worth of materials [`Materials::per_query`] holds at
+/// once (distinct rows times the stack's layers), which bounds its memory:
+/// the bound of one [`PerQuery`] chunk ([`CHUNK_LAYERS`]).
+pub const MAX_MATERIAL_LAYERS: usize = CHUNK_LAYERS;
 
 impl fmt::Display for ColumnsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -102,6 +115,12 @@ impl fmt::Display for ColumnsError {
             ColumnsError::TooManyQueries { queries } => {
                 write!(f, "{queries} queries: at most {MAX_QUERIES}")
             }
+            ColumnsError::TooManyRows { rows, layers } => write!(
+                f,
+                "{rows} distinct rows of {layers} layers: Materials::per_query holds at most \
+                 {MAX_MATERIAL_LAYERS} layers' worth of materials; PerQuery answers any number \
+                 in bounded chunks"
+            ),
             ColumnsError::OutOfMemory { bytes } => write!(
                 f,
                 "out of memory: cannot allocate {bytes} bytes of per-query working memory"
@@ -136,12 +155,12 @@ impl Materials {
     /// rest; nothing is answered silently for it).
     ///
     /// Memory: the materials of all distinct rows are held at once, a few
-    /// KB each on a two-layer stack and about 1.7 KB per layer on a deep one
-    /// (10^6 distinct rows of a coated conductor: about 4 GB). A batch whose
-    /// rows are many should run through [`PerQuery`], which builds them a
-    /// bounded chunk at a time and answers the same numbers. The per-query
-    /// index (4 bytes a query) is allocated fallibly
-    /// ([`ColumnsError::OutOfMemory`]).
+    /// KB each on a two-layer stack and about 1.7 KB per layer on a deep
+    /// one, so at most [`MAX_MATERIAL_LAYERS`] layers' worth of them: more
+    /// distinct rows are [`ColumnsError::TooManyRows`]. Such a batch runs
+    /// through [`PerQuery`], which builds them a bounded chunk at a time and
+    /// answers the same numbers. The per-query index (4 bytes a query) is
+    /// allocated fallibly ([`ColumnsError::OutOfMemory`]).
     ///
     /// ```
     /// use strata_bsdf::{Column, LayerStack, LayeredBsdf, Materials};
@@ -177,6 +196,11 @@ impl Materials {
             let u = match first.get(&row) {
                 Some(&u) => u,
                 None => {
+                    let layers = template.stack().len().max(1);
+                    if (stacks.len() + 1) * layers > MAX_MATERIAL_LAYERS {
+                        let rows = stacks.len() + 1;
+                        return Err(ColumnsError::TooManyRows { rows, layers });
+                    }
                     stacks.push(query_stack(template.stack(), columns, k)?);
                     let u = stacks.len() as u32 - 1;
                     first.insert(row, u);

@@ -21,7 +21,8 @@ mod strategy;
 mod transport;
 
 pub use columns::{
-    Column, ColumnsError, PerQuery, CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_QUERIES,
+    Column, ColumnsError, PerQuery, CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS,
+    MAX_QUERIES,
 };
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,

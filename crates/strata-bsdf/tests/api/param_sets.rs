@@ -551,3 +551,25 @@ fn a_set_has_its_own_walk_free_form_whatever_the_bsdf_or_the_order() {
         }
     }
 }
+
+/// `Materials::per_query` holds at most `MAX_MATERIAL_LAYERS` layers' worth
+/// of materials: one distinct row more is an error naming the rows and the
+/// layers (it points to `PerQuery`, which takes the same batch).
+#[test]
+fn per_query_materials_are_bounded() {
+    use strata_bsdf::{Column, ColumnsError, PerQuery, MAX_MATERIAL_LAYERS};
+    let bsdf = LayeredBsdf::new(stack(COATED_COPPER));
+    assert_eq!(bsdf.stack().len(), 2);
+    let rows = MAX_MATERIAL_LAYERS / 2 + 1;
+    let thickness: Vec<f32> = (0..rows).map(|k| 0.1 + k as f32 * 1e-5).collect();
+    let path = "layers[0].medium.thickness".parse().unwrap();
+    let columns = [Column {
+        path: &path,
+        width: 1,
+        values: &thickness,
+    }];
+    let e = Materials::per_query(&bsdf, rows, &columns).unwrap_err();
+    assert_eq!(e, ColumnsError::TooManyRows { rows, layers: 2 });
+    assert!(e.to_string().contains("PerQuery"), "{e}");
+    assert!(PerQuery::new(&bsdf, rows, &columns).is_ok());
+}
