@@ -812,8 +812,8 @@ impl Bsdf {
     /// of 0.15), `estimator` the estimator of `eval`: "auto" (a closed form where the stack has one,
     /// the bidirectional walks on stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the
     /// unidirectional walks elsewhere), "uni" or "bidir", `max_events` the
-    /// limit of events per walk (1 to 2^24; by default 2^20, which no walk of
-    /// the test and stress suites reaches). Raises
+    /// limit of events per walk (1 to 2^24; by default 2^20, more than five
+    /// times the longest walk of the library's stress suite). Raises
     /// `MaterialError` (a ValueError) naming the layer, the field and the
     /// value.
     #[staticmethod]

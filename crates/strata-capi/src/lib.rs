@@ -732,8 +732,8 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32)
 
 /// Sets the limit of events (interface events and collisions) per walk,
 /// from 1 to 2^24: a walk that reaches it ends there. The default, 2^20, is
-/// more than five times the longest walk of the library's test and stress
-/// suites and bounds the time of a walk on any stack; a bidirectional
+/// more than five times the longest walk of the library's stress suite
+/// and bounds the time of a walk on any stack; a bidirectional
 /// walk's subpaths end at its square root. Any other `n` is
 /// `STRATA_ERR_INVALID_ARGUMENT`, naming it, and leaves the BSDF as it was.
 /// Configure a BSDF before sharing it: this call must not run while another

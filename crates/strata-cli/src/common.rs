@@ -141,9 +141,9 @@ pub struct EngineArgs {
     #[arg(long, default_value = "radiance")]
     pub transport: strata_bsdf::Transport,
     /// The limit of events (interface events and collisions) per walk, at
-    /// most 2^24: a walk that reaches it ends there (default 2^20, which no
-    /// walk of the test and stress suites reaches; a bidirectional walk's
-    /// subpaths end at its square root).
+    /// most 2^24: a walk that reaches it ends there (default 2^20, more than
+    /// five times the longest walk of `strata stress`; a bidirectional
+    /// walk's subpaths end at its square root).
     #[arg(long, value_parser = max_events)]
     pub max_events: Option<u64>,
 }

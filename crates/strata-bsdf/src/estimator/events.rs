@@ -101,14 +101,20 @@ pub fn power_heuristic<L: Lane>(a: L, b: L) -> L {
 pub const MAX_CAP: u32 = 1 << 24;
 
 /// The default limit of events per walk ([`Settings::max_events`]): more
-/// than five times the longest walk of the test and stress suites.
+/// than five times the longest walk of the stress suite (docs/numerics.md).
 pub const MAX_EVENTS: u32 = 1 << 20;
 
 /// The lanes whose walk has made as many events as `s` allows: its next
 /// roulette ends it, and it counts as cut.
 #[inline]
 pub fn reached_limit<L: Lane>(events: L, s: &Settings) -> L::Mask {
-    events.ge(L::splat(event_limit(s.max_events) as f64))
+    at_limit(events, s.max_events)
+}
+
+/// The lanes whose `events` reach the limit `max_events`.
+#[inline]
+fn at_limit<L: Lane>(events: L, max_events: u32) -> L::Mask {
+    events.ge(L::splat(event_limit(max_events) as f64))
 }
 
 /// `max_events` as the engines apply it: within `1..=MAX_CAP`.
@@ -136,7 +142,7 @@ pub fn roulette<L: Lane>(
     rr_start: u32,
     cap: u32,
 ) -> (Rgb<L>, L::Mask) {
-    let capped = events.ge(L::splat(event_limit(cap) as f64));
+    let capped = at_limit(events, cap);
     let early = events.lt(L::splat(rr_start as f64));
     let q = beta.max_channel().min(L::one());
     let survive = u.lt(q);

@@ -45,7 +45,7 @@ pub struct Settings {
     /// walk that reaches it ends there, and its result counts it as cut.
     /// The default, [`events::MAX_EVENTS`], bounds the time and memory of a
     /// walk on any stack (docs/numerics.md, *Walk length*) without changing
-    /// an answer of the test and stress suites; below it the estimate loses
+    /// an answer of the stress suite; below it the estimate loses
     /// the energy of longer paths, which is biased. A bidirectional walk
     /// connects every vertex of one subpath to every vertex of the other, so
     /// its subpaths end at `√max_events` vertices. Values are taken in

@@ -1003,22 +1003,7 @@ fn engines_and_thread_counts_print_the_same_answers() {
         assert_eq!(out, reference, "eval {extra:?}");
     }
     let m = example("scattering_slab.toml");
-    let albedo = |extra: &[&str]| {
-        let args = [
-            &[
-                "albedo",
-                "--material",
-                &m,
-                "--theta",
-                "40",
-                "--samples",
-                "3000",
-            ][..],
-            extra,
-        ]
-        .concat();
-        assert_ok(&run(&args, ""))
-    };
+    let albedo = |extra: &[&str]| albedo_at_40(&m, "3000", extra);
     assert_eq!(
         albedo(&["--engine", "scalar"]),
         albedo(&["--threads", "2"]),
@@ -1412,28 +1397,32 @@ fn eval_lines_and_sample_set_values_of_their_own() {
     assert_fails_with(&out, &["--set", "x"]);
 }
 
+/// `strata albedo` of `material` at θ 40° with `samples` walks and the
+/// flags `extra`: its JSON line.
+fn albedo_at_40(material: &str, samples: &str, extra: &[&str]) -> String {
+    let args = [
+        &[
+            "albedo",
+            "--material",
+            material,
+            "--theta",
+            "40",
+            "--samples",
+            samples,
+        ][..],
+        extra,
+    ]
+    .concat();
+    assert_ok(&run(&args, ""))
+}
+
 /// `--max-events` is the library's limit of events per walk: at 3 events a
 /// scattering slab reflects less than under the default, whose answers are
 /// those of `--max-events 1048576`; a limit outside 1..=2^24 fails naming it.
 #[test]
 fn max_events_limits_the_walks() {
     let m = example("scattering_slab.toml");
-    let albedo = |extra: &[&str]| {
-        let args = [
-            &[
-                "albedo",
-                "--material",
-                &m,
-                "--theta",
-                "40",
-                "--samples",
-                "20000",
-            ][..],
-            extra,
-        ]
-        .concat();
-        assert_ok(&run(&args, ""))
-    };
+    let albedo = |extra: &[&str]| albedo_at_40(&m, "20000", extra);
     let full = albedo(&[]);
     assert_eq!(full, albedo(&["--max-events", "1048576"]));
     let three = albedo(&["--max-events", "3"]);
