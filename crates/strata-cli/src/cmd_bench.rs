@@ -69,6 +69,14 @@ pub struct Args {
     /// or bidir (always the bidirectional walks).
     #[arg(long, default_value = "auto")]
     estimator: strata_bsdf::Estimator,
+    /// With `--against pbrt-v4`: one shading vertex of a path tracer (a BSDF
+    /// sample, a light sample's eval and pdf, one walk each, batches of 4096
+    /// on one thread) instead of many-walk evals.
+    #[arg(long, requires = "against")]
+    vertex: bool,
+    /// Vertices per configuration, view and setting of `--vertex`.
+    #[arg(long, default_value_t = 196_608, value_parser = clap::value_parser!(u64).range(4096..=100_000_000))]
+    vertices: u64,
     /// Runs per pair of `--against` (the fastest counts).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     reps: u32,
@@ -440,6 +448,10 @@ pub fn run(args: Args) -> Result<(), String> {
         Some(n) => n as usize,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
+    if args.vertex {
+        let text = crate::bench_vertex::report(args.vertices, 4096, 3, args.json)?;
+        return print_out(&text);
+    }
     if args.against.is_some() {
         let text = crate::bench_pbrt::report(
             args.walks,

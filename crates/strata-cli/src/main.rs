@@ -7,6 +7,7 @@
 //! A failed or interrupted run removes its temporary files (see `output`).
 
 mod bench_pbrt;
+mod bench_vertex;
 mod cmd_albedo;
 mod cmd_bench;
 mod cmd_converge;

@@ -13,3 +13,4 @@ pub mod brute_force;
 pub mod converge;
 pub mod pbrt;
 pub mod stress;
+pub mod vertex;

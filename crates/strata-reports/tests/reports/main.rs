@@ -9,3 +9,4 @@ mod brute_force;
 mod converge;
 mod pbrt;
 mod stress;
+mod vertex;
