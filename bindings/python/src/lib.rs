@@ -725,10 +725,11 @@ struct Bsdf {
 
 /// What `pdf_samples` accepts.
 const PDF_SAMPLES_EXPECTED: &str =
-    "None (the library's rule), a number of walks, \"default\", \"tight\" or (pilot, max, rel_stderr)";
+    "None (the library's rule), a number of walks, \"default\", \"lobes\", \"adaptive\", \"tight\" or (pilot, max, rel_stderr)";
 
 /// The `pdf_samples` argument as a rule of density walks: `None` or
-/// "default" for the library's rule, "tight", a fixed count, or an adaptive
+/// "default" for the library's rule (the lobe pdf), "lobes", "adaptive",
+/// "tight", a fixed count, or an adaptive
 /// rule `(pilot, max, rel_stderr)`; anything else is an error naming the
 /// value.
 fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
@@ -743,7 +744,9 @@ fn pdf_walks_in(obj: Option<&Bound<'_, PyAny>>) -> PyResult<PdfWalks> {
     }
     if let Ok(name) = obj.extract::<String>() {
         return match name.as_str() {
-            "default" | "tight" => name.parse().map_err(PyValueError::new_err),
+            "default" | "lobes" | "adaptive" | "tight" => {
+                name.parse().map_err(PyValueError::new_err)
+            }
             _ => Err(PyValueError::new_err(format!(
                 "pdf_samples = {}: expected {PDF_SAMPLES_EXPECTED}",
                 repr(obj)
@@ -926,8 +929,8 @@ impl Bsdf {
         let walks = self.inner.pdf_walks_value();
         Ok(if walks == PdfWalks::DEFAULT {
             py.None().into_bound(py)
-        } else if walks == PdfWalks::TIGHT {
-            "tight".into_pyobject(py)?.into_any()
+        } else if walks == PdfWalks::ADAPTIVE || walks == PdfWalks::TIGHT {
+            walks.to_string().into_pyobject(py)?.into_any()
         } else if walks.pilot() == 0 {
             walks.max().into_pyobject(py)?.into_any()
         } else {

@@ -169,7 +169,7 @@ fn density_walks(c: &mut Criterion) {
 
 /// A batch of path vertices on the representative stacks: `sample`, then
 /// `eval` and `pdf` of a light direction, through the public API on one
-/// thread, with the default pdf walks ([`PdfWalks::DEFAULT`]), with
+/// thread, with the default pdf walks ([`PdfWalks::ADAPTIVE`]), with
 /// [`PdfWalks::TIGHT`] and with 4.
 fn vertices(c: &mut Criterion) {
     let pairs: Vec<(Vec3, Vec3)> = pairs()
@@ -188,7 +188,7 @@ fn vertices(c: &mut Criterion) {
         let mut g = c.benchmark_group(format!("vertex/{name}"));
         g.throughput(Throughput::Elements(QUERIES as u64));
         let rules = [
-            ("default", PdfWalks::DEFAULT),
+            ("default", PdfWalks::ADAPTIVE),
             ("tight", PdfWalks::TIGHT),
             ("pdf4", 4.into()),
         ];

@@ -703,10 +703,10 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
 
 /// Sets how many density walks each approximate pdf runs (the pdf that
 /// `strata_pdf_batch` returns and that the samples carry):
-/// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
-/// 8 walks and then 8 to 64 fresh ones for a relative standard error of
-/// 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
-/// compares the two; `strata_bsdf_set_pdf_walks` sets any other rule).
+/// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's default, the
+/// lobe pdf (no walks: a closed-form density for MIS); `n ≥ 1` is exactly
+/// `n` density walks (docs/method.md §6 compares them;
+/// `strata_bsdf_set_pdf_walks` sets an adaptive rule).
 /// Every `n` is valid. (The Rust API's `pdf_samples(0)` is one walk; here 0
 /// names the rule.)
 /// Configure a BSDF before sharing it: this call must not run while another

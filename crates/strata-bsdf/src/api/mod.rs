@@ -263,20 +263,19 @@ impl LayeredBsdf {
         self
     }
 
-    /// Sets the number of density walks per approximate `pdf` (at least 1):
-    /// a fixed cost, in place of the default pilot round
-    /// ([`PdfWalks::DEFAULT`]).
+    /// Sets the number of density walks per approximate `pdf` (at least 1),
+    /// in place of the default lobe pdf ([`PdfWalks::LOBES`]).
     #[must_use]
     pub fn pdf_samples(mut self, n: u32) -> Self {
         self.pdf_walks = PdfWalks::fixed(n as u64);
         self
     }
 
-    /// Sets how many density walks an approximate `pdf` runs: a fixed
-    /// number, or a pilot round that sets the count for a relative standard
-    /// error (the default, [`PdfWalks::DEFAULT`]; [`PdfWalks::TIGHT`] for a
-    /// pdf within 0.7–1.3× at nearly every direction, for about twice the
-    /// walks).
+    /// Sets how an approximate `pdf` is made: the lobe pdf (the default,
+    /// [`PdfWalks::LOBES`], no walks), a fixed number of density walks, or a
+    /// pilot round that sets the count for a relative standard error
+    /// ([`PdfWalks::ADAPTIVE`]; [`PdfWalks::TIGHT`] for a pdf within
+    /// 0.7–1.3× of `sample()`'s density at nearly every direction).
     #[must_use]
     pub fn pdf_walks(mut self, walks: PdfWalks) -> Self {
         self.pdf_walks = walks;
@@ -993,7 +992,15 @@ impl LayeredBsdf {
             }
             let sub = per.with_set(&b.sets);
             b.pdf.clear();
-            if serial || b.pairs.len() <= PDF_CHUNK {
+            if self.pdf_walks.is_lobes() {
+                let (pairs, sub) = (&b.pairs, per.with_set(&b.sets));
+                b.pdf.extend(
+                    pairs
+                        .iter()
+                        .enumerate()
+                        .map(|(j, &(a, wo))| self.scalar_in(sub, j).lobe_pdf(a, wo) as f32),
+                );
+            } else if serial || b.pairs.len() <= PDF_CHUNK {
                 // On this thread (where `pdf_validated` would run them too),
                 // lane for lane its numbers, from buffers the thread keeps.
                 let (pairs, pdf) = (&b.pairs, &mut b.pdf);
@@ -1060,7 +1067,9 @@ impl LayeredBsdf {
     /// Whether a pdf call of `queries` queries of the BSDF's own stack runs
     /// query by query: by the walk-free sampler, or on the scalar engine.
     pub(super) fn pdf_by_query(&self, queries: usize) -> bool {
-        self.sample_is_exact() || self.pdf_engine(queries) == Engine::Scalar
+        self.sample_is_exact()
+            || self.pdf_walks.is_lobes()
+            || self.pdf_engine(queries) == Engine::Scalar
     }
 
     /// Query `k`'s approximate pdf, keyed by the directions, on the engine
@@ -1069,6 +1078,9 @@ impl LayeredBsdf {
     fn pdf_one(&self, per: Per, k: usize, a: Pt, b: Pt) -> f32 {
         if let Some(exact) = self.exact_sampler(per, k) {
             return exact.pdf_query(self.stack_in(per, k), a, b) as f32;
+        }
+        if self.pdf_walks.is_lobes() {
+            return self.scalar_in(per, k).lobe_pdf(a, b) as f32;
         }
         let key = pdf_key(a, b);
         if self.pdf_engine(1) == Engine::Scalar {
@@ -1094,7 +1106,8 @@ impl LayeredBsdf {
     fn pdf_validated(&self, per: Per, dirs: &[Pair]) -> Vec<f32> {
         let n = dirs.len();
         let free = |k: usize| self.exact_sampler(per, k).is_some();
-        let by_query = (0..n).all(free) || self.pdf_engine(n) == Engine::Scalar;
+        let by_query =
+            self.pdf_walks.is_lobes() || (0..n).all(free) || self.pdf_engine(n) == Engine::Scalar;
         if by_query {
             let pdf = |(k, &(a, b)): (usize, &Pair)| self.pdf_one(per, k, a, b);
             return dirs.iter().enumerate().map(pdf).collect();

@@ -23,6 +23,7 @@ pub mod coat_return;
 pub mod density;
 pub mod events;
 pub mod layout;
+pub mod lobe_pdf;
 mod orient;
 pub mod params;
 pub mod pdf;

@@ -39,7 +39,8 @@ pub fn mix_uniform(p: f64) -> f64 {
     }
 }
 
-/// How many density walks an approximate pdf runs: a fixed number, or a
+/// How an approximate pdf is made: the lobe pdf (no walks,
+/// [`PdfWalks::LOBES`], the default), or density walks, a fixed number or a
 /// pilot round that sets it. The pilot's walks give one walk's relative
 /// variance `v`; then `v / rel_stderr²` fresh walks run (at least as many
 /// as the pilot, at most `max`), so that the pdf's relative standard error
@@ -59,10 +60,23 @@ pub struct PdfWalks {
 }
 
 impl PdfWalks {
-    /// The default: a pilot of 8 walks, then 8 to 64 walks for a relative
-    /// standard error of 0.15 (0.7–1.3× at two standard errors;
-    /// docs/method.md §6 measures it).
-    pub const DEFAULT: PdfWalks = PdfWalks {
+    /// No density walk: the closed-form lobe pdf
+    /// ([`super::lobe_pdf`]), a renderer's MIS density for the cost of an
+    /// interface pdf. The library's default.
+    pub const LOBES: PdfWalks = PdfWalks {
+        pilot: 0,
+        max: 0,
+        rel_stderr: 0.0,
+    };
+
+    /// The library's default rule: [`PdfWalks::LOBES`], chosen by the
+    /// renderer's vertex benchmark (docs/performance.md).
+    pub const DEFAULT: PdfWalks = PdfWalks::LOBES;
+
+    /// Density walks for a pdf close to `sample()`'s density: a pilot of 8
+    /// walks, then 8 to 64 walks for a relative standard error of 0.15
+    /// (0.7–1.3× at two standard errors; docs/method.md §6 measures it).
+    pub const ADAPTIVE: PdfWalks = PdfWalks {
         pilot: 8,
         max: 64,
         rel_stderr: 0.15,
@@ -71,7 +85,7 @@ impl PdfWalks {
     /// The rule for a pdf within 0.7–1.3× of `sample()`'s density at
     /// nearly every direction: a pilot of 8 walks, then 8 to 128 walks for
     /// a relative standard error of 0.1 (0.7–1.3× at three standard
-    /// errors). About twice the default's walks where one walk is noisy
+    /// errors). About twice [`PdfWalks::ADAPTIVE`]'s walks where one walk is noisy
     /// (docs/method.md §6 measures both; a renderer's MIS weights rarely
     /// need it, a pdf compared direction by direction may).
     pub const TIGHT: PdfWalks = PdfWalks {
@@ -125,6 +139,11 @@ impl PdfWalks {
             ));
         }
         Ok(PdfWalks::adaptive(pilot, max, rel_stderr))
+    }
+
+    /// Whether the rule runs no walk: the lobe pdf.
+    pub fn is_lobes(&self) -> bool {
+        self.max == 0
     }
 
     /// The walks of the pilot round (0 for a fixed number).
@@ -209,15 +228,19 @@ impl Default for PdfWalks {
     }
 }
 
-/// A rule by name, as the CLI and the bindings take it: `default`, `tight`,
-/// a fixed count `N` (1 to [`crate::MAX_WALKS`]) or an adaptive rule
-/// `PILOT,MAX,REL_STDERR` ([`PdfWalks::try_adaptive`]).
+/// A rule by name, as the CLI and the bindings take it: `default` (the
+/// library's), `lobes`, `adaptive`, `tight`, a fixed count `N` (1 to
+/// [`crate::MAX_WALKS`]) or an adaptive rule `PILOT,MAX,REL_STDERR`
+/// ([`PdfWalks::try_adaptive`]).
 impl std::str::FromStr for PdfWalks {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let expected = "expected default, tight, a number of walks or PILOT,MAX,REL_STDERR";
+        let expected =
+            "expected default, lobes, adaptive, tight, a number of walks or PILOT,MAX,REL_STDERR";
         match s.trim() {
             "default" => Ok(PdfWalks::DEFAULT),
+            "lobes" => Ok(PdfWalks::LOBES),
+            "adaptive" => Ok(PdfWalks::ADAPTIVE),
             "tight" => Ok(PdfWalks::TIGHT),
             t => match t.split(',').map(str::trim).collect::<Vec<_>>()[..] {
                 [n] if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => {
@@ -243,15 +266,17 @@ impl std::str::FromStr for PdfWalks {
     }
 }
 
-/// The rule's name: `default`, `tight`, the count, or
+/// The rule's name: `lobes`, `adaptive`, `tight`, the count, or
 /// `PILOT,MAX,REL_STDERR`. [`PdfWalks::from_str`](std::str::FromStr) reads
 /// back every rule that [`PdfWalks::fixed`] and [`PdfWalks::try_adaptive`]
 /// make; not [`PdfWalks::adaptive`]'s with a relative standard error that
 /// is not a positive finite number (which runs `max` walks).
 impl std::fmt::Display for PdfWalks {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        if *self == PdfWalks::DEFAULT {
-            f.write_str("default")
+        if self.is_lobes() {
+            f.write_str("lobes")
+        } else if *self == PdfWalks::ADAPTIVE {
+            f.write_str("adaptive")
         } else if *self == PdfWalks::TIGHT {
             f.write_str("tight")
         } else if self.pilot == 0 {
@@ -396,6 +421,13 @@ impl<S: Scalar> ScalarEngine<S> {
         kind: PdfKind,
     ) -> PdfEstimate {
         let walks = walks.into();
+        if walks.is_lobes() {
+            // No walk: the closed form, exact as far as it goes.
+            return PdfEstimate {
+                value: self.lobe_pdf(wi, wo),
+                ..PdfEstimate::default()
+            };
+        }
         let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
             return PdfEstimate::default();
         };
@@ -485,13 +517,15 @@ mod tests {
     #[test]
     fn a_rule_reads_back_from_its_name() {
         for (name, rule) in [
-            ("default", PdfWalks::DEFAULT),
+            ("default", PdfWalks::LOBES),
+            ("lobes", PdfWalks::LOBES),
+            ("adaptive", PdfWalks::ADAPTIVE),
             ("tight", PdfWalks::TIGHT),
             ("32", PdfWalks::fixed(32)),
             ("4,200,0.05", PdfWalks::adaptive(4, 200, 0.05)),
             // The named rules by their parameters are the named rules.
             ("8,128,0.1", PdfWalks::TIGHT),
-            (" 8, 64, 0.15 ", PdfWalks::DEFAULT),
+            (" 8, 64, 0.15 ", PdfWalks::ADAPTIVE),
         ] {
             let parsed: PdfWalks = name.parse().unwrap();
             assert_eq!(parsed, rule, "{name}");
@@ -511,7 +545,10 @@ mod tests {
                 "99999999999999999999 walks: expected 1 to",
             ),
             ("+5", "\"+5\": expected default"),
-            ("tighter", "\"tighter\": expected default, tight"),
+            (
+                "tighter",
+                "\"tighter\": expected default, lobes, adaptive, tight",
+            ),
             ("-3", "\"-3\": expected default"),
             ("8,64", "\"8,64\": expected default"),
             ("1,64,0.1", "pilot = 1: expected 2 to"),

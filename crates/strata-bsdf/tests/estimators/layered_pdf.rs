@@ -278,3 +278,79 @@ fn pdf_sees_transmission_through_a_smooth_exit() {
         assert!(t > 0.7 && t <= 1.0 + 4.0 * se, "wi {wi:?}: {t} ± {se}");
     }
 }
+
+/// The lobe pdf (the default, `PdfWalks::LOBES`) is a density: on every
+/// stack and incidence it integrates to at most 1, and to at least its
+/// uniform part; on an opaque stack away from grazing it puts nearly all
+/// its mass on the side light leaves (its lobes are normalized there). (At
+/// most 1.005: the body's weight `1 − F(cos θi)` is the flat surface's
+/// Fresnel term, and a rough entry's reflection lobe carries its
+/// microfacets' mean, a few thousandths more on the rough slab from below.)
+#[test]
+fn lobe_pdf_integrates_to_at_most_one() {
+    for (s, (label, toml)) in STACKS.into_iter().enumerate() {
+        let st = stack(toml);
+        let opaque = !st.transmissive();
+        let b = strata_bsdf::LayeredBsdf::new(st.clone());
+        assert!(
+            b.pdf_walks_value().is_lobes(),
+            "the default is the lobe pdf"
+        );
+        for (q, wi) in incidents(st.transmissive()).into_iter().enumerate() {
+            let v = |w: [f64; 3]| glam::Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32);
+            let pdfs = |wos: &[[f64; 3]], _: &[u64]| {
+                let pairs: Vec<_> = wos.iter().map(|&wo| (v(wi), v(wo))).collect();
+                let p = b.pdf_batch(&pairs).unwrap();
+                p.into_iter().map(f64::from).collect()
+            };
+            let (total, se) = pdf_integral(pdfs, 80, (s * 10 + q) as u64);
+            eprintln!("{label} wi {wi:?}: ∫ lobe pdf = {total:.4} ± {se:.4}");
+            let sides = if st.transmissive() { 1.0 } else { 0.5 };
+            assert!(
+                total >= sides * UNIFORM_FRACTION - 1e-9 && total <= 1.005 + 4.0 * se,
+                "{label} wi {wi:?}: ∫ lobe pdf = {total} ± {se}"
+            );
+            if opaque && wi[2] > 0.5 {
+                assert!(total > 0.9, "{label} wi {wi:?}: ∫ lobe pdf = {total}");
+            }
+        }
+    }
+}
+
+/// On a lone interface the lobe pdf is the interface's own density, mixed
+/// with the uniform part: the density of `sample()`, exactly.
+#[test]
+fn lobe_pdf_of_a_lone_rough_interface_is_its_density() {
+    let st = stack(
+        r#"
+        exterior_ior = 1.1
+        [[layers]]
+        interface = { kind = "dielectric", ior = 1.6, roughness = 0.25 }
+        "#,
+    );
+    let b = strata_bsdf::LayeredBsdf::new(st.clone());
+    let it = st.interface_lanes::<f32>(0);
+    let v = |w: [f64; 3]| V3::new(w[0] as f32, w[1] as f32, w[2] as f32);
+    let g = |w: [f64; 3]| glam::Vec3::new(w[0] as f32, w[1] as f32, w[2] as f32);
+    let uniform = UNIFORM_FRACTION / (4.0 * std::f64::consts::PI);
+    let mut informative = 0;
+    for wi in [dir(20.0, 0.0), dir(70.0, 0.0), dir(160.0, 0.0)] {
+        for i in 0..12 {
+            for j in 0..8 {
+                let wo = dir(5.0 + 15.0 * i as f64, 45.0 * j as f64 + 3.0);
+                let p = b.pdf(g(wi), g(wo)).unwrap() as f64;
+                let pi = it.pdf(v(wi), v(wo), false) as f64;
+                let expect = (1.0 - UNIFORM_FRACTION) * pi + uniform;
+                assert!(
+                    (p - expect).abs() <= 1e-5 * expect,
+                    "wi {wi:?} wo {wo:?}: lobe pdf {p} vs {expect}"
+                );
+                informative += usize::from(pi > 0.1);
+            }
+        }
+    }
+    assert!(
+        informative > 10,
+        "only {informative} directions inside the lobes"
+    );
+}

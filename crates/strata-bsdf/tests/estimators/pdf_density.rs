@@ -102,13 +102,16 @@ fn dir(theta_deg: f64, phi_deg: f64) -> [f32; 3] {
     ]
 }
 
-/// The walks' sampler and pdf, on every stack: `Auto` samples the first two
-/// stacks without a walk, with an exact pdf (`tests/estimators/closed_form_sampler.rs`).
+/// The walks' sampler and the walked pdf (`PdfWalks::ADAPTIVE`, what this
+/// file measures; the default lobe pdf is `layered_pdf.rs`'s), on every
+/// stack: `Auto` samples the first two stacks without a walk, with an exact
+/// pdf (`tests/estimators/closed_form_sampler.rs`).
 fn bsdf(toml: &str) -> LayeredBsdf {
     let stack = LayerStack::from_toml_str(toml).unwrap();
     LayeredBsdf::new(stack)
         .seed(7)
         .estimator(Estimator::Unidirectional)
+        .pdf_walks(PdfWalks::ADAPTIVE)
 }
 
 const WI_DEG: f64 = 25.0;
@@ -298,7 +301,7 @@ fn approximate_pdf_stderr_is_its_spread() {
             let n = 1000;
             let pairs = vec![(wi, wo.map(f64::from)); n];
             let keys: Vec<u64> = (0..n as u64).collect();
-            let e = wf.pdf_batch(&pairs, PdfWalks::DEFAULT, 3, &keys, PdfKind::Approximate);
+            let e = wf.pdf_batch(&pairs, PdfWalks::ADAPTIVE, 3, &keys, PdfKind::Approximate);
             let mean = e.iter().map(|e| e.value).sum::<f64>() / n as f64;
             let var = e.iter().map(|e| (e.value - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
             let rms = (e.iter().map(|e| e.stderr * e.stderr).sum::<f64>() / n as f64).sqrt();
@@ -566,14 +569,14 @@ fn approximate_pdf_ratios() {
         let wf = Wavefront::<F32x8>::new(&st, Settings::default(), Plan::Specialized);
         let wide = ring_f64();
         let keys: Vec<u64> = (0..wide.len() as u64).collect();
-        let est = wf.pdf_batch(&wide, PdfWalks::DEFAULT, 7, &keys, PdfKind::Approximate);
+        let est = wf.pdf_batch(&wide, PdfWalks::ADAPTIVE, 7, &keys, PdfKind::Approximate);
         let mean_walks = est.iter().map(|e| e.samples).sum::<u64>() as f64 / est.len() as f64;
         print!(" default: {mean_walks:.1} walks on average, the pilot's included;");
-        let walks = [PdfWalks::DEFAULT, 4.into(), 8.into(), 16.into(), 32.into()];
+        let walks = [PdfWalks::ADAPTIVE, 4.into(), 8.into(), 16.into(), 32.into()];
         for w in walks {
             let r = ratios(&b.clone().pdf_walks(w), &u);
             let within = r.iter().filter(|&&x| (0.7..=1.3).contains(&x)).count();
-            let ns = if w == PdfWalks::DEFAULT {
+            let ns = if w == PdfWalks::ADAPTIVE {
                 "default".to_string()
             } else {
                 w.max().to_string()
@@ -600,7 +603,7 @@ fn approximate_pdf_ratios() {
 #[ignore]
 fn pdf_walk_rules() {
     let rules = [
-        PdfWalks::DEFAULT,
+        PdfWalks::ADAPTIVE,
         PdfWalks::adaptive(12, 64, 0.15),
         PdfWalks::adaptive(16, 64, 0.15),
         PdfWalks::adaptive(8, 96, 0.15),

@@ -441,7 +441,7 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
         // pilot rounds (the default approximate pdf's).
         let pdfs = [
             (PdfKind::Approximate, PdfWalks::fixed(8)),
-            (PdfKind::Approximate, PdfWalks::DEFAULT),
+            (PdfKind::Approximate, PdfWalks::ADAPTIVE),
             (PdfKind::Unbiased, PdfWalks::fixed(37)),
         ];
         for (kind, walks) in pdfs {
@@ -450,7 +450,7 @@ fn sample_albedo_and_pdf_match_the_scalar_engine() {
                 let sp = sc.pdf_estimate(wi, wo, walks, 4, keys[k], kind);
                 assert_eq!(sp, wp[k], "{name}: {kind:?} {walks:?} pdf {k}");
             }
-            if walks == PdfWalks::DEFAULT {
+            if walks == PdfWalks::ADAPTIVE {
                 // The pilot's walks and at least as many fresh ones.
                 let fewest = 2 * walks.pilot();
                 for e in wp.iter().filter(|e| e.samples > 0) {

@@ -548,7 +548,7 @@ fn sample_lines_carry_the_pdf_eval_reports() {
     }
     let m = example("coated_copper.toml");
     for (flag, message) in [
-        ("tighter", "expected default, tight"),
+        ("tighter", "expected default, lobes, adaptive, tight"),
         ("0", "0 walks: expected 1 to"),
         ("1,8,0.1", "pilot = 1"),
     ] {
@@ -595,9 +595,9 @@ fn sample_lines_carry_the_pdf_eval_reports() {
 
 #[test]
 fn eval_reports_the_unbiased_pdf_with_its_standard_error() {
-    // The unbiased pdf (many density walks) and the approximate one (its
-    // mean over seeds, unmixed) estimate the same density; --pdf unbiased
-    // adds pdf_stderr and approx lines do not carry it.
+    // The unbiased pdf (many density walks) and the walked approximate one
+    // (its mean over seeds, unmixed) estimate the same density; --pdf
+    // unbiased adds pdf_stderr and approx lines do not carry it.
     let m = example("scattering_slab.toml");
     let q = "{\"wi\":[0.5,0,0.8660254],\"wo\":[-0.3,0.1,0.9486833]}\n";
     let unbiased = |seed: &str| {
@@ -638,6 +638,8 @@ fn eval_reports_the_unbiased_pdf_with_its_standard_error() {
                     "1",
                     "--seed",
                     &s.to_string(),
+                    "--pdf-samples",
+                    "adaptive",
                 ],
                 q,
             ));
