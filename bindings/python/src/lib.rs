@@ -22,6 +22,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
+use pyo3::IntoPyObjectExt;
 use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
@@ -484,7 +485,7 @@ impl Answerer<'_> {
         keys: Option<&[u64]>,
         f: VectorsMut,
         se: VectorsMut,
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         match self {
             Answerer::Own(b) => b.eval_into(wi, wo, keys, f, Some(se)),
             Answerer::PerQuery(m) => m.eval_into(wi, wo, keys, f, Some(se)),
@@ -520,7 +521,7 @@ impl Answerer<'_> {
         samples: u64,
         pdf: &mut [f32],
         stderr: &mut [f32],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         match self {
             Answerer::Own(b) => b.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
             Answerer::PerQuery(m) => m.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
@@ -533,11 +534,25 @@ impl Answerer<'_> {
         n: u64,
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         match self {
             Answerer::Own(b) => b.albedo_records(wi, n, keys, out),
             Answerer::PerQuery(m) => m.albedo_records(wi, n, keys, out),
         }
+    }
+}
+
+/// A batch method's result, or `(result, truncated)` if the caller asked for
+/// the count of walks the limit of events ended (`return_truncated=True`).
+fn counted<'py>(
+    py: Python<'py>,
+    result: impl IntoPyObjectExt<'py>,
+    truncated: Option<u64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let result = result.into_bound_py_any(py)?;
+    match truncated {
+        None => Ok(result),
+        Some(cut) => (result, cut).into_bound_py_any(py),
     }
 }
 
@@ -981,7 +996,13 @@ impl Bsdf {
     /// bit for bit what the material with row k's values answers, with the
     /// same seed and keys. Every row is checked first: an invalid one raises
     /// `QueryError` naming the query, the path and the value.
-    #[pyo3(signature = (wi, wo, keys=None, *, params=None))]
+    ///
+    /// `return_truncated=True` (`eval`, `pdf_unbiased` and `albedo` take it)
+    /// returns `(result, truncated)`: the result as above and the number of
+    /// walks the limit of events (`max_events`) ended in the call, summed
+    /// over the batch (0 when none did; their paths' energy beyond the limit
+    /// is missing from the estimates).
+    #[pyo3(signature = (wi, wo, keys=None, *, params=None, return_truncated=false))]
     fn eval<'py>(
         &self,
         py: Python<'py>,
@@ -989,7 +1010,8 @@ impl Bsdf {
         wo: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        return_truncated: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let keys = keys_in(keys)?;
@@ -997,15 +1019,16 @@ impl Bsdf {
         let params = params_in(params, n)?;
         let mut f = VecOut::new("Bsdf.eval", wi.layout(), n)?;
         let mut se = VecOut::new("Bsdf.eval", wi.layout(), n)?;
-        {
+        let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let k = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (fm, sm) = (f.as_mut(), se.as_mut());
-            self.run(py, &params, n, |a| a.eval(wiv, wov, k, fm, sm))?;
-        }
-        Ok((f.into_py(py)?, se.into_py(py)?))
+            self.run(py, &params, n, |a| a.eval(wiv, wov, k, fm, sm))?
+        };
+        let result = (f.into_py(py)?, se.into_py(py)?);
+        counted(py, result, return_truncated.then_some(cut))
     }
 
     /// One sampled direction per query: `(wo, weight, pdf, flags)`.
@@ -1082,9 +1105,8 @@ impl Bsdf {
     /// The unbiased pdf of each pair from `samples` density walks:
     /// `(pdf, stderr)`, float32 arrays of shape (N,), the density of
     /// `sample`'s directions with its standard error. Slow: for references.
-    /// `params` as for `eval`.
-    #[pyo3(signature = (wi, wo, samples, *, params=None))]
-    #[allow(clippy::type_complexity)]
+    /// `params` and `return_truncated` as for `eval`.
+    #[pyo3(signature = (wi, wo, samples, *, params=None, return_truncated=false))]
     fn pdf_unbiased<'py>(
         &self,
         py: Python<'py>,
@@ -1092,7 +1114,8 @@ impl Bsdf {
         wo: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = samples_arg)] samples: i128,
         params: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>)> {
+        return_truncated: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let samples = walks_arg("samples", samples).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
@@ -1100,20 +1123,21 @@ impl Bsdf {
         let params = params_in(params, n)?;
         let mut pdf: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
         let mut stderr: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
-        {
+        let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
-            self.run(py, &params, n, |a| a.pdf_unbiased(wiv, wov, samples, p, s))?;
-        }
-        Ok((pdf.into_pyarray(py), stderr.into_pyarray(py)))
+            self.run(py, &params, n, |a| a.pdf_unbiased(wiv, wov, samples, p, s))?
+        };
+        let result = (pdf.into_pyarray(py), stderr.into_pyarray(py));
+        counted(py, result, return_truncated.then_some(cut))
     }
 
     /// Directional albedo from `n` walks per direction:
     /// `(R, T, R_stderr, T_stderr)`, reflected and transmitted fractions per
     /// channel with their standard errors, each in the layout of `wi`.
-    /// `keys` and `params` as for `eval`.
-    #[pyo3(signature = (wi, n, keys=None, *, params=None))]
-    #[allow(clippy::type_complexity)]
+    /// `keys`, `params` and `return_truncated` as for `eval` (an albedo's
+    /// walk counts once: R and T come from the same walks).
+    #[pyo3(signature = (wi, n, keys=None, *, params=None, return_truncated=false))]
     fn albedo<'py>(
         &self,
         py: Python<'py>,
@@ -1121,26 +1145,22 @@ impl Bsdf {
         #[pyo3(from_py_with = n_arg)] n: i128,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<(
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-    )> {
+        return_truncated: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let n = walks_arg("n", n).map_err(|e| query_err(py, e, None))?;
         let wi = vectors_in("wi", wi)?;
         let keys = keys_in(keys)?;
         let m = check_directions(py, &wi, keys.as_ref())?;
         let params = params_in(params, m)?;
         let mut rec: Vec<AlbedoRecord> = zeros("Bsdf.albedo", m)?;
-        {
+        let cut = {
             let wiv = wi.vectors();
             let k = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let out = &mut rec[..];
-            self.run(py, &params, m, |a| a.albedo(wiv, n, k, out))?;
-        }
+            self.run(py, &params, m, |a| a.albedo(wiv, n, k, out))?
+        };
         let layout = wi.layout();
         let mut outs = [
             VecOut::new("Bsdf.albedo", layout, m)?,
@@ -1155,12 +1175,13 @@ impl Bsdf {
             outs[3].set(i, r.transmitted_stderr);
         }
         let [a, b, c, d] = outs;
-        Ok((
+        let result = (
             a.into_py(py)?,
             b.into_py(py)?,
             c.into_py(py)?,
             d.into_py(py)?,
-        ))
+        );
+        counted(py, result, return_truncated.then_some(cut))
     }
 
     /// Walks per `eval` query.

@@ -177,7 +177,7 @@ fn slice_calls_allocate_nothing() {
                             VectorsMut::Aos(&mut f[..m]),
                             None,
                         )
-                        .unwrap()
+                        .unwrap();
                     }),
                     allocations(|| {
                         b.eval_records(
@@ -186,7 +186,7 @@ fn slice_calls_allocate_nothing() {
                             Some(&keys[..m]),
                             &mut rec[..m],
                         )
-                        .unwrap()
+                        .unwrap();
                     }),
                     allocations(|| {
                         b.sample_records(Vectors::Aos(&wi[..m]), None, &mut s[..m])
@@ -205,7 +205,7 @@ fn slice_calls_allocate_nothing() {
                     }),
                     allocations(|| {
                         b.albedo_records(Vectors::Aos(&wi[..m]), 64, None, &mut a[..m])
-                            .unwrap()
+                            .unwrap();
                     }),
                     allocations(|| {
                         b.pdf_into(Vectors::Aos(&wi[..m]), Vectors::Aos(&wo[..m]), &mut pd[..m])
@@ -242,7 +242,7 @@ fn slice_calls_allocate_nothing() {
         [
             allocations(|| {
                 let (wi, wo) = (Vectors::Aos(&wi[..4]), Vectors::Aos(&wo[..4]));
-                b.eval_records(wi, wo, None, &mut rec[..4]).unwrap()
+                b.eval_records(wi, wo, None, &mut rec[..4]).unwrap();
             }),
             allocations(|| {
                 b.sample_records(Vectors::Aos(&wi[..64]), None, &mut s[..64])
@@ -250,7 +250,7 @@ fn slice_calls_allocate_nothing() {
             }),
             allocations(|| {
                 b.albedo_records(Vectors::Aos(&wi[..4]), 64, None, &mut a[..4])
-                    .unwrap()
+                    .unwrap();
             }),
         ]
     };
@@ -272,7 +272,7 @@ fn slice_calls_allocate_nothing() {
                 VectorsMut::Aos(&mut f[..n]),
                 None,
             )
-            .unwrap()
+            .unwrap();
         })
     };
     let (small, large) = (eval(16), eval(4096));

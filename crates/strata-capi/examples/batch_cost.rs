@@ -3,7 +3,7 @@
 //! default pool of one thread per core), for eval (1 and 64 walks) and
 //! sample, on
 //! examples/materials/coated_copper.toml; then one call with and without a
-//! thickness per query (`strata_eval_batch_columns`). Calls the extern "C"
+//! thickness per query (`StrataBatch::columns`). Calls the extern "C"
 //! functions, as a C program does. Not a test: run it and read the tables.
 //!
 //! ```text
@@ -17,6 +17,56 @@ use std::time::{Duration, Instant};
 use strata_capi::*;
 
 const N: usize = 4096;
+
+/// `3 n` floats, `x, y, z` per query.
+fn xyz(v: &[f32]) -> StrataVectors {
+    StrataVectors {
+        xyz: v.as_ptr(),
+        ..Default::default()
+    }
+}
+
+/// An eval of `n` queries from `wi`, `wo` into `f` (AoS), with `columns`.
+fn eval_of(
+    n: usize,
+    wi: &[f32],
+    wo: &[f32],
+    f: &mut [f32],
+    columns: &[StrataColumn],
+) -> StrataBatch {
+    StrataBatch {
+        n,
+        wi: xyz(wi),
+        wo: xyz(wo),
+        columns: if columns.is_empty() {
+            null()
+        } else {
+            columns.as_ptr()
+        },
+        ncolumns: columns.len(),
+        f: StrataVectorsOut {
+            xyz: f.as_mut_ptr(),
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// One sample per query of `wi` into `s`, with `columns`.
+fn sample_of(wi: &[f32], s: &mut [StrataSample], columns: &[StrataColumn]) -> StrataBatch {
+    StrataBatch {
+        n: s.len(),
+        wi: xyz(wi),
+        columns: if columns.is_empty() {
+            null()
+        } else {
+            columns.as_ptr()
+        },
+        ncolumns: columns.len(),
+        sample: s.as_mut_ptr(),
+        ..Default::default()
+    }
+}
 
 /// Nanoseconds per query of `run` (which answers `N` queries), the best of
 /// repetitions over `budget`.
@@ -94,33 +144,24 @@ fn main() {
             if threads.is_some() {
                 cells.push(per_query(budget, || {
                     for k in 0..N {
+                        let batch = eval_of(1, &wi[3 * k..], &wo[3 * k..], &mut f[3 * k..], &[]);
                         // SAFETY: N queries (query k at 3 k); a live BSDF.
-                        let st = unsafe {
-                            strata_eval_batch(
-                                b,
-                                1,
-                                wi[3 * k..].as_ptr(),
-                                wo[3 * k..].as_ptr(),
-                                f[3 * k..].as_mut_ptr(),
-                                null_mut(),
-                            )
-                        };
+                        let st = unsafe { strata_eval(b, &batch) };
                         assert_eq!(st, STRATA_OK);
                     }
                 }));
             }
             cells.push(per_query(budget, || {
+                let batch = eval_of(N, &wi, &wo, &mut f, &[]);
                 // SAFETY: N queries (query k at 3 k); a live BSDF.
-                let st = unsafe {
-                    strata_eval_batch(b, N, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
-                };
+                let st = unsafe { strata_eval(b, &batch) };
                 assert_eq!(st, STRATA_OK);
             }));
             // SAFETY: from `create`, freed once.
             unsafe { strata_bsdf_free(b) };
         }
         row(
-            &format!("`strata_eval_batch`, samples {samples}"),
+            &format!("`strata_eval`, samples {samples}"),
             cells[0],
             cells[1],
             cells[2],
@@ -133,24 +174,24 @@ fn main() {
         if threads.is_some() {
             cells.push(per_query(budget, || {
                 for k in 0..N {
+                    let batch = sample_of(&wi[3 * k..], &mut s[k..k + 1], &[]);
                     // SAFETY: N queries (query k at 3 k); a live BSDF.
-                    let st = unsafe {
-                        strata_sample_batch(b, 1, wi[3 * k..].as_ptr(), null(), &mut s[k])
-                    };
+                    let st = unsafe { strata_sample(b, &batch) };
                     assert_eq!(st, STRATA_OK);
                 }
             }));
         }
         cells.push(per_query(budget, || {
+            let batch = sample_of(&wi, &mut s, &[]);
             // SAFETY: N queries (query k at 3 k); a live BSDF.
-            let st = unsafe { strata_sample_batch(b, N, wi.as_ptr(), null(), s.as_mut_ptr()) };
+            let st = unsafe { strata_sample(b, &batch) };
             assert_eq!(st, STRATA_OK);
         }));
         // SAFETY: from `create`, freed once.
         unsafe { strata_bsdf_free(b) };
     }
     row(
-        "`strata_sample_batch` (with its pdf)",
+        "`strata_sample` (with its pdf)",
         cells[0],
         cells[1],
         cells[2],
@@ -159,7 +200,7 @@ fn main() {
 }
 
 /// The cost of per-query parameters: one call of n = N on one thread with
-/// the BSDF's own parameters against the `*_columns` call with a thickness
+/// the BSDF's own parameters against the call with a column of a thickness
 /// per query (every query its own material, built and checked per call).
 fn columns_cost(budget: Duration, path: &str, wi: &[f32], wo: &[f32]) {
     let thickness: Vec<f32> = (0..N).map(|k| 0.1 + 0.9 * k as f32 / N as f32).collect();
@@ -176,49 +217,36 @@ fn columns_cost(budget: Duration, path: &str, wi: &[f32], wo: &[f32]) {
     println!("|---|---|---|---|");
     for samples in [1u64, 64] {
         let b = create(path, samples, Some(1));
-        let mut cell = |c: Option<&[StrataColumn]>| {
-            let (cp, nc) = c.map_or((null(), 0), |c| (c.as_ptr(), c.len()));
+        let mut cell = |c: &[StrataColumn]| {
             per_query(budget, || {
+                let batch = eval_of(N, wi, wo, &mut f, c);
                 // SAFETY: N queries in every array, N values per column; a
                 // live BSDF.
-                let st = unsafe {
-                    strata_eval_batch_columns(
-                        b,
-                        N,
-                        wi.as_ptr(),
-                        wo.as_ptr(),
-                        cp,
-                        nc,
-                        f.as_mut_ptr(),
-                        null_mut(),
-                    )
-                };
+                let st = unsafe { strata_eval(b, &batch) };
                 assert_eq!(st, STRATA_OK);
             })
         };
-        let (own, per) = (cell(None), cell(Some(&cols)));
+        let (own, per) = (cell(&[]), cell(&cols));
         println!(
-            "| `strata_eval_batch_columns`, samples {samples} | {own:.0} ns | {per:.0} ns | {:.2}× |",
+            "| `strata_eval` with columns, samples {samples} | {own:.0} ns | {per:.0} ns | {:.2}× |",
             own / per
         );
         // SAFETY: from `create`, freed once.
         unsafe { strata_bsdf_free(b) };
     }
     let b = create(path, 1, Some(1));
-    let mut cell = |c: Option<&[StrataColumn]>| {
-        let (cp, nc) = c.map_or((null(), 0), |c| (c.as_ptr(), c.len()));
+    let mut cell = |c: &[StrataColumn]| {
         per_query(budget, || {
+            let batch = sample_of(wi, &mut s, c);
             // SAFETY: N queries in every array, N values per column; a live
             // BSDF.
-            let st = unsafe {
-                strata_sample_batch_columns(b, N, wi.as_ptr(), null(), cp, nc, s.as_mut_ptr())
-            };
+            let st = unsafe { strata_sample(b, &batch) };
             assert_eq!(st, STRATA_OK);
         })
     };
-    let (own, per) = (cell(None), cell(Some(&cols)));
+    let (own, per) = (cell(&[]), cell(&cols));
     println!(
-        "| `strata_sample_batch_columns` | {own:.0} ns | {per:.0} ns | {:.2}× |",
+        "| `strata_sample` with columns | {own:.0} ns | {per:.0} ns | {:.2}× |",
         own / per
     );
     // SAFETY: from `create`, freed once.

@@ -54,7 +54,7 @@
  * The call's working memory could not be allocated: the process is out
  * of memory or of address space (`RLIMIT_AS`). The message names the call
  * and the bytes asked for; nothing was written, or (if it was refused
- * between two chunks of a `*_columns` call) the outputs of the queries
+ * between two chunks of a call with `columns`) the outputs of the queries
  * before the chunk were; the BSDF is still usable.
  */
 #define STRATA_ERR_OUT_OF_MEMORY -5
@@ -153,8 +153,33 @@ typedef struct StrataStackInfo {
 } StrataStackInfo;
 
 /**
- * One per-query parameter of a `*_columns` batch call: the values of the
- * material parameter `path` for each of the call's `n` queries, `width`
+ * The 3-vectors of a batch that a call reads (directions), in one of two
+ * layouts: `xyz`, `3 n` floats `x, y, z` per query (an array of
+ * structures), with `x`, `y`, `z` NULL; or `x`, `y`, `z`, `n` floats each
+ * (a structure of arrays), with `xyz` NULL. All four NULL: not given.
+ */
+typedef struct StrataVectors {
+  /**
+   * `3 n` floats, `x, y, z` per query; or NULL.
+   */
+  const float *xyz;
+  /**
+   * `n` x components; or NULL.
+   */
+  const float *x;
+  /**
+   * `n` y components; or NULL.
+   */
+  const float *y;
+  /**
+   * `n` z components; or NULL.
+   */
+  const float *z;
+} StrataVectors;
+
+/**
+ * One per-query parameter of a batch (`StrataBatch::columns`): the values
+ * of the material parameter `path` for each of the call's `n` queries, `width`
  * floats per query, query after query (`values[k * width + c]`).
  *
  * `path` is a settable parameter of the BSDF's material, as in
@@ -183,7 +208,7 @@ typedef struct StrataStackInfo {
  * `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
  * its textures, or drops the query and calls again for the rest.
  *
- * Memory: a `*_columns` call builds the materials of a bounded chunk of
+ * Memory: a call with columns builds the materials of a bounded chunk of
  * queries at a time (at most 65536 queries and `min(4096, max(1, 65536 /
  * layers))` distinct rows), answers them and drops them, so its working
  * memory is at most that many materials (a few KB each on a two-layer
@@ -211,7 +236,31 @@ typedef struct StrataColumn {
 } StrataColumn;
 
 /**
- * One sample of `strata_sample_batch`. An absorbed walk is all zeros
+ * The 3-vectors a call writes (directions, or values per RGB channel: `x`,
+ * `y`, `z` are `r`, `g`, `b`), laid out as `StrataVectors`: `xyz` (`3 n`
+ * floats) or `x`, `y`, `z` (`n` floats each). All four NULL: not wanted.
+ */
+typedef struct StrataVectorsOut {
+  /**
+   * `3 n` floats, three per query; or NULL.
+   */
+  float *xyz;
+  /**
+   * `n` first components (`r`); or NULL.
+   */
+  float *x;
+  /**
+   * `n` second components (`g`); or NULL.
+   */
+  float *y;
+  /**
+   * `n` third components (`b`); or NULL.
+   */
+  float *z;
+} StrataVectorsOut;
+
+/**
+ * One sample of `strata_sample` (`StrataBatch::sample`). An absorbed walk is all zeros
  * (flags 0): count it as a zero-weight sample.
  */
 typedef struct StrataSample {
@@ -226,7 +275,7 @@ typedef struct StrataSample {
    */
   float weight[3];
   /**
-   * The density of `wo` per solid angle: exactly what `strata_pdf_batch`
+   * The density of `wo` per solid angle: exactly what `strata_pdf`
    * gives for `(wi, wo)`, so MIS sees the same number from either
    * strategy. Approximate (exact on the coats over Lambertian bases that
    * are sampled without a walk: `strata_bsdf_is_exact`), so the weight is
@@ -241,7 +290,7 @@ typedef struct StrataSample {
 } StrataSample;
 
 /**
- * One result of `strata_albedo_batch`: the fractions of light from `wi`
+ * One result of `strata_albedo` (`StrataBatch::albedo`): the fractions of light from `wi`
  * reflected and transmitted, per RGB channel, with standard errors.
  */
 typedef struct StrataAlbedo {
@@ -262,6 +311,104 @@ typedef struct StrataAlbedo {
    */
   float transmitted_stderr[3];
 } StrataAlbedo;
+
+/**
+ * One batch of `n` queries, for `strata_eval`, `strata_sample`,
+ * `strata_pdf`, `strata_pdf_unbiased` and `strata_albedo`. Zero it
+ * (`StrataBatch batch = {0};`) and set the fields the call reads: a
+ * non-NULL (non-zero) field that the call does not read is an error naming
+ * it (`STRATA_ERR_INVALID_ARGUMENT`), so that no argument is silently
+ * ignored. Directions are in the local frame (z = normal), both pointing
+ * away from the surface, normalized on input. Arrays hold one element (or
+ * triple) per query; an output must not overlap another array of the call
+ * (checked); a failed call writes nothing (but see `StrataColumn` on running
+ * out of memory between chunks). n = 0 does nothing (but write `truncated`).
+ */
+typedef struct StrataBatch {
+  /**
+   * The number of queries.
+   */
+  size_t n;
+  /**
+   * Incident directions (all calls).
+   */
+  struct StrataVectors wi;
+  /**
+   * Outgoing directions (eval, pdf, pdf_unbiased).
+   */
+  struct StrataVectors wo;
+  /**
+   * Optional `n` keys (eval, sample, albedo): query `k` draws its walks
+   * from the stream `(seed, keys[k])`, so a renderer passes fresh keys for
+   * fresh noise. NULL: keyed by the directions' bits (the same query
+   * always gives the same estimate, as `strata eval` does; an unkeyed
+   * sample `k` draws sample index `k`, as line `k` of `strata sample`).
+   * The pdfs are always keyed by their directions.
+   */
+  const uint64_t *keys;
+  /**
+   * Optional per-query parameters (all calls): `ncolumns` columns, see
+   * `StrataColumn`. NULL with `ncolumns` = 0: the BSDF's own parameters.
+   */
+  const struct StrataColumn *columns;
+  /**
+   * The number of `columns`.
+   */
+  size_t ncolumns;
+  /**
+   * Walks per query, 1 to 2^40 (albedo, pdf_unbiased); 0 for the others.
+   */
+  uint64_t walks;
+  /**
+   * Out (eval, required): `f(wi, wo)` per RGB channel, without the cosine.
+   */
+  struct StrataVectorsOut f;
+  /**
+   * Out (eval, optional): the standard errors of `f`.
+   */
+  struct StrataVectorsOut stderr;
+  /**
+   * Out, `n` floats: the approximate pdf of `wo` per solid angle (pdf,
+   * required; eval, optional: the pdf of the same pairs, as `strata_pdf`
+   * gives it), the unbiased pdf (pdf_unbiased, required), or the pdf of
+   * each sample (sample's components).
+   */
+  float *pdf;
+  /**
+   * Out (pdf_unbiased, required), `n` floats: the standard error of `pdf`.
+   */
+  float *pdf_stderr;
+  /**
+   * Out (sample): one `StrataSample` record per query; or NULL and the
+   * components `sampled`, `weight`, `pdf` and `flags` (all four).
+   */
+  struct StrataSample *sample;
+  /**
+   * Out (sample's components): the sampled directions.
+   */
+  struct StrataVectorsOut sampled;
+  /**
+   * Out (sample's components): the samples' weights per RGB channel.
+   */
+  struct StrataVectorsOut weight;
+  /**
+   * Out (sample's components), `n` values: `STRATA_SAMPLE_*` bits.
+   */
+  uint32_t *flags;
+  /**
+   * Out (albedo, required): one `StrataAlbedo` record per query.
+   */
+  struct StrataAlbedo *albedo;
+  /**
+   * Out (eval, pdf_unbiased, albedo; optional): how many walks the limit
+   * of events (`strata_bsdf_set_max_events`) ended in this call, summed
+   * over the batch (an albedo's walk counts once); 0 when none did. Their
+   * paths' energy beyond the limit is missing from the estimates. Eval
+   * counts the walks of `f` (not those of `pdf`); sample and pdf do not
+   * count theirs and do not take it.
+   */
+  uint64_t *truncated;
+} StrataBatch;
 
 #ifdef __cplusplus
 extern "C" {
@@ -340,7 +487,7 @@ int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
 
 /**
  * Sets how many density walks each approximate pdf runs (the pdf that
- * `strata_pdf_batch` returns and that the samples carry):
+ * `strata_pdf` returns and that the samples carry):
  * `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
  * 8 walks and then 8 to 64 fresh ones for a relative standard error of
  * 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
@@ -374,7 +521,7 @@ int32_t strata_bsdf_set_max_events(struct StrataBsdf *b, uint32_t n);
 
 /**
  * Sets an adaptive rule for the approximate pdf's density walks (the pdf
- * that `strata_pdf_batch` returns and that the samples carry): a pilot of
+ * that `strata_pdf` returns and that the samples carry): a pilot of
  * `pilot` walks (at least 2) measures one walk's relative variance, then
  * `pilot` to `max` fresh walks run for a relative standard error of about
  * `rel_stderr` (a positive number), as the Rust API's `PdfWalks::adaptive`.
@@ -431,7 +578,7 @@ int32_t strata_bsdf_info(const struct StrataBsdf *b, struct StrataStackInfo *out
  * (isotropic) coat over a clear or absorbing layer over a Lambertian base
  * (untilted normals, an absorber whose extinction does not depend on the
  * direction, no depth cap). Then sample draws from a known density with
- * bounded weights, and `strata_pdf_batch` returns that exact density
+ * bounded weights, and `strata_pdf` returns that exact density
  * (elsewhere an approximation). Eval is then answered without walks too
  * (`strata_bsdf_eval_without_walks`), exactly (standard error 0) under a
  * smooth coat.
@@ -466,324 +613,62 @@ int32_t strata_bsdf_eval_without_walks(const struct StrataBsdf *b, uint32_t *out
 void strata_bsdf_free(struct StrataBsdf *b);
 
 /**
- * Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for `n`
- * queries with the BSDF's walk count, keyed by the directions' bits (the
- * same pair always gives the same estimate). `wi`, `wo`: `3 n` floats,
- * `x, y, z` per query, in the local frame (z = normal), both pointing away
- * from the surface; normalized on input. Writes `3 n` floats `r, g, b` to
- * `f_out` and, if `stderr_out` is not NULL, the standard errors to
- * `stderr_out`. n = 0 does nothing. On an error nothing is written and the
- * message names the query index and the argument (`"query 3: wi = [NaN, 0,
- * 1] is not a direction: components must be finite"`).
+ * Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for the
+ * batch's `n` queries with the BSDF's walk count: reads `wi`, `wo`, `keys`
+ * and `columns`, writes `f`, `stderr` (if given), `pdf` (if given: the
+ * approximate pdf of each pair, as `strata_pdf`, for a light sample's MIS
+ * in the same call) and `truncated` (if given). On an error nothing is
+ * written and the message names the query index and the field (`"query 3:
+ * wi = [NaN, 0, 1] is not a direction: components must be finite"`).
  *
  * # Safety
- * Each non-NULL array holds at least `3 n` floats; output arrays do not
- * overlap each other or the inputs (checked); `b` is NULL or live.
+ * `b` is NULL or live; `batch` is NULL or a descriptor whose arrays hold
+ * what `StrataBatch` says, inputs not written during the call.
  */
-int32_t strata_eval_batch(const struct StrataBsdf *b,
-                          size_t n,
-                          const float *wi,
-                          const float *wo,
-                          float *f_out,
-                          float *stderr_out);
+int32_t strata_eval(const struct StrataBsdf *b, const struct StrataBatch *batch);
 
 /**
- * `strata_eval_batch` with a key per query (`keys`: `n` values, not NULL):
- * query `k` draws its walks from the stream `(seed, keys[k])`, so a renderer
- * passes fresh keys for fresh noise. (The unkeyed call keys each query by
- * its directions' bits, as `strata eval` does.)
+ * Samples one outgoing direction per incident direction `wi[k]`: reads
+ * `wi`, `keys` and `columns`, writes the records `sample` or the components
+ * `sampled`, `weight`, `pdf` and `flags` (an absorbed walk writes zeros).
+ * Each sample carries the pdf `strata_pdf` gives for its direction.
  *
  * # Safety
- * As `strata_eval_batch`; a non-NULL `keys` holds at least `n` values.
+ * As `strata_eval`.
  */
-int32_t strata_eval_batch_keyed(const struct StrataBsdf *b,
-                                size_t n,
-                                const float *wi,
-                                const float *wo,
-                                const uint64_t *keys,
-                                float *f_out,
-                                float *stderr_out);
+int32_t strata_sample(const struct StrataBsdf *b, const struct StrataBatch *batch);
 
 /**
- * `strata_eval_batch` with per-query parameters: query `k` is evaluated on
- * the BSDF's material with row `k` of every column set (see
- * `StrataColumn`), and answers bit for bit what a BSDF made from a material
- * file with those values answers. `ncolumns` = 0 is `strata_eval_batch`
- * (and `columns` may then be NULL); n = 0 does nothing. If any column or any
- * query's values are invalid nothing runs and nothing is written: the
- * status is `STRATA_ERR_MATERIAL` (the values make an invalid material),
- * `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`, and
- * `strata_last_error()` names the column or the query, the path and the
- * value (see `StrataColumn`). The columns' values must not overlap an
- * output (checked).
- *
- * # Safety
- * As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
- * each with a NUL-terminated `path` and `width × n` `values` that nothing
- * writes during the call.
- */
-int32_t strata_eval_batch_columns(const struct StrataBsdf *b,
-                                  size_t n,
-                                  const float *wi,
-                                  const float *wo,
-                                  const struct StrataColumn *columns,
-                                  size_t ncolumns,
-                                  float *f_out,
-                                  float *stderr_out);
-
-/**
- * `strata_eval_batch_keyed` with per-query parameters, as
- * `strata_eval_batch_columns`.
- *
- * # Safety
- * As `strata_eval_batch_keyed` and `strata_eval_batch_columns`.
- */
-int32_t strata_eval_batch_keyed_columns(const struct StrataBsdf *b,
-                                        size_t n,
-                                        const float *wi,
-                                        const float *wo,
-                                        const uint64_t *keys,
-                                        const struct StrataColumn *columns,
-                                        size_t ncolumns,
-                                        float *f_out,
-                                        float *stderr_out);
-
-/**
- * `strata_eval_batch` over component arrays (structure of arrays): `n`
- * floats each of `wi_x, wi_y, wi_z, wo_x, wo_y, wo_z`, results to `f_r,
- * f_g, f_b` and, unless all three are NULL, the standard errors to `se_r,
- * se_g, se_b`. `keys` is NULL (unkeyed: the same numbers as
- * `strata_eval_batch`) or `n` keys (as `strata_eval_batch_keyed`).
- *
- * # Safety
- * Each non-NULL array holds at least `n` elements; output arrays do not
- * overlap each other or the inputs (checked); `b` is NULL or live.
- */
-int32_t strata_eval_batch_soa(const struct StrataBsdf *b,
-                              size_t n,
-                              const float *wi_x,
-                              const float *wi_y,
-                              const float *wi_z,
-                              const float *wo_x,
-                              const float *wo_y,
-                              const float *wo_z,
-                              const uint64_t *keys,
-                              float *f_r,
-                              float *f_g,
-                              float *f_b,
-                              float *se_r,
-                              float *se_g,
-                              float *se_b);
-
-/**
- * `strata_eval_batch_soa` with per-query parameters, as
- * `strata_eval_batch_columns`.
- *
- * # Safety
- * As `strata_eval_batch_soa` and `strata_eval_batch_columns`.
- */
-int32_t strata_eval_batch_soa_columns(const struct StrataBsdf *b,
-                                      size_t n,
-                                      const float *wi_x,
-                                      const float *wi_y,
-                                      const float *wi_z,
-                                      const float *wo_x,
-                                      const float *wo_y,
-                                      const float *wo_z,
-                                      const uint64_t *keys,
-                                      const struct StrataColumn *columns,
-                                      size_t ncolumns,
-                                      float *f_r,
-                                      float *f_g,
-                                      float *f_b,
-                                      float *se_r,
-                                      float *se_g,
-                                      float *se_b);
-
-/**
- * Samples one outgoing direction per incident direction `wi[k]` (`3 n`
- * floats), into `out[k]`. `keys` NULL: query `k` is keyed by its
- * direction's bits and draws sample index `k` (as line `k` of `strata
- * sample` does); otherwise `n` keys, query `k` drawing from `(seed,
- * keys[k])`. Each sample carries the pdf `strata_pdf_batch` gives for its
- * direction. n = 0 does nothing.
- *
- * # Safety
- * `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
- * `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
- * live.
- */
-int32_t strata_sample_batch(const struct StrataBsdf *b,
-                            size_t n,
-                            const float *wi,
-                            const uint64_t *keys,
-                            struct StrataSample *out);
-
-/**
- * `strata_sample_batch` with per-query parameters, as
- * `strata_eval_batch_columns`: query `k` samples the material with row `k`
- * of every column, from the same stream as the plain call.
- *
- * # Safety
- * As `strata_sample_batch` and `strata_eval_batch_columns`.
- */
-int32_t strata_sample_batch_columns(const struct StrataBsdf *b,
-                                    size_t n,
-                                    const float *wi,
-                                    const uint64_t *keys,
-                                    const struct StrataColumn *columns,
-                                    size_t ncolumns,
-                                    struct StrataSample *out);
-
-/**
- * `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
- * wi_y, wi_z`; results to `wo_x, wo_y, wo_z`, `weight_r, weight_g,
- * weight_b`, `pdf` and `flags` (`STRATA_SAMPLE_*` bits; an absorbed walk
- * writes zeros everywhere). The same numbers as `strata_sample_batch`.
- *
- * # Safety
- * Each non-NULL array holds at least `n` elements; output arrays do not
- * overlap each other or the inputs (checked); `b` is NULL or live.
- */
-int32_t strata_sample_batch_soa(const struct StrataBsdf *b,
-                                size_t n,
-                                const float *wi_x,
-                                const float *wi_y,
-                                const float *wi_z,
-                                const uint64_t *keys,
-                                float *wo_x,
-                                float *wo_y,
-                                float *wo_z,
-                                float *weight_r,
-                                float *weight_g,
-                                float *weight_b,
-                                float *pdf,
-                                uint32_t *flags);
-
-/**
- * `strata_sample_batch_soa` with per-query parameters, as
- * `strata_sample_batch_columns`.
- *
- * # Safety
- * As `strata_sample_batch_soa` and `strata_eval_batch_columns`.
- */
-int32_t strata_sample_batch_soa_columns(const struct StrataBsdf *b,
-                                        size_t n,
-                                        const float *wi_x,
-                                        const float *wi_y,
-                                        const float *wi_z,
-                                        const uint64_t *keys,
-                                        const struct StrataColumn *columns,
-                                        size_t ncolumns,
-                                        float *wo_x,
-                                        float *wo_y,
-                                        float *wo_z,
-                                        float *weight_r,
-                                        float *weight_g,
-                                        float *weight_b,
-                                        float *pdf,
-                                        uint32_t *flags);
-
-/**
- * The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
- * each), per solid angle, into `pdf_out` (`n` floats). A function of the two
- * directions and the seed: it is the number a sample of that direction
- * carries. n = 0 does nothing.
- *
- * # Safety
- * `wi`, `wo` hold at least `3 n` floats, `pdf_out` `n`; `pdf_out` does not
- * overlap the inputs (checked); `b` is NULL or live.
- */
-int32_t strata_pdf_batch(const struct StrataBsdf *b,
-                         size_t n,
-                         const float *wi,
-                         const float *wo,
-                         float *pdf_out);
-
-/**
- * `strata_pdf_batch` with per-query parameters, as
- * `strata_eval_batch_columns`: the pdf a sample of query `k`'s material
+ * The approximate pdf of `wo[k]` for sampling from `wi[k]`, per solid
+ * angle: reads `wi`, `wo` and `columns`, writes `pdf`. A function of the
+ * two directions and the seed: the number a sample of that direction
  * carries.
  *
  * # Safety
- * As `strata_pdf_batch` and `strata_eval_batch_columns`.
+ * As `strata_eval`.
  */
-int32_t strata_pdf_batch_columns(const struct StrataBsdf *b,
-                                 size_t n,
-                                 const float *wi,
-                                 const float *wo,
-                                 const struct StrataColumn *columns,
-                                 size_t ncolumns,
-                                 float *pdf_out);
+int32_t strata_pdf(const struct StrataBsdf *b, const struct StrataBatch *batch);
 
 /**
- * The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
- * each): the density of the sampler's directions from `walks` density walks
- * (1 to 2^40), into `pdf_out`, with its standard error in `stderr_out` (`n`
- * floats each). Slow: for references and tests. n = 0 does nothing.
+ * The unbiased pdf of `wo[k]` for sampling from `wi[k]`: the density of the
+ * sampler's directions from `walks` density walks (1 to 2^40). Reads `wi`,
+ * `wo`, `walks` and `columns`, writes `pdf`, `pdf_stderr` and `truncated`
+ * (if given). Slow: for references and tests.
  *
  * # Safety
- * `wi`, `wo` hold at least `3 n` floats, `pdf_out` and `stderr_out` `n`;
- * the outputs overlap neither the inputs nor each other (checked); `b` is
- * NULL or live.
+ * As `strata_eval`.
  */
-int32_t strata_pdf_unbiased_batch(const struct StrataBsdf *b,
-                                  size_t n,
-                                  const float *wi,
-                                  const float *wo,
-                                  uint64_t walks,
-                                  float *pdf_out,
-                                  float *stderr_out);
+int32_t strata_pdf_unbiased(const struct StrataBsdf *b, const struct StrataBatch *batch);
 
 /**
- * `strata_pdf_unbiased_batch` with per-query parameters, as
- * `strata_eval_batch_columns`.
+ * The directional albedo of each incident direction `wi[k]` from `walks`
+ * walks each (1 to 2^40): reads `wi`, `walks`, `keys` and `columns`,
+ * writes the records `albedo` and `truncated` (if given).
  *
  * # Safety
- * As `strata_pdf_unbiased_batch` and `strata_eval_batch_columns`.
+ * As `strata_eval`.
  */
-int32_t strata_pdf_unbiased_batch_columns(const struct StrataBsdf *b,
-                                          size_t n,
-                                          const float *wi,
-                                          const float *wo,
-                                          uint64_t walks,
-                                          const struct StrataColumn *columns,
-                                          size_t ncolumns,
-                                          float *pdf_out,
-                                          float *stderr_out);
-
-/**
- * The directional albedo of each incident direction `wi[k]` (`3 n` floats)
- * from `walks` walks each (1 to 2^40), into `out[k]`. `keys` NULL: keyed by
- * the directions' bits; otherwise `n` keys. n = 0 does nothing.
- *
- * # Safety
- * `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
- * `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
- * live.
- */
-int32_t strata_albedo_batch(const struct StrataBsdf *b,
-                            size_t n,
-                            const float *wi,
-                            uint64_t walks,
-                            const uint64_t *keys,
-                            struct StrataAlbedo *out);
-
-/**
- * `strata_albedo_batch` with per-query parameters, as
- * `strata_eval_batch_columns`.
- *
- * # Safety
- * As `strata_albedo_batch` and `strata_eval_batch_columns`.
- */
-int32_t strata_albedo_batch_columns(const struct StrataBsdf *b,
-                                    size_t n,
-                                    const float *wi,
-                                    uint64_t walks,
-                                    const uint64_t *keys,
-                                    const struct StrataColumn *columns,
-                                    size_t ncolumns,
-                                    struct StrataAlbedo *out);
+int32_t strata_albedo(const struct StrataBsdf *b, const struct StrataBatch *batch);
 
 /**
  * The message of this thread's last failed call: the function, the

@@ -12,15 +12,19 @@
 //! [`STRATA_ERR_PANIC`].
 //!
 //! A `StrataBsdf` is the library's [`LayeredBsdf`] behind a pointer; the
-//! batch functions are its slice calls (`eval_into`, `sample_records`, ...)
-//! over the caller's flat arrays, so they give the Rust API's numbers bit for
-//! bit (tested in `tests/abi_suite/abi.rs`).
+//! batch functions, one per verb (`strata_eval`, `strata_sample`,
+//! `strata_pdf`, `strata_pdf_unbiased`, `strata_albedo`), take a
+//! [`StrataBatch`] descriptor of the caller's arrays (either layout) and run
+//! the library's slice calls (`eval_into`, `sample_records`, ...) over them,
+//! so they give the Rust API's numbers bit for bit (tested in
+//! `tests/abi_suite/abi.rs`), and the count of walks the limit of events
+//! ended.
 //!
-//! Per-query parameters (a renderer's textures) are `StrataColumn`s, taken by
-//! the `*_columns` form of every batch call: the call builds one material per
-//! query with [`PerQuery`] (a bounded chunk of them at a time) and answers query `k` as a BSDF made
-//! from a material file with row `k`'s values (`tests/abi_suite/columns.rs`). Each
-//! batch call has one body that both its forms share.
+//! Per-query parameters (a renderer's textures) are `StrataColumn`s, the
+//! descriptor's `columns`: the call builds one material per query with
+//! [`PerQuery`] (a bounded chunk of them at a time) and answers query `k` as
+//! a BSDF made from a material file with row `k`'s values
+//! (`tests/abi_suite/columns.rs`).
 
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
@@ -61,7 +65,7 @@ pub const STRATA_ERR_IO: i32 = -4;
 /// The call's working memory could not be allocated: the process is out
 /// of memory or of address space (`RLIMIT_AS`). The message names the call
 /// and the bytes asked for; nothing was written, or (if it was refused
-/// between two chunks of a `*_columns` call) the outputs of the queries
+/// between two chunks of a call with `columns`) the outputs of the queries
 /// before the chunk were; the BSDF is still usable.
 pub const STRATA_ERR_OUT_OF_MEMORY: i32 = -5;
 /// strata panicked: a bug. The panic was caught at the boundary; the BSDF is
@@ -119,7 +123,7 @@ const _: () = {
     shareable::<StrataBsdf>();
 };
 
-/// One sample of `strata_sample_batch`. An absorbed walk is all zeros
+/// One sample of `strata_sample` (`StrataBatch::sample`). An absorbed walk is all zeros
 /// (flags 0): count it as a zero-weight sample.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -130,7 +134,7 @@ pub struct StrataSample {
     /// `f(wi, wo) |cos(theta_o)| / p(wo)` per RGB channel (in the BSDF's
     /// transport mode): an unbiased estimate, the walk's throughput.
     pub weight: [f32; 3],
-    /// The density of `wo` per solid angle: exactly what `strata_pdf_batch`
+    /// The density of `wo` per solid angle: exactly what `strata_pdf`
     /// gives for `(wi, wo)`, so MIS sees the same number from either
     /// strategy. Approximate (exact on the coats over Lambertian bases that
     /// are sampled without a walk: `strata_bsdf_is_exact`), so the weight is
@@ -141,7 +145,7 @@ pub struct StrataSample {
     pub flags: u32,
 }
 
-/// One result of `strata_albedo_batch`: the fractions of light from `wi`
+/// One result of `strata_albedo` (`StrataBatch::albedo`): the fractions of light from `wi`
 /// reflected and transmitted, per RGB channel, with standard errors.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -197,8 +201,8 @@ pub struct StrataStackInfo {
     pub two_sided: u32,
 }
 
-/// One per-query parameter of a `*_columns` batch call: the values of the
-/// material parameter `path` for each of the call's `n` queries, `width`
+/// One per-query parameter of a batch (`StrataBatch::columns`): the values
+/// of the material parameter `path` for each of the call's `n` queries, `width`
 /// floats per query, query after query (`values[k * width + c]`).
 ///
 /// `path` is a settable parameter of the BSDF's material, as in
@@ -227,7 +231,7 @@ pub struct StrataStackInfo {
 /// `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
 /// its textures, or drops the query and calls again for the rest.
 ///
-/// Memory: a `*_columns` call builds the materials of a bounded chunk of
+/// Memory: a call with columns builds the materials of a bounded chunk of
 /// queries at a time (at most 65536 queries and `min(4096, max(1, 65536 /
 /// layers))` distinct rows), answers them and drops them, so its working
 /// memory is at most that many materials (a few KB each on a two-layer
@@ -468,23 +472,24 @@ type Span = (Cow<'static, str>, usize, usize, bool);
 /// Checks an array of `per * n` elements of `T` for a call of `n` queries:
 /// non-NULL (unless `optional`), aligned and addressable.
 fn span<T>(
-    name: &'static str,
+    name: impl Into<Cow<'static, str>>,
     ptr: *const T,
     per: usize,
     n: usize,
     written: bool,
     optional: bool,
 ) -> Result<Span, Failure> {
+    let name = name.into();
     if optional && ptr.is_null() {
-        return Ok((name.into(), 0, 0, written));
+        return Ok((name, 0, 0, written));
     }
     let len = match per.checked_mul(n) {
         Some(len) => len,
         None if ptr.is_null() => usize::MAX,
-        None => return Err(too_large(name, n)),
+        None => return Err(too_large(&name, n)),
     };
-    check_array(name, ptr, len, n)?;
-    Ok((name.into(), ptr as usize, len * size_of::<T>(), written))
+    check_array(&name, ptr, len, n)?;
+    Ok((name, ptr as usize, len * size_of::<T>(), written))
 }
 
 /// Checks that no array the call writes overlaps another array of the call
@@ -702,7 +707,7 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
 }
 
 /// Sets how many density walks each approximate pdf runs (the pdf that
-/// `strata_pdf_batch` returns and that the samples carry):
+/// `strata_pdf` returns and that the samples carry):
 /// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's default, the
 /// lobe pdf (no walks: a closed-form density for MIS); `n ≥ 1` is exactly
 /// `n` density walks (docs/method.md §6 compares them;
@@ -760,7 +765,7 @@ pub unsafe extern "C" fn strata_bsdf_set_max_events(b: *mut StrataBsdf, n: u32) 
 }
 
 /// Sets an adaptive rule for the approximate pdf's density walks (the pdf
-/// that `strata_pdf_batch` returns and that the samples carry): a pilot of
+/// that `strata_pdf` returns and that the samples carry): a pilot of
 /// `pilot` walks (at least 2) measures one walk's relative variance, then
 /// `pilot` to `max` fresh walks run for a relative standard error of about
 /// `rel_stderr` (a positive number), as the Rust API's `PdfWalks::adaptive`.
@@ -853,7 +858,7 @@ pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut Strata
 /// (isotropic) coat over a clear or absorbing layer over a Lambertian base
 /// (untilted normals, an absorber whose extinction does not depend on the
 /// direction, no depth cap). Then sample draws from a known density with
-/// bounded weights, and `strata_pdf_batch` returns that exact density
+/// bounded weights, and `strata_pdf` returns that exact density
 /// (elsewhere an approximation). Eval is then answered without walks too
 /// (`strata_bsdf_eval_without_walks`), exactly (standard error 0) under a
 /// smooth coat.
@@ -921,20 +926,6 @@ pub unsafe extern "C" fn strata_bsdf_free(b: *mut StrataBsdf) {
 
 // ---------------------------------------------------- per-query parameters
 
-/// The column arguments of a batch call: `ncolumns` columns at `columns`
-/// (none for the plain calls).
-#[derive(Clone, Copy)]
-struct ColumnArgs {
-    columns: *const StrataColumn,
-    ncolumns: usize,
-}
-
-/// No columns: the BSDF's own parameters.
-const OWN: ColumnArgs = ColumnArgs {
-    columns: std::ptr::null(),
-    ncolumns: 0,
-};
-
 /// A call's columns, checked: their paths parsed, their values as slices.
 struct Columns<'a> {
     paths: Vec<SetPath>,
@@ -953,8 +944,11 @@ struct Columns<'a> {
 /// A non-NULL `columns` points to `ncolumns` readable `StrataColumn`s whose
 /// non-NULL `path`s are NUL-terminated and whose non-NULL `values` hold
 /// `width × n` floats, none of them written during the call.
-unsafe fn read_columns<'a>(args: ColumnArgs, n: usize) -> Result<Columns<'a>, Failure> {
-    let ColumnArgs { columns, ncolumns } = args;
+unsafe fn read_columns<'a>(
+    columns: *const StrataColumn,
+    ncolumns: usize,
+    n: usize,
+) -> Result<Columns<'a>, Failure> {
     let mut cols = Columns {
         paths: Vec::new(),
         widths: Vec::new(),
@@ -1097,7 +1091,7 @@ impl Target<'_> {
         keys: Option<&[u64]>,
         f: VectorsMut,
         se: Option<VectorsMut>,
-    ) -> Result<(), Failure> {
+    ) -> Result<u64, Failure> {
         Ok((match self {
             Target::Own(b) => b.eval_into(wi, wo, keys, f, se),
             Target::PerQuery(m) => m.eval_into(wi, wo, keys, f, se),
@@ -1143,7 +1137,7 @@ impl Target<'_> {
         walks: u64,
         pdf: &mut [f32],
         stderr: &mut [f32],
-    ) -> Result<(), Failure> {
+    ) -> Result<u64, Failure> {
         Ok((match self {
             Target::Own(b) => b.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
             Target::PerQuery(m) => m.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
@@ -1156,7 +1150,7 @@ impl Target<'_> {
         walks: u64,
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
-    ) -> Result<(), Failure> {
+    ) -> Result<u64, Failure> {
         Ok((match self {
             Target::Own(b) => b.albedo_records(wi, walks, keys, out),
             Target::PerQuery(m) => m.albedo_records(wi, walks, keys, out),
@@ -1166,182 +1160,610 @@ impl Target<'_> {
 
 // ------------------------------------------------------------------- batches
 //
-// Each batch call has one body, `*_body`, that checks the arguments, makes
-// slices of them and runs the batch on a `Target`: the BSDF's own parameters
-// (the plain entry points, `OWN` columns) or one material per query built
-// from the caller's columns (the `*_columns` entry points).
+// One call per verb, each taking a `StrataBatch`: `begin` checks the BSDF,
+// the descriptor and the fields the verb does not read, `StrataBatch::spans`
+// every array (NULL, alignment, size, overlap), and the body makes slices of
+// them and runs the library's slice call on a `Target`: the BSDF's own
+// parameters, or one material per query from the descriptor's columns.
 
-/// Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for `n`
-/// queries with the BSDF's walk count, keyed by the directions' bits (the
-/// same pair always gives the same estimate). `wi`, `wo`: `3 n` floats,
-/// `x, y, z` per query, in the local frame (z = normal), both pointing away
-/// from the surface; normalized on input. Writes `3 n` floats `r, g, b` to
-/// `f_out` and, if `stderr_out` is not NULL, the standard errors to
-/// `stderr_out`. n = 0 does nothing. On an error nothing is written and the
-/// message names the query index and the argument (`"query 3: wi = [NaN, 0,
-/// 1] is not a direction: components must be finite"`).
-///
-/// # Safety
-/// Each non-NULL array holds at least `3 n` floats; output arrays do not
-/// overlap each other or the inputs (checked); `b` is NULL or live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    f_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch", || {
-        // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, None, OWN, f_out, stderr_out) }
-    })
+/// The 3-vectors of a batch that a call reads (directions), in one of two
+/// layouts: `xyz`, `3 n` floats `x, y, z` per query (an array of
+/// structures), with `x`, `y`, `z` NULL; or `x`, `y`, `z`, `n` floats each
+/// (a structure of arrays), with `xyz` NULL. All four NULL: not given.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StrataVectors {
+    /// `3 n` floats, `x, y, z` per query; or NULL.
+    pub xyz: *const f32,
+    /// `n` x components; or NULL.
+    pub x: *const f32,
+    /// `n` y components; or NULL.
+    pub y: *const f32,
+    /// `n` z components; or NULL.
+    pub z: *const f32,
 }
 
-/// `strata_eval_batch` with a key per query (`keys`: `n` values, not NULL):
-/// query `k` draws its walks from the stream `(seed, keys[k])`, so a renderer
-/// passes fresh keys for fresh noise. (The unkeyed call keys each query by
-/// its directions' bits, as `strata eval` does.)
-///
-/// # Safety
-/// As `strata_eval_batch`; a non-NULL `keys` holds at least `n` values.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch_keyed(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    keys: *const u64,
-    f_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch_keyed", || {
-        // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, Some(keys), OWN, f_out, stderr_out) }
-    })
+/// The 3-vectors a call writes (directions, or values per RGB channel: `x`,
+/// `y`, `z` are `r`, `g`, `b`), laid out as `StrataVectors`: `xyz` (`3 n`
+/// floats) or `x`, `y`, `z` (`n` floats each). All four NULL: not wanted.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StrataVectorsOut {
+    /// `3 n` floats, three per query; or NULL.
+    pub xyz: *mut f32,
+    /// `n` first components (`r`); or NULL.
+    pub x: *mut f32,
+    /// `n` second components (`g`); or NULL.
+    pub y: *mut f32,
+    /// `n` third components (`b`); or NULL.
+    pub z: *mut f32,
 }
 
-/// `strata_eval_batch` with per-query parameters: query `k` is evaluated on
-/// the BSDF's material with row `k` of every column set (see
-/// `StrataColumn`), and answers bit for bit what a BSDF made from a material
-/// file with those values answers. `ncolumns` = 0 is `strata_eval_batch`
-/// (and `columns` may then be NULL); n = 0 does nothing. If any column or any
-/// query's values are invalid nothing runs and nothing is written: the
-/// status is `STRATA_ERR_MATERIAL` (the values make an invalid material),
-/// `STRATA_ERR_NULL` or `STRATA_ERR_INVALID_ARGUMENT`, and
-/// `strata_last_error()` names the column or the query, the path and the
-/// value (see `StrataColumn`). The columns' values must not overlap an
-/// output (checked).
-///
-/// # Safety
-/// As `strata_eval_batch`; a non-NULL `columns` holds `ncolumns` columns,
-/// each with a NUL-terminated `path` and `width × n` `values` that nothing
-/// writes during the call.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    f_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, None, cols, f_out, stderr_out) }
-    })
+/// One batch of `n` queries, for `strata_eval`, `strata_sample`,
+/// `strata_pdf`, `strata_pdf_unbiased` and `strata_albedo`. Zero it
+/// (`StrataBatch batch = {0};`) and set the fields the call reads: a
+/// non-NULL (non-zero) field that the call does not read is an error naming
+/// it (`STRATA_ERR_INVALID_ARGUMENT`), so that no argument is silently
+/// ignored. Directions are in the local frame (z = normal), both pointing
+/// away from the surface, normalized on input. Arrays hold one element (or
+/// triple) per query; an output must not overlap another array of the call
+/// (checked); a failed call writes nothing (but see `StrataColumn` on running
+/// out of memory between chunks). n = 0 does nothing (but write `truncated`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StrataBatch {
+    /// The number of queries.
+    pub n: usize,
+    /// Incident directions (all calls).
+    pub wi: StrataVectors,
+    /// Outgoing directions (eval, pdf, pdf_unbiased).
+    pub wo: StrataVectors,
+    /// Optional `n` keys (eval, sample, albedo): query `k` draws its walks
+    /// from the stream `(seed, keys[k])`, so a renderer passes fresh keys for
+    /// fresh noise. NULL: keyed by the directions' bits (the same query
+    /// always gives the same estimate, as `strata eval` does; an unkeyed
+    /// sample `k` draws sample index `k`, as line `k` of `strata sample`).
+    /// The pdfs are always keyed by their directions.
+    pub keys: *const u64,
+    /// Optional per-query parameters (all calls): `ncolumns` columns, see
+    /// `StrataColumn`. NULL with `ncolumns` = 0: the BSDF's own parameters.
+    pub columns: *const StrataColumn,
+    /// The number of `columns`.
+    pub ncolumns: usize,
+    /// Walks per query, 1 to 2^40 (albedo, pdf_unbiased); 0 for the others.
+    pub walks: u64,
+    /// Out (eval, required): `f(wi, wo)` per RGB channel, without the cosine.
+    pub f: StrataVectorsOut,
+    /// Out (eval, optional): the standard errors of `f`.
+    pub stderr: StrataVectorsOut,
+    /// Out, `n` floats: the approximate pdf of `wo` per solid angle (pdf,
+    /// required; eval, optional: the pdf of the same pairs, as `strata_pdf`
+    /// gives it), the unbiased pdf (pdf_unbiased, required), or the pdf of
+    /// each sample (sample's components).
+    pub pdf: *mut f32,
+    /// Out (pdf_unbiased, required), `n` floats: the standard error of `pdf`.
+    pub pdf_stderr: *mut f32,
+    /// Out (sample): one `StrataSample` record per query; or NULL and the
+    /// components `sampled`, `weight`, `pdf` and `flags` (all four).
+    pub sample: *mut StrataSample,
+    /// Out (sample's components): the sampled directions.
+    pub sampled: StrataVectorsOut,
+    /// Out (sample's components): the samples' weights per RGB channel.
+    pub weight: StrataVectorsOut,
+    /// Out (sample's components), `n` values: `STRATA_SAMPLE_*` bits.
+    pub flags: *mut u32,
+    /// Out (albedo, required): one `StrataAlbedo` record per query.
+    pub albedo: *mut StrataAlbedo,
+    /// Out (eval, pdf_unbiased, albedo; optional): how many walks the limit
+    /// of events (`strata_bsdf_set_max_events`) ended in this call, summed
+    /// over the batch (an albedo's walk counts once); 0 when none did. Their
+    /// paths' energy beyond the limit is missing from the estimates. Eval
+    /// counts the walks of `f` (not those of `pdf`); sample and pdf do not
+    /// count theirs and do not take it.
+    pub truncated: *mut u64,
 }
 
-/// `strata_eval_batch_keyed` with per-query parameters, as
-/// `strata_eval_batch_columns`.
-///
-/// # Safety
-/// As `strata_eval_batch_keyed` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch_keyed_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    keys: *const u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    f_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch_keyed_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `eval_aos`.
-        unsafe { eval_aos(b, n, wi, wo, Some(keys), cols, f_out, stderr_out) }
-    })
+impl Default for StrataVectors {
+    fn default() -> Self {
+        let null = std::ptr::null();
+        StrataVectors {
+            xyz: null,
+            x: null,
+            y: null,
+            z: null,
+        }
+    }
 }
 
-/// The body of the AoS evals (`keys`: `None` unkeyed, `Some` keyed, which
-/// must not be NULL).
+impl Default for StrataVectorsOut {
+    fn default() -> Self {
+        let null = std::ptr::null_mut();
+        StrataVectorsOut {
+            xyz: null,
+            x: null,
+            y: null,
+            z: null,
+        }
+    }
+}
+
+/// The zeroed descriptor, `StrataBatch batch = {0};` in C.
+impl Default for StrataBatch {
+    fn default() -> Self {
+        StrataBatch {
+            n: 0,
+            wi: StrataVectors::default(),
+            wo: StrataVectors::default(),
+            keys: std::ptr::null(),
+            columns: std::ptr::null(),
+            ncolumns: 0,
+            walks: 0,
+            f: StrataVectorsOut::default(),
+            stderr: StrataVectorsOut::default(),
+            pdf: std::ptr::null_mut(),
+            pdf_stderr: std::ptr::null_mut(),
+            sample: std::ptr::null_mut(),
+            sampled: StrataVectorsOut::default(),
+            weight: StrataVectorsOut::default(),
+            flags: std::ptr::null_mut(),
+            albedo: std::ptr::null_mut(),
+            truncated: std::ptr::null_mut(),
+        }
+    }
+}
+
+/// The vector fields of a `StrataBatch` and the names of their arrays.
+const VECTOR_FIELDS: [(&str, [&str; 4]); 6] = [
+    ("wi", ["wi.xyz", "wi.x", "wi.y", "wi.z"]),
+    ("wo", ["wo.xyz", "wo.x", "wo.y", "wo.z"]),
+    ("f", ["f.xyz", "f.x", "f.y", "f.z"]),
+    ("stderr", ["stderr.xyz", "stderr.x", "stderr.y", "stderr.z"]),
+    (
+        "sampled",
+        ["sampled.xyz", "sampled.x", "sampled.y", "sampled.z"],
+    ),
+    ("weight", ["weight.xyz", "weight.x", "weight.y", "weight.z"]),
+];
+
+impl StrataVectors {
+    fn is_set(&self) -> bool {
+        [self.xyz, self.x, self.y, self.z]
+            .iter()
+            .any(|p| !p.is_null())
+    }
+
+    /// The arrays of the field `name` for `n` queries, checked: one layout,
+    /// all three SoA components or none, not NULL if `required`.
+    fn spans(
+        &self,
+        name: &str,
+        n: usize,
+        written: bool,
+        required: bool,
+        out: &mut Vec<Span>,
+    ) -> Result<(), Failure> {
+        let soa = [self.x, self.y, self.z];
+        let nulls = soa.map(|p| p.is_null());
+        // The arrays' names, static: no allocation on the good path.
+        let names = VECTOR_FIELDS
+            .iter()
+            .find(|f| f.0 == name)
+            .map_or(["?"; 4], |f| f.1);
+        let mut one = |i: usize, p, per| {
+            out.push(span(names[i], p, per, n, written, false)?);
+            Ok(())
+        };
+        match (self.xyz.is_null(), nulls) {
+            (true, [true, true, true]) if !required => Ok(()),
+            (true, [true, true, true]) => Err(Failure::new(
+                STRATA_ERR_NULL,
+                format!("{name} is NULL (n = {n}): set {name}.xyz, or {name}.x, .y and .z"),
+            )),
+            (false, [true, true, true]) => one(0, self.xyz, 3),
+            (true, [false, false, false]) => (1..4).try_for_each(|i| one(i, soa[i - 1], 1)),
+            (false, _) => Err(Failure::invalid(format!(
+                "{name}.xyz and {name}.x, .y, .z are both set: pass one layout"
+            ))),
+            (true, _) => {
+                let axis = ["x", "y", "z"];
+                let null = (0..3).find(|&i| nulls[i]).unwrap_or(0);
+                let given = (0..3).find(|&i| !nulls[i]).unwrap_or(0);
+                Err(Failure::new(
+                    STRATA_ERR_NULL,
+                    format!(
+                        "{name}.{} is NULL but {name}.{} is not (n = {n}): pass all three or none",
+                        axis[null], axis[given]
+                    ),
+                ))
+            }
+        }
+    }
+
+    /// The vectors of a field checked by [`StrataVectors::spans`], or `None`.
+    ///
+    /// # Safety
+    /// The field's arrays hold `n` queries' floats and are not written
+    /// during the call.
+    unsafe fn read<'a>(&self, name: &str, n: usize) -> Result<Option<Vectors<'a>>, Failure> {
+        // SAFETY: the caller guarantees the arrays' lengths; `input` checks
+        // the rest.
+        unsafe {
+            if !self.xyz.is_null() {
+                return Ok(Some(Vectors::Aos(triples(input(name, self.xyz, 3, n)?))));
+            }
+            if self.x.is_null() {
+                return Ok(None);
+            }
+            let [x, y, z] = [self.x, self.y, self.z];
+            let c = [
+                input(name, x, 1, n)?,
+                input(name, y, 1, n)?,
+                input(name, z, 1, n)?,
+            ];
+            Ok(Some(Vectors::Soa(c)))
+        }
+    }
+}
+
+impl StrataVectorsOut {
+    fn view(&self) -> StrataVectors {
+        StrataVectors {
+            xyz: self.xyz.cast_const(),
+            x: self.x.cast_const(),
+            y: self.y.cast_const(),
+            z: self.z.cast_const(),
+        }
+    }
+
+    /// The vectors to write of a field checked by [`StrataVectors::spans`]
+    /// (through [`StrataVectorsOut::view`]), or `None`.
+    ///
+    /// # Safety
+    /// The field's arrays hold `n` queries' floats, writable, and overlap no
+    /// other array of the call (checked by [`disjoint`]).
+    unsafe fn write<'a>(&self, name: &str, n: usize) -> Result<Option<VectorsMut<'a>>, Failure> {
+        // SAFETY: the caller guarantees the arrays' lengths and that they
+        // are disjoint; `output` checks the rest.
+        unsafe {
+            if !self.xyz.is_null() {
+                let v = output(name, self.xyz, 3, n)?;
+                return Ok(Some(VectorsMut::Aos(triples_mut(v))));
+            }
+            if self.x.is_null() {
+                return Ok(None);
+            }
+            let [x, y, z] = [self.x, self.y, self.z];
+            let c = [
+                output(name, x, 1, n)?,
+                output(name, y, 1, n)?,
+                output(name, z, 1, n)?,
+            ];
+            Ok(Some(VectorsMut::Soa(c)))
+        }
+    }
+}
+
+impl StrataBatch {
+    /// Fails on the first field the call does not read (`reads`) that is set.
+    fn only(&self, reads: &[&str]) -> Result<(), Failure> {
+        let fields = [
+            ("wo", self.wo.is_set()),
+            ("keys", !self.keys.is_null()),
+            ("walks", self.walks != 0),
+            ("f", self.f.view().is_set()),
+            ("stderr", self.stderr.view().is_set()),
+            ("pdf", !self.pdf.is_null()),
+            ("pdf_stderr", !self.pdf_stderr.is_null()),
+            ("sample", !self.sample.is_null()),
+            ("sampled", self.sampled.view().is_set()),
+            ("weight", self.weight.view().is_set()),
+            ("flags", !self.flags.is_null()),
+            ("albedo", !self.albedo.is_null()),
+            ("truncated", !self.truncated.is_null()),
+        ];
+        match fields.iter().find(|(f, set)| *set && !reads.contains(f)) {
+            None => Ok(()),
+            Some(("walks", _)) => Err(Failure::invalid(format!(
+                "walks = {}, but this call takes no walk count: set it to 0",
+                self.walks
+            ))),
+            Some((f, _)) => Err(Failure::invalid(format!(
+                "{f} is not NULL, but this call does not take it: set it to NULL"
+            ))),
+        }
+    }
+
+    /// Every array of the batch, checked: not NULL if its name is in
+    /// `required` (`wi` always is), aligned and addressable.
+    fn spans(&self, required: &[&str]) -> Result<Vec<Span>, Failure> {
+        let n = self.n;
+        let need = |f: &str| required.contains(&f);
+        let mut s = Vec::with_capacity(24);
+        self.wi.spans("wi", n, false, true, &mut s)?;
+        self.wo.spans("wo", n, false, need("wo"), &mut s)?;
+        s.push(span("keys", self.keys, 1, n, false, true)?);
+        let vectors = [
+            ("f", self.f),
+            ("stderr", self.stderr),
+            ("sampled", self.sampled),
+            ("weight", self.weight),
+        ];
+        for (name, v) in vectors {
+            v.view().spans(name, n, true, need(name), &mut s)?;
+        }
+        for (name, p) in [("pdf", self.pdf), ("pdf_stderr", self.pdf_stderr)] {
+            s.push(span(name, p, 1, n, true, !need(name))?);
+        }
+        s.push(span("flags", self.flags, 1, n, true, !need("flags"))?);
+        s.push(span("sample", self.sample, 1, n, true, !need("sample"))?);
+        s.push(span("albedo", self.albedo, 1, n, true, !need("albedo"))?);
+        s.push(span("truncated", self.truncated, 1, 1, true, true)?);
+        Ok(s)
+    }
+
+    /// Reads the columns and checks every array (`required` as in
+    /// [`StrataBatch::spans`]) and that no output overlaps another array.
+    ///
+    /// # Safety
+    /// As the batch calls': the descriptor's arrays and columns hold what
+    /// [`StrataBatch`] says.
+    unsafe fn checked<'a>(&self, required: &[&str]) -> Result<Columns<'a>, Failure> {
+        // SAFETY: the caller's guarantees on the columns are `read_columns`'.
+        let cols = unsafe { read_columns(self.columns, self.ncolumns, self.n)? };
+        cols.disjoint(self.spans(required)?)?;
+        Ok(cols)
+    }
+
+    /// The incident and (if given) outgoing directions of a checked batch.
+    ///
+    /// # Safety
+    /// As [`StrataBatch::checked`], which has run.
+    unsafe fn directions<'a>(&self) -> Result<(Vectors<'a>, Option<Vectors<'a>>), Failure> {
+        // SAFETY: the caller guarantees the arrays hold `n` queries' floats.
+        let (wi, wo) = unsafe { (self.wi.read("wi", self.n)?, self.wo.read("wo", self.n)?) };
+        let wi = wi.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wi is NULL"))?;
+        Ok((wi, wo))
+    }
+
+    /// The keys of a checked batch, if given.
+    ///
+    /// # Safety
+    /// As [`StrataBatch::checked`], which has run.
+    unsafe fn keys<'a>(&self) -> Result<Option<&'a [u64]>, Failure> {
+        if self.keys.is_null() {
+            return Ok(None);
+        }
+        // SAFETY: the caller guarantees `keys` holds `n` values.
+        Ok(Some(unsafe { input("keys", self.keys, 1, self.n)? }))
+    }
+
+    /// Writes the count of truncated walks, if asked.
+    ///
+    /// # Safety
+    /// A non-NULL `truncated` has been checked aligned (and disjoint) by
+    /// [`StrataBatch::spans`] and is writable.
+    unsafe fn count(&self, cut: u64) -> Result<(), Failure> {
+        if !self.truncated.is_null() {
+            // SAFETY: as the caller guarantees.
+            unsafe { self.truncated.write(cut) };
+        }
+        Ok(())
+    }
+}
+
+/// The BSDF and the descriptor of a batch call, checked (not NULL; no field
+/// the call does not `read` set), or `None` if `n` = 0 (then `truncated`, if
+/// given, is set to 0: there is nothing to do).
 ///
 /// # Safety
-/// As `strata_eval_batch_keyed_columns`.
-#[allow(clippy::too_many_arguments)]
-unsafe fn eval_aos(
+/// `b` is NULL or live; a non-NULL `batch` points to a readable descriptor
+/// whose arrays hold what [`StrataBatch`] says.
+unsafe fn begin<'a>(
     b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    keys: Option<*const u64>,
-    cols: ColumnArgs,
-    f_out: *mut f32,
-    stderr_out: *mut f32,
-) -> Result<(), Failure> {
+    batch: *const StrataBatch,
+    reads: &[&str],
+) -> Result<Option<(&'a LayeredBsdf, &'a StrataBatch)>, Failure> {
     // SAFETY: the caller guarantees `b` is NULL or live.
     let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
+    // SAFETY: the caller guarantees a non-NULL `batch` is readable; nothing
+    // writes it during the call.
+    let d =
+        unsafe { batch.as_ref() }.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "batch is NULL"))?;
+    d.only(reads)?;
+    if d.n > 0 {
+        return Ok(Some((bsdf, d)));
     }
-    if keys.is_some_and(|k| k.is_null()) {
-        return Err(Failure::new(
-            STRATA_ERR_NULL,
-            format!("keys is NULL (n = {n}): use strata_eval_batch for unkeyed queries"),
-        ));
-    }
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    cols.disjoint(vec![
-        span("wi", wi, 3, n, false, false)?,
-        span("wo", wo, 3, n, false, false)?,
-        span("keys", keys.unwrap_or(std::ptr::null()), 1, n, false, true)?,
-        span("f_out", f_out, 3, n, true, false)?,
-        span("stderr_out", stderr_out, 3, n, true, true)?,
-    ])?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees each non-NULL array holds 3 n floats
-    // (n keys) and that inputs are not written during the call; the outputs
-    // were checked disjoint from every other array (and column) above.
-    let (wi, wo, keys, f, se) = unsafe {
-        (
-            input("wi", wi, 3, n)?,
-            input("wo", wo, 3, n)?,
-            keys.map(|k| input("keys", k, 1, n)).transpose()?,
-            output("f_out", f_out, 3, n)?,
-            if stderr_out.is_null() {
-                None
-            } else {
-                Some(output("stderr_out", stderr_out, 3, n)?)
-            },
-        )
-    };
-    let f = VectorsMut::Aos(triples_mut(f));
-    let se = se.map(|s| VectorsMut::Aos(triples_mut(s)));
-    target.eval(
-        Vectors::Aos(triples(wi)),
-        Vectors::Aos(triples(wo)),
-        keys,
-        f,
-        se,
-    )
+    span("truncated", d.truncated, 1, 1, true, true)?;
+    // SAFETY: `truncated` was checked aligned just above.
+    unsafe { d.count(0)? };
+    Ok(None)
+}
+
+/// Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for the
+/// batch's `n` queries with the BSDF's walk count: reads `wi`, `wo`, `keys`
+/// and `columns`, writes `f`, `stderr` (if given), `pdf` (if given: the
+/// approximate pdf of each pair, as `strata_pdf`, for a light sample's MIS
+/// in the same call) and `truncated` (if given). On an error nothing is
+/// written and the message names the query index and the field (`"query 3:
+/// wi = [NaN, 0, 1] is not a direction: components must be finite"`).
+///
+/// # Safety
+/// `b` is NULL or live; `batch` is NULL or a descriptor whose arrays hold
+/// what `StrataBatch` says, inputs not written during the call.
+#[no_mangle]
+pub unsafe extern "C" fn strata_eval(b: *const StrataBsdf, batch: *const StrataBatch) -> i32 {
+    guard("strata_eval", || {
+        let reads = ["wo", "keys", "f", "stderr", "pdf", "truncated"];
+        // SAFETY: the caller guarantees `b` and `batch` (`begin`'s terms).
+        let Some((bsdf, d)) = (unsafe { begin(b, batch, &reads)? }) else {
+            return Ok(());
+        };
+        // SAFETY: as above; `checked` verifies every array before the body
+        // makes slices of them.
+        let cols = unsafe { d.checked(&["wo", "f"])? };
+        let target = cols.target(bsdf, d.n)?;
+        // SAFETY: the arrays were checked by `checked` (outputs disjoint
+        // from every other array) and hold what `StrataBatch` says.
+        unsafe {
+            let (wi, wo) = d.directions()?;
+            let wo = wo.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wo is NULL"))?;
+            let f =
+                d.f.write("f", d.n)?
+                    .ok_or_else(|| Failure::new(STRATA_ERR_NULL, "f is NULL"))?;
+            let cut = target.eval(wi, wo, d.keys()?, f, d.stderr.write("stderr", d.n)?)?;
+            if !d.pdf.is_null() {
+                target.pdf(wi, wo, output("pdf", d.pdf, 1, d.n)?)?;
+            }
+            d.count(cut)
+        }
+    })
+}
+
+/// Samples one outgoing direction per incident direction `wi[k]`: reads
+/// `wi`, `keys` and `columns`, writes the records `sample` or the components
+/// `sampled`, `weight`, `pdf` and `flags` (an absorbed walk writes zeros).
+/// Each sample carries the pdf `strata_pdf` gives for its direction.
+///
+/// # Safety
+/// As `strata_eval`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_sample(b: *const StrataBsdf, batch: *const StrataBatch) -> i32 {
+    guard("strata_sample", || {
+        let reads = ["keys", "sample", "sampled", "weight", "pdf", "flags"];
+        // SAFETY: the caller guarantees `b` and `batch` (`begin`'s terms).
+        let Some((bsdf, d)) = (unsafe { begin(b, batch, &reads)? }) else {
+            return Ok(());
+        };
+        let parts = [
+            d.sampled.view().is_set() || d.weight.view().is_set(),
+            !d.pdf.is_null() || !d.flags.is_null(),
+        ];
+        let required: &[&str] = match (d.sample.is_null(), parts) {
+            (false, [false, false]) => &["sample"],
+            (false, _) => {
+                return Err(Failure::invalid(
+                    "sample and sampled, weight, pdf or flags are set: \
+                     pass the records or the components",
+                ))
+            }
+            (true, [false, false]) => {
+                return Err(Failure::new(
+                    STRATA_ERR_NULL,
+                    format!("sample is NULL (n = {}): pass records in sample, or sampled, weight, pdf and flags", d.n),
+                ))
+            }
+            (true, _) => &["sampled", "weight", "pdf", "flags"],
+        };
+        // SAFETY: as in `strata_eval`.
+        let cols = unsafe { d.checked(required)? };
+        let target = cols.target(bsdf, d.n)?;
+        // SAFETY: as in `strata_eval`. `StrataSample` has the layout of
+        // `SampleRecord` (asserted at compile time), so records may be
+        // written as those.
+        unsafe {
+            let (wi, _) = d.directions()?;
+            let n = d.n;
+            let out = match (d.sampled.write("sampled", n)?, d.weight.write("weight", n)?) {
+                (Some(wo), Some(weight)) => SampleOut::Soa {
+                    wo,
+                    weight,
+                    pdf: output("pdf", d.pdf, 1, n)?,
+                    flags: output("flags", d.flags, 1, n)?,
+                },
+                _ => SampleOut::Records(output("sample", d.sample.cast::<SampleRecord>(), 1, n)?),
+            };
+            target.sample(wi, d.keys()?, out)
+        }
+    })
+}
+
+/// The approximate pdf of `wo[k]` for sampling from `wi[k]`, per solid
+/// angle: reads `wi`, `wo` and `columns`, writes `pdf`. A function of the
+/// two directions and the seed: the number a sample of that direction
+/// carries.
+///
+/// # Safety
+/// As `strata_eval`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf(b: *const StrataBsdf, batch: *const StrataBatch) -> i32 {
+    guard("strata_pdf", || {
+        // SAFETY: the caller guarantees `b` and `batch` (`begin`'s terms).
+        let Some((bsdf, d)) = (unsafe { begin(b, batch, &["wo", "pdf"])? }) else {
+            return Ok(());
+        };
+        // SAFETY: as in `strata_eval`.
+        let cols = unsafe { d.checked(&["wo", "pdf"])? };
+        let target = cols.target(bsdf, d.n)?;
+        // SAFETY: as in `strata_eval`.
+        unsafe {
+            let (wi, wo) = d.directions()?;
+            let wo = wo.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wo is NULL"))?;
+            target.pdf(wi, wo, output("pdf", d.pdf, 1, d.n)?)
+        }
+    })
+}
+
+/// The unbiased pdf of `wo[k]` for sampling from `wi[k]`: the density of the
+/// sampler's directions from `walks` density walks (1 to 2^40). Reads `wi`,
+/// `wo`, `walks` and `columns`, writes `pdf`, `pdf_stderr` and `truncated`
+/// (if given). Slow: for references and tests.
+///
+/// # Safety
+/// As `strata_eval`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_pdf_unbiased(
+    b: *const StrataBsdf,
+    batch: *const StrataBatch,
+) -> i32 {
+    guard("strata_pdf_unbiased", || {
+        let reads = ["wo", "walks", "pdf", "pdf_stderr", "truncated"];
+        // SAFETY: the caller guarantees `b` and `batch` (`begin`'s terms).
+        let Some((bsdf, d)) = (unsafe { begin(b, batch, &reads)? }) else {
+            return Ok(());
+        };
+        walk_count("walks", d.walks)?;
+        // SAFETY: as in `strata_eval`.
+        let cols = unsafe { d.checked(&["wo", "pdf", "pdf_stderr"])? };
+        let target = cols.target(bsdf, d.n)?;
+        // SAFETY: as in `strata_eval`.
+        unsafe {
+            let (wi, wo) = d.directions()?;
+            let wo = wo.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wo is NULL"))?;
+            let pdf = output("pdf", d.pdf, 1, d.n)?;
+            let se = output("pdf_stderr", d.pdf_stderr, 1, d.n)?;
+            let cut = target.pdf_unbiased(wi, wo, d.walks, pdf, se)?;
+            d.count(cut)
+        }
+    })
+}
+
+/// The directional albedo of each incident direction `wi[k]` from `walks`
+/// walks each (1 to 2^40): reads `wi`, `walks`, `keys` and `columns`,
+/// writes the records `albedo` and `truncated` (if given).
+///
+/// # Safety
+/// As `strata_eval`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_albedo(b: *const StrataBsdf, batch: *const StrataBatch) -> i32 {
+    guard("strata_albedo", || {
+        let reads = ["walks", "keys", "albedo", "truncated"];
+        // SAFETY: the caller guarantees `b` and `batch` (`begin`'s terms).
+        let Some((bsdf, d)) = (unsafe { begin(b, batch, &reads)? }) else {
+            return Ok(());
+        };
+        walk_count("walks", d.walks)?;
+        // SAFETY: as in `strata_eval`.
+        let cols = unsafe { d.checked(&["albedo"])? };
+        let target = cols.target(bsdf, d.n)?;
+        // SAFETY: as in `strata_eval`. `StrataAlbedo` has the layout of
+        // `AlbedoRecord` (asserted at compile time).
+        unsafe {
+            let (wi, _) = d.directions()?;
+            let out = output("albedo", d.albedo.cast::<AlbedoRecord>(), 1, d.n)?;
+            let cut = target.albedo(wi, d.walks, d.keys()?, out)?;
+            d.count(cut)
+        }
+    })
 }
 
 /// Writes to a float array of `3 n` as `n` triples.
@@ -1349,648 +1771,6 @@ fn triples_mut(v: &mut [f32]) -> &mut [[f32; 3]] {
     match VectorsMut::from_flat(v) {
         Some(VectorsMut::Aos(t)) => t,
         _ => &mut [],
-    }
-}
-
-/// `strata_eval_batch` over component arrays (structure of arrays): `n`
-/// floats each of `wi_x, wi_y, wi_z, wo_x, wo_y, wo_z`, results to `f_r,
-/// f_g, f_b` and, unless all three are NULL, the standard errors to `se_r,
-/// se_g, se_b`. `keys` is NULL (unkeyed: the same numbers as
-/// `strata_eval_batch`) or `n` keys (as `strata_eval_batch_keyed`).
-///
-/// # Safety
-/// Each non-NULL array holds at least `n` elements; output arrays do not
-/// overlap each other or the inputs (checked); `b` is NULL or live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch_soa(
-    b: *const StrataBsdf,
-    n: usize,
-    wi_x: *const f32,
-    wi_y: *const f32,
-    wi_z: *const f32,
-    wo_x: *const f32,
-    wo_y: *const f32,
-    wo_z: *const f32,
-    keys: *const u64,
-    f_r: *mut f32,
-    f_g: *mut f32,
-    f_b: *mut f32,
-    se_r: *mut f32,
-    se_g: *mut f32,
-    se_b: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch_soa", || {
-        let (wi, wo, f, se) = (
-            [wi_x, wi_y, wi_z],
-            [wo_x, wo_y, wo_z],
-            [f_r, f_g, f_b],
-            [se_r, se_g, se_b],
-        );
-        // SAFETY: the caller's guarantees are those of `eval_soa`.
-        unsafe { eval_soa(b, n, wi, wo, keys, OWN, f, se) }
-    })
-}
-
-/// `strata_eval_batch_soa` with per-query parameters, as
-/// `strata_eval_batch_columns`.
-///
-/// # Safety
-/// As `strata_eval_batch_soa` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_eval_batch_soa_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi_x: *const f32,
-    wi_y: *const f32,
-    wi_z: *const f32,
-    wo_x: *const f32,
-    wo_y: *const f32,
-    wo_z: *const f32,
-    keys: *const u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    f_r: *mut f32,
-    f_g: *mut f32,
-    f_b: *mut f32,
-    se_r: *mut f32,
-    se_g: *mut f32,
-    se_b: *mut f32,
-) -> i32 {
-    guard("strata_eval_batch_soa_columns", || {
-        let (wi, wo, f, se) = (
-            [wi_x, wi_y, wi_z],
-            [wo_x, wo_y, wo_z],
-            [f_r, f_g, f_b],
-            [se_r, se_g, se_b],
-        );
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `eval_soa`.
-        unsafe { eval_soa(b, n, wi, wo, keys, cols, f, se) }
-    })
-}
-
-/// The body of the SoA evals.
-///
-/// # Safety
-/// As `strata_eval_batch_soa_columns`.
-#[allow(clippy::too_many_arguments)]
-unsafe fn eval_soa(
-    b: *const StrataBsdf,
-    n: usize,
-    [wi_x, wi_y, wi_z]: [*const f32; 3],
-    [wo_x, wo_y, wo_z]: [*const f32; 3],
-    keys: *const u64,
-    cols: ColumnArgs,
-    [f_r, f_g, f_b]: [*mut f32; 3],
-    [se_r, se_g, se_b]: [*mut f32; 3],
-) -> Result<(), Failure> {
-    // SAFETY: the caller guarantees `b` is NULL or live.
-    let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
-    }
-    let with_stderr = match [se_r, se_g, se_b].map(|p| p.is_null()) {
-        [true, true, true] => false,
-        [false, false, false] => true,
-        nulls => {
-            let names = ["se_r", "se_g", "se_b"];
-            let null = (0..3).find(|&i| nulls[i]).unwrap_or(0);
-            let given = (0..3).find(|&i| !nulls[i]).unwrap_or(0);
-            return Err(Failure::new(
-                STRATA_ERR_NULL,
-                format!(
-                    "{} is NULL but {} is not (n = {n}): pass all three or none",
-                    names[null], names[given]
-                ),
-            ));
-        }
-    };
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    cols.disjoint(vec![
-        span("wi_x", wi_x, 1, n, false, false)?,
-        span("wi_y", wi_y, 1, n, false, false)?,
-        span("wi_z", wi_z, 1, n, false, false)?,
-        span("wo_x", wo_x, 1, n, false, false)?,
-        span("wo_y", wo_y, 1, n, false, false)?,
-        span("wo_z", wo_z, 1, n, false, false)?,
-        span("keys", keys, 1, n, false, true)?,
-        span("f_r", f_r, 1, n, true, false)?,
-        span("f_g", f_g, 1, n, true, false)?,
-        span("f_b", f_b, 1, n, true, false)?,
-        span("se_r", se_r, 1, n, true, true)?,
-        span("se_g", se_g, 1, n, true, true)?,
-        span("se_b", se_b, 1, n, true, true)?,
-    ])?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees each non-NULL array holds n elements and
-    // that inputs are not written during the call; the outputs were checked
-    // disjoint from every other array (and column) above.
-    unsafe {
-        let wi = [
-            input("wi_x", wi_x, 1, n)?,
-            input("wi_y", wi_y, 1, n)?,
-            input("wi_z", wi_z, 1, n)?,
-        ];
-        let wo = [
-            input("wo_x", wo_x, 1, n)?,
-            input("wo_y", wo_y, 1, n)?,
-            input("wo_z", wo_z, 1, n)?,
-        ];
-        let keys = if keys.is_null() {
-            None
-        } else {
-            Some(input("keys", keys, 1, n)?)
-        };
-        let f = [
-            output("f_r", f_r, 1, n)?,
-            output("f_g", f_g, 1, n)?,
-            output("f_b", f_b, 1, n)?,
-        ];
-        let se = if with_stderr {
-            Some(VectorsMut::Soa([
-                output("se_r", se_r, 1, n)?,
-                output("se_g", se_g, 1, n)?,
-                output("se_b", se_b, 1, n)?,
-            ]))
-        } else {
-            None
-        };
-        target.eval(
-            Vectors::Soa(wi),
-            Vectors::Soa(wo),
-            keys,
-            VectorsMut::Soa(f),
-            se,
-        )
-    }
-}
-
-/// Samples one outgoing direction per incident direction `wi[k]` (`3 n`
-/// floats), into `out[k]`. `keys` NULL: query `k` is keyed by its
-/// direction's bits and draws sample index `k` (as line `k` of `strata
-/// sample` does); otherwise `n` keys, query `k` drawing from `(seed,
-/// keys[k])`. Each sample carries the pdf `strata_pdf_batch` gives for its
-/// direction. n = 0 does nothing.
-///
-/// # Safety
-/// `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
-/// `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
-/// live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_sample_batch(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    keys: *const u64,
-    out: *mut StrataSample,
-) -> i32 {
-    guard("strata_sample_batch", || {
-        // SAFETY: the caller's guarantees are those of `sample_aos`.
-        unsafe { sample_aos(b, n, wi, keys, OWN, out) }
-    })
-}
-
-/// `strata_sample_batch` with per-query parameters, as
-/// `strata_eval_batch_columns`: query `k` samples the material with row `k`
-/// of every column, from the same stream as the plain call.
-///
-/// # Safety
-/// As `strata_sample_batch` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_sample_batch_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    keys: *const u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    out: *mut StrataSample,
-) -> i32 {
-    guard("strata_sample_batch_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `sample_aos`.
-        unsafe { sample_aos(b, n, wi, keys, cols, out) }
-    })
-}
-
-/// The body of the AoS samples.
-///
-/// # Safety
-/// As `strata_sample_batch_columns`.
-unsafe fn sample_aos(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    keys: *const u64,
-    cols: ColumnArgs,
-    out: *mut StrataSample,
-) -> Result<(), Failure> {
-    // SAFETY: the caller guarantees `b` is NULL or live.
-    let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
-    }
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    cols.disjoint(vec![
-        span("wi", wi, 3, n, false, false)?,
-        span("keys", keys, 1, n, false, true)?,
-        span("out", out, 1, n, true, false)?,
-    ])?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
-    // not written during the call; `out` was checked disjoint from them.
-    // `StrataSample` has the layout of `SampleRecord` (asserted at compile
-    // time), so `out`'s records may be written as those.
-    unsafe {
-        let wi = input("wi", wi, 3, n)?;
-        let keys = if keys.is_null() {
-            None
-        } else {
-            Some(input("keys", keys, 1, n)?)
-        };
-        let out = output("out", out.cast::<SampleRecord>(), 1, n)?;
-        target.sample(Vectors::Aos(triples(wi)), keys, SampleOut::Records(out))
-    }
-}
-
-/// `strata_sample_batch` over component arrays: `n` floats each of `wi_x,
-/// wi_y, wi_z`; results to `wo_x, wo_y, wo_z`, `weight_r, weight_g,
-/// weight_b`, `pdf` and `flags` (`STRATA_SAMPLE_*` bits; an absorbed walk
-/// writes zeros everywhere). The same numbers as `strata_sample_batch`.
-///
-/// # Safety
-/// Each non-NULL array holds at least `n` elements; output arrays do not
-/// overlap each other or the inputs (checked); `b` is NULL or live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_sample_batch_soa(
-    b: *const StrataBsdf,
-    n: usize,
-    wi_x: *const f32,
-    wi_y: *const f32,
-    wi_z: *const f32,
-    keys: *const u64,
-    wo_x: *mut f32,
-    wo_y: *mut f32,
-    wo_z: *mut f32,
-    weight_r: *mut f32,
-    weight_g: *mut f32,
-    weight_b: *mut f32,
-    pdf: *mut f32,
-    flags: *mut u32,
-) -> i32 {
-    guard("strata_sample_batch_soa", || {
-        let (wi, wo, w) = (
-            [wi_x, wi_y, wi_z],
-            [wo_x, wo_y, wo_z],
-            [weight_r, weight_g, weight_b],
-        );
-        // SAFETY: the caller's guarantees are those of `sample_soa`.
-        unsafe { sample_soa(b, n, wi, keys, OWN, wo, w, pdf, flags) }
-    })
-}
-
-/// `strata_sample_batch_soa` with per-query parameters, as
-/// `strata_sample_batch_columns`.
-///
-/// # Safety
-/// As `strata_sample_batch_soa` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_sample_batch_soa_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi_x: *const f32,
-    wi_y: *const f32,
-    wi_z: *const f32,
-    keys: *const u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    wo_x: *mut f32,
-    wo_y: *mut f32,
-    wo_z: *mut f32,
-    weight_r: *mut f32,
-    weight_g: *mut f32,
-    weight_b: *mut f32,
-    pdf: *mut f32,
-    flags: *mut u32,
-) -> i32 {
-    guard("strata_sample_batch_soa_columns", || {
-        let (wi, wo, w) = (
-            [wi_x, wi_y, wi_z],
-            [wo_x, wo_y, wo_z],
-            [weight_r, weight_g, weight_b],
-        );
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `sample_soa`.
-        unsafe { sample_soa(b, n, wi, keys, cols, wo, w, pdf, flags) }
-    })
-}
-
-/// The body of the SoA samples.
-///
-/// # Safety
-/// As `strata_sample_batch_soa_columns`.
-#[allow(clippy::too_many_arguments)]
-unsafe fn sample_soa(
-    b: *const StrataBsdf,
-    n: usize,
-    [wi_x, wi_y, wi_z]: [*const f32; 3],
-    keys: *const u64,
-    cols: ColumnArgs,
-    [wo_x, wo_y, wo_z]: [*mut f32; 3],
-    [weight_r, weight_g, weight_b]: [*mut f32; 3],
-    pdf: *mut f32,
-    flags: *mut u32,
-) -> Result<(), Failure> {
-    // SAFETY: the caller guarantees `b` is NULL or live.
-    let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
-    }
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    cols.disjoint(vec![
-        span("wi_x", wi_x, 1, n, false, false)?,
-        span("wi_y", wi_y, 1, n, false, false)?,
-        span("wi_z", wi_z, 1, n, false, false)?,
-        span("keys", keys, 1, n, false, true)?,
-        span("wo_x", wo_x, 1, n, true, false)?,
-        span("wo_y", wo_y, 1, n, true, false)?,
-        span("wo_z", wo_z, 1, n, true, false)?,
-        span("weight_r", weight_r, 1, n, true, false)?,
-        span("weight_g", weight_g, 1, n, true, false)?,
-        span("weight_b", weight_b, 1, n, true, false)?,
-        span("pdf", pdf, 1, n, true, false)?,
-        span("flags", flags, 1, n, true, false)?,
-    ])?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees each non-NULL array holds n elements and
-    // that inputs are not written during the call; the outputs were checked
-    // disjoint from every other array (and column) above.
-    unsafe {
-        let wi = [
-            input("wi_x", wi_x, 1, n)?,
-            input("wi_y", wi_y, 1, n)?,
-            input("wi_z", wi_z, 1, n)?,
-        ];
-        let keys = if keys.is_null() {
-            None
-        } else {
-            Some(input("keys", keys, 1, n)?)
-        };
-        let wo = [
-            output("wo_x", wo_x, 1, n)?,
-            output("wo_y", wo_y, 1, n)?,
-            output("wo_z", wo_z, 1, n)?,
-        ];
-        let weight = [
-            output("weight_r", weight_r, 1, n)?,
-            output("weight_g", weight_g, 1, n)?,
-            output("weight_b", weight_b, 1, n)?,
-        ];
-        let out = SampleOut::Soa {
-            wo: VectorsMut::Soa(wo),
-            weight: VectorsMut::Soa(weight),
-            pdf: output("pdf", pdf, 1, n)?,
-            flags: output("flags", flags, 1, n)?,
-        };
-        target.sample(Vectors::Soa(wi), keys, out)
-    }
-}
-
-/// The approximate pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
-/// each), per solid angle, into `pdf_out` (`n` floats). A function of the two
-/// directions and the seed: it is the number a sample of that direction
-/// carries. n = 0 does nothing.
-///
-/// # Safety
-/// `wi`, `wo` hold at least `3 n` floats, `pdf_out` `n`; `pdf_out` does not
-/// overlap the inputs (checked); `b` is NULL or live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_pdf_batch(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    pdf_out: *mut f32,
-) -> i32 {
-    guard("strata_pdf_batch", || {
-        // SAFETY: the caller's guarantees are those of `pdf_body`.
-        unsafe { pdf_body(b, n, wi, wo, None, OWN, pdf_out, std::ptr::null_mut()) }
-    })
-}
-
-/// `strata_pdf_batch` with per-query parameters, as
-/// `strata_eval_batch_columns`: the pdf a sample of query `k`'s material
-/// carries.
-///
-/// # Safety
-/// As `strata_pdf_batch` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_pdf_batch_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    pdf_out: *mut f32,
-) -> i32 {
-    guard("strata_pdf_batch_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `pdf_body`.
-        unsafe { pdf_body(b, n, wi, wo, None, cols, pdf_out, std::ptr::null_mut()) }
-    })
-}
-
-/// The unbiased pdf of `wo[k]` for sampling from `wi[k]` (`3 n` floats
-/// each): the density of the sampler's directions from `walks` density walks
-/// (1 to 2^40), into `pdf_out`, with its standard error in `stderr_out` (`n`
-/// floats each). Slow: for references and tests. n = 0 does nothing.
-///
-/// # Safety
-/// `wi`, `wo` hold at least `3 n` floats, `pdf_out` and `stderr_out` `n`;
-/// the outputs overlap neither the inputs nor each other (checked); `b` is
-/// NULL or live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_pdf_unbiased_batch(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    walks: u64,
-    pdf_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_pdf_unbiased_batch", || {
-        // SAFETY: the caller's guarantees are those of `pdf_body`.
-        unsafe { pdf_body(b, n, wi, wo, Some(walks), OWN, pdf_out, stderr_out) }
-    })
-}
-
-/// `strata_pdf_unbiased_batch` with per-query parameters, as
-/// `strata_eval_batch_columns`.
-///
-/// # Safety
-/// As `strata_pdf_unbiased_batch` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_pdf_unbiased_batch_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    walks: u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    pdf_out: *mut f32,
-    stderr_out: *mut f32,
-) -> i32 {
-    guard("strata_pdf_unbiased_batch_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `pdf_body`.
-        unsafe { pdf_body(b, n, wi, wo, Some(walks), cols, pdf_out, stderr_out) }
-    })
-}
-
-/// The body of the pdfs: approximate (`walks` `None`; `stderr_out` unused)
-/// or unbiased from `walks` density walks.
-///
-/// # Safety
-/// As `strata_pdf_unbiased_batch_columns`.
-#[allow(clippy::too_many_arguments)]
-unsafe fn pdf_body(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    wo: *const f32,
-    walks: Option<u64>,
-    cols: ColumnArgs,
-    pdf_out: *mut f32,
-    stderr_out: *mut f32,
-) -> Result<(), Failure> {
-    // SAFETY: the caller guarantees `b` is NULL or live.
-    let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
-    }
-    if let Some(w) = walks {
-        walk_count("walks", w)?;
-    }
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    let mut spans = vec![
-        span("wi", wi, 3, n, false, false)?,
-        span("wo", wo, 3, n, false, false)?,
-        span("pdf_out", pdf_out, 1, n, true, false)?,
-    ];
-    if walks.is_some() {
-        spans.push(span("stderr_out", stderr_out, 1, n, true, false)?);
-    }
-    cols.disjoint(spans)?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
-    // not written during the call; the outputs were checked disjoint.
-    unsafe {
-        let wi = Vectors::Aos(triples(input("wi", wi, 3, n)?));
-        let wo = Vectors::Aos(triples(input("wo", wo, 3, n)?));
-        let pdf = output("pdf_out", pdf_out, 1, n)?;
-        match walks {
-            None => target.pdf(wi, wo, pdf),
-            Some(w) => {
-                let se = output("stderr_out", stderr_out, 1, n)?;
-                target.pdf_unbiased(wi, wo, w, pdf, se)
-            }
-        }
-    }
-}
-
-/// The directional albedo of each incident direction `wi[k]` (`3 n` floats)
-/// from `walks` walks each (1 to 2^40), into `out[k]`. `keys` NULL: keyed by
-/// the directions' bits; otherwise `n` keys. n = 0 does nothing.
-///
-/// # Safety
-/// `wi` holds at least `3 n` floats, `keys` (if not NULL) `n` values, `out`
-/// `n` records; `out` does not overlap the inputs (checked); `b` is NULL or
-/// live.
-#[no_mangle]
-pub unsafe extern "C" fn strata_albedo_batch(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    walks: u64,
-    keys: *const u64,
-    out: *mut StrataAlbedo,
-) -> i32 {
-    guard("strata_albedo_batch", || {
-        // SAFETY: the caller's guarantees are those of `albedo_body`.
-        unsafe { albedo_body(b, n, wi, walks, keys, OWN, out) }
-    })
-}
-
-/// `strata_albedo_batch` with per-query parameters, as
-/// `strata_eval_batch_columns`.
-///
-/// # Safety
-/// As `strata_albedo_batch` and `strata_eval_batch_columns`.
-#[no_mangle]
-pub unsafe extern "C" fn strata_albedo_batch_columns(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    walks: u64,
-    keys: *const u64,
-    columns: *const StrataColumn,
-    ncolumns: usize,
-    out: *mut StrataAlbedo,
-) -> i32 {
-    guard("strata_albedo_batch_columns", || {
-        let cols = ColumnArgs { columns, ncolumns };
-        // SAFETY: the caller's guarantees are those of `albedo_body`.
-        unsafe { albedo_body(b, n, wi, walks, keys, cols, out) }
-    })
-}
-
-/// The body of the albedos.
-///
-/// # Safety
-/// As `strata_albedo_batch_columns`.
-unsafe fn albedo_body(
-    b: *const StrataBsdf,
-    n: usize,
-    wi: *const f32,
-    walks: u64,
-    keys: *const u64,
-    cols: ColumnArgs,
-    out: *mut StrataAlbedo,
-) -> Result<(), Failure> {
-    // SAFETY: the caller guarantees `b` is NULL or live.
-    let bsdf = unsafe { bsdf_ref(b)? };
-    if n == 0 {
-        return Ok(());
-    }
-    walk_count("walks", walks)?;
-    // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-    let cols = unsafe { read_columns(cols, n)? };
-    cols.disjoint(vec![
-        span("wi", wi, 3, n, false, false)?,
-        span("keys", keys, 1, n, false, true)?,
-        span("out", out, 1, n, true, false)?,
-    ])?;
-    let target = cols.target(bsdf, n)?;
-    // SAFETY: the caller guarantees the arrays' lengths and that inputs are
-    // not written during the call; `out` was checked disjoint.
-    // `StrataAlbedo` has the layout of `AlbedoRecord` (asserted at compile
-    // time).
-    unsafe {
-        let wi = input("wi", wi, 3, n)?;
-        let keys = if keys.is_null() {
-            None
-        } else {
-            Some(input("keys", keys, 1, n)?)
-        };
-        let out = output("out", out.cast::<AlbedoRecord>(), 1, n)?;
-        target.albedo(Vectors::Aos(triples(wi)), walks, keys, out)
     }
 }
 

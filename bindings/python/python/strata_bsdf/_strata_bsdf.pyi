@@ -1,7 +1,7 @@
 """Type stubs of the compiled module (re-exported by ``strata_bsdf``)."""
 
 from os import PathLike
-from typing import Dict, Literal, Optional, Tuple, TypedDict, Union
+from typing import Dict, Literal, Optional, Tuple, TypedDict, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -79,28 +79,85 @@ class Bsdf:
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
     def with_estimator(self, estimator: Estimator) -> Bsdf: ...
+    @overload
     def eval(
-        self, wi: Vectors, wo: Vectors, keys: Keys = None, *, params: Params = None
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[False] = False,
     ) -> Tuple[Vectors, Vectors]:
         """(f, stderr): f(wi, wo) per channel without the cosine, and its standard error.
 
         params: query k answers as the material with row k of every array set
         (bit for bit, same seed and keys); an invalid row raises QueryError
-        naming the query, the path and the value."""
+        naming the query, the path and the value.
+
+        return_truncated=True (eval, pdf_unbiased, albedo): returns (result, truncated),
+        truncated the number of walks the limit of events (max_events) ended in the
+        call, summed over the batch; 0 when none did."""
+    @overload
+    def eval(
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[True],
+    ) -> Tuple[Tuple[Vectors, Vectors], int]: ...
     def sample(
         self, wi: Vectors, keys: Keys = None, *, params: Params = None
     ) -> Tuple[Vectors, Vectors, F32, npt.NDArray[np.uint32]]:
         """(wo, weight, pdf, flags): weight = f |cos θo| / p; flags REFLECTION | TRANSMISSION | DELTA, 0 if absorbed."""
     def pdf(self, wi: Vectors, wo: Vectors, *, params: Params = None) -> F32:
         """The approximate density of sample's wo (what sample reports as pdf)."""
+    @overload
     def pdf_unbiased(
-        self, wi: Vectors, wo: Vectors, samples: int, *, params: Params = None
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        samples: int,
+        *,
+        params: Params = None,
+        return_truncated: Literal[False] = False,
     ) -> Tuple[F32, F32]:
-        """(pdf, stderr): the density of sample's directions from `samples` density walks (slow)."""
+        """(pdf, stderr): the density of sample's directions from `samples` density walks
+        (slow). return_truncated=True: ((pdf, stderr), truncated), as for eval."""
+    @overload
+    def pdf_unbiased(
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        samples: int,
+        *,
+        params: Params = None,
+        return_truncated: Literal[True],
+    ) -> Tuple[Tuple[F32, F32], int]: ...
+    @overload
     def albedo(
-        self, wi: Vectors, n: int, keys: Keys = None, *, params: Params = None
+        self,
+        wi: Vectors,
+        n: int,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[False] = False,
     ) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
-        """(R, T, R_stderr, T_stderr) from n walks per direction."""
+        """(R, T, R_stderr, T_stderr) from n walks per direction. return_truncated=True:
+        ((R, T, R_stderr, T_stderr), truncated), as for eval (a walk counts once)."""
+    @overload
+    def albedo(
+        self,
+        wi: Vectors,
+        n: int,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[True],
+    ) -> Tuple[Tuple[Vectors, Vectors, Vectors, Vectors], int]: ...
     @property
     def estimator(self) -> Estimator: ...
     @property

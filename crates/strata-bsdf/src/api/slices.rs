@@ -5,8 +5,13 @@
 //! integrator do) or one `[x, y, z]` per hit. [`Vectors`] reads either,
 //! [`VectorsMut`] writes either, and the `*_into` / `*_records` methods of
 //! [`LayeredBsdf`] take them, write into the caller's buffers and return
-//! nothing but an error. The records are `#[repr(C)]`, the layout the C ABI
-//! hands out.
+//! nothing but an error, or, for the calls that run walks to an estimate
+//! (`eval_*`, `pdf_unbiased_into`, `albedo_records`), the number of walks
+//! the limit of events ended in the call ([`LayeredBsdf::max_events`]),
+//! summed over the batch: the sum of the [`Estimate::truncated`] the
+//! per-query calls give (an albedo's reflected and transmitted fractions
+//! share their walks, counted once). The records are `#[repr(C)]`, the
+//! layout the C ABI hands out.
 //!
 //! Keys: with `keys = None` a query is keyed by its directions' bits, as the
 //! plain methods key it, so the same pair always gives the same estimate
@@ -306,7 +311,8 @@ fn f32x3(v: [f64; 3]) -> [f32; 3] {
 
 impl LayeredBsdf {
     /// `f(wi[k], wo[k])` for every query, `samples()` walks each, written to
-    /// `f[k]` and (if given) `stderr[k]`. Nothing is written on an error.
+    /// `f[k]` and (if given) `stderr[k]`; returns the number of walks the
+    /// limit of events ended. Nothing is written on an error.
     pub fn eval_into(
         &self,
         wi: Vectors,
@@ -314,7 +320,7 @@ impl LayeredBsdf {
         keys: Option<&[u64]>,
         mut f: VectorsMut,
         mut stderr: Option<VectorsMut>,
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         f.check("f", n)?;
         if let Some(s) = &stderr {
@@ -335,7 +341,7 @@ impl LayeredBsdf {
         wo: Vectors,
         keys: Option<&[u64]>,
         out: &mut [EvalRecord],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("out", out.len(), n)?;
         self.evals(&wi, &wo, keys, |k, e| {
@@ -417,7 +423,8 @@ impl LayeredBsdf {
 
     /// The unbiased pdf of every pair from `samples` density walks each,
     /// written to `pdf` with its standard error in `stderr` (keyed by the
-    /// directions, as [`LayeredBsdf::pdf_unbiased`]).
+    /// directions, as [`LayeredBsdf::pdf_unbiased`]); returns the number of
+    /// walks the limit of events ended.
     pub fn pdf_unbiased_into(
         &self,
         wi: Vectors,
@@ -425,34 +432,26 @@ impl LayeredBsdf {
         samples: u64,
         pdf: &mut [f32],
         stderr: &mut [f32],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("stderr", stderr.len(), n)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
         check_pairs(&wi, &wo)?;
         let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
-        for ((e, p), s) in self
-            .pdf_unbiased_validated(Per::OWN, &pairs, samples)
-            .iter()
-            .zip(pdf.iter_mut())
-            .zip(stderr.iter_mut())
-        {
-            *p = e.value as f32;
-            *s = e.stderr as f32;
-        }
-        Ok(())
+        let est = self.pdf_unbiased_validated(Per::OWN, &pairs, samples);
+        Ok(put_pdfs(&est, pdf, stderr))
     }
 
     /// The directional albedo of every incident direction, `n` walks each,
-    /// into records.
+    /// into records; returns the number of walks the limit of events ended.
     pub fn albedo_records(
         &self,
         wi: Vectors,
         n: u64,
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let m = wi.count("wi")?;
         one_each("out", out.len(), m)?;
         check_walks("n", n).map_err(BatchError::call)?;
@@ -466,8 +465,12 @@ impl LayeredBsdf {
             let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
             (dir_at(&wi, k), key)
         };
-        self.albedo_each(Per::OWN, m, n, query, |k, a| out[k] = AlbedoRecord::of(&a));
-        Ok(())
+        let mut cut = 0;
+        self.albedo_each(Per::OWN, m, n, query, |k, a| {
+            cut += a.reflected.truncated;
+            out[k] = AlbedoRecord::of(&a);
+        });
+        Ok(cut)
     }
 
     /// The number of `(wi, wo)` queries, checking that the two agree.
@@ -478,7 +481,7 @@ impl LayeredBsdf {
     }
 
     /// The eval of every pair, handed to `out` in query order once every
-    /// input is known to be valid. Calls that run query by query (the
+    /// input is known to be valid; returns the walks the limit ended. Calls that run query by query (the
     /// scalar engine, a closed form) allocate nothing, nor do serial
     /// wavefront batches on a warm thread; parallel ones allocate in rayon.
     fn evals(
@@ -487,7 +490,7 @@ impl LayeredBsdf {
         wo: &Vectors,
         keys: Option<&[u64]>,
         mut out: impl FnMut(usize, &Estimate) + Send,
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = wi.len();
         check_walks("samples", self.samples).map_err(BatchError::call)?;
         check_pairs(wi, wo)?;
@@ -496,8 +499,12 @@ impl LayeredBsdf {
         }
         let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
         let query = |k: usize| (pair_at(wi, wo, k), key(k));
-        self.eval_each(Per::OWN, n, self.samples, query, |k, e| out(k, &e));
-        Ok(())
+        let mut cut = 0;
+        self.eval_each(Per::OWN, n, self.samples, query, |k, e| {
+            cut += e.truncated;
+            out(k, &e)
+        });
+        Ok(cut)
     }
 
     /// The sample of every query, handed to `out` in query order: unkeyed
@@ -547,7 +554,7 @@ impl Materials {
         keys: Option<&[u64]>,
         mut f: VectorsMut,
         mut stderr: Option<VectorsMut>,
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let pairs = pairs_of(&wi, &wo)?;
         f.check("f", pairs.len())?;
         if let Some(s) = &stderr {
@@ -557,13 +564,7 @@ impl Materials {
             None => self.eval_batch(material, &pairs)?,
             Some(k) => self.eval_batch_keyed(material, &pairs, self.samples(), k)?,
         };
-        for (k, e) in est.iter().enumerate() {
-            f.set(k, f32x3(e.value));
-            if let Some(s) = &mut stderr {
-                s.set(k, f32x3(e.stderr));
-            }
-        }
-        Ok(())
+        Ok(put_evals(0, &est, &mut f, &mut stderr))
     }
 
     /// [`LayeredBsdf::sample_into`] of every query on its material (its
@@ -632,16 +633,12 @@ impl Materials {
         samples: u64,
         pdf: &mut [f32],
         stderr: &mut [f32],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let pairs = pairs_of(&wi, &wo)?;
         one_each("pdf", pdf.len(), pairs.len())?;
         one_each("stderr", stderr.len(), pairs.len())?;
         let est = self.pdf_unbiased_batch(material, &pairs, samples)?;
-        for ((e, p), s) in est.iter().zip(pdf).zip(stderr) {
-            *p = e.value as f32;
-            *s = e.stderr as f32;
-        }
-        Ok(())
+        Ok(put_pdfs(&est, pdf, stderr))
     }
 
     /// [`LayeredBsdf::albedo_records`] of every query on its material.
@@ -652,7 +649,7 @@ impl Materials {
         n: u64,
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let wis = dirs_of(&wi)?;
         one_each("out", out.len(), wis.len())?;
         let own: Vec<u64>;
@@ -663,13 +660,8 @@ impl Materials {
                 &own
             }
         };
-        for (o, a) in out
-            .iter_mut()
-            .zip(&self.albedo_batch_keyed(material, &wis, n, keys)?)
-        {
-            *o = AlbedoRecord::of(a);
-        }
-        Ok(())
+        let albedos = self.albedo_batch_keyed(material, &wis, n, keys)?;
+        Ok(put_albedos(&albedos, out))
     }
 
     /// The samples of every query, keyed and indexed as the slice calls do.
@@ -703,14 +695,14 @@ impl PerQuery<'_> {
         keys: Option<&[u64]>,
         mut f: VectorsMut,
         mut stderr: Option<VectorsMut>,
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = self.pairs_checked(&wi, &wo, keys)?;
         f.check("f", n)?;
         if let Some(s) = &stderr {
             s.check("stderr", n)?;
         }
         check_walks("samples", self.template.samples).map_err(BatchError::call)?;
-        let mut pairs = self.buffer("eval")?;
+        let (mut pairs, mut cut) = (self.buffer("eval")?, 0);
         self.chunks("eval", |m, ids, r| {
             pairs.clear();
             pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
@@ -718,14 +710,10 @@ impl PerQuery<'_> {
                 None => m.eval_batch(ids, &pairs)?,
                 Some(x) => m.eval_batch_keyed(ids, &pairs, m.samples(), &x[r.clone()])?,
             };
-            for (k, e) in r.zip(&est) {
-                f.set(k, f32x3(e.value));
-                if let Some(s) = &mut stderr {
-                    s.set(k, f32x3(e.stderr));
-                }
-            }
+            cut += put_evals(r.start, &est, &mut f, &mut stderr);
             Ok(())
-        })
+        })?;
+        Ok(cut)
     }
 
     /// [`Materials::sample_into`].
@@ -785,22 +773,20 @@ impl PerQuery<'_> {
         samples: u64,
         pdf: &mut [f32],
         stderr: &mut [f32],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let n = self.pairs_checked(&wi, &wo, None)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("stderr", stderr.len(), n)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
-        let mut pairs = self.buffer("pdf_unbiased")?;
+        let (mut pairs, mut cut) = (self.buffer("pdf_unbiased")?, 0);
         self.chunks("pdf_unbiased", |m, ids, r| {
             pairs.clear();
             pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
             let est = m.pdf_unbiased_batch(ids, &pairs, samples)?;
-            for (k, e) in r.zip(&est) {
-                pdf[k] = e.value as f32;
-                stderr[k] = e.stderr as f32;
-            }
+            cut += put_pdfs(&est, &mut pdf[r.clone()], &mut stderr[r]);
             Ok(())
-        })
+        })?;
+        Ok(cut)
     }
 
     /// [`Materials::albedo_records`].
@@ -810,11 +796,12 @@ impl PerQuery<'_> {
         n: u64,
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
-    ) -> Result<(), BatchError> {
+    ) -> Result<u64, BatchError> {
         let m = self.directions_checked(&wi, keys)?;
         one_each("out", out.len(), m)?;
         check_walks("n", n).map_err(BatchError::call)?;
         let (mut wis, mut own) = (self.buffer("albedo")?, self.buffer("albedo")?);
+        let mut cut = 0;
         self.chunks("albedo", |mats, ids, r| {
             wis.clear();
             wis.extend(r.clone().map(|k| wi.get(k)));
@@ -826,11 +813,11 @@ impl PerQuery<'_> {
                     &own[..]
                 }
             };
-            for (k, a) in r.zip(&mats.albedo_batch_keyed(ids, &wis, n, keys)?) {
-                out[k] = AlbedoRecord::of(a);
-            }
+            let albedos = mats.albedo_batch_keyed(ids, &wis, n, keys)?;
+            cut += put_albedos(&albedos, &mut out[r]);
             Ok(())
-        })
+        })?;
+        Ok(cut)
     }
 
     /// The samples of every query, keyed and indexed as
@@ -883,6 +870,41 @@ impl PerQuery<'_> {
         one_each("wi", n, self.queries)?;
         Ok(n)
     }
+}
+
+/// Writes the evals of queries `start..` to `f` and `stderr`; the walks
+/// the limit ended.
+fn put_evals(
+    start: usize,
+    est: &[Estimate],
+    f: &mut VectorsMut,
+    stderr: &mut Option<VectorsMut>,
+) -> u64 {
+    for (k, e) in (start..).zip(est) {
+        f.set(k, f32x3(e.value));
+        if let Some(s) = stderr {
+            s.set(k, f32x3(e.stderr));
+        }
+    }
+    est.iter().map(|e| e.truncated).sum()
+}
+
+/// Writes unbiased pdfs to `pdf` and `stderr`; the walks the limit ended.
+fn put_pdfs(est: &[PdfEstimate], pdf: &mut [f32], stderr: &mut [f32]) -> u64 {
+    for ((e, p), s) in est.iter().zip(pdf).zip(stderr) {
+        *p = e.value as f32;
+        *s = e.stderr as f32;
+    }
+    est.iter().map(|e| e.truncated).sum()
+}
+
+/// Writes albedos to records; the walks the limit ended (the reflected and
+/// transmitted fractions come from the same walks: counted once).
+fn put_albedos(albedos: &[crate::estimator::Albedo], out: &mut [AlbedoRecord]) -> u64 {
+    for (o, a) in out.iter_mut().zip(albedos) {
+        *o = AlbedoRecord::of(a);
+    }
+    albedos.iter().map(|a| a.reflected.truncated).sum()
 }
 
 /// The pairs of a batch, checking that `wi` and `wo` have one each.
@@ -954,7 +976,7 @@ mod tests {
         // (As text: NaN != NaN.)
         let check = Vectors::check_pairs(&g, &b, None).map(|_| ());
         assert_eq!(
-            call.map_err(|e| e.to_string()),
+            call.map(|_| ()).map_err(|e| e.to_string()),
             check.map_err(|e| e.to_string())
         );
     }

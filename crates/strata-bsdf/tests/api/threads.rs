@@ -191,7 +191,10 @@ fn calls<'a>(
     let f32s = move || vec![0.0f32; n];
     let one = (Vec3::from(x.wi[0]), Vec3::from(x.wo[0]));
     let many = WALKS * n as u64;
-    let ok = |r: Result<(), strata_bsdf::BatchError>| r.unwrap();
+    // (The slice calls that run walks return their count of truncated ones.)
+    fn ok<T>(r: Result<T, strata_bsdf::BatchError>) {
+        r.unwrap();
+    }
     let v: Vec<Call<'a>> = vec![
         // The BSDF's own parameters: `Vec` batches.
         (
@@ -402,7 +405,7 @@ fn calls<'a>(
                 ok(mats.albedo_records(material, wi, WALKS, Some(keys), &mut r))
             }),
         ),
-        // Per-query columns (what the C `*_columns` calls and Python's
+        // Per-query columns (what the C calls' `columns` and Python's
         // `params=` run), the answerer built inside the watch too.
         (
             "PerQuery::eval_into",

@@ -55,9 +55,24 @@ int main(void) {
         0.7f, 0.0f, 0.71f,
     };
     float f[3 * N], f_err[3 * N], pdf[N];
-    check(strata_eval_batch(bsdf, N, wi, wo, f, f_err), "strata_eval_batch");
-    check(strata_pdf_batch(bsdf, N, wi, wo, pdf), "strata_pdf_batch");
-    printf("eval: f(wi, wo) per channel (no cosine), +- standard error, and pdf\n");
+    uint64_t truncated;
+    /* One descriptor per call: the arrays it reads and writes; the fields
+     * it does not take stay zero. This eval writes the pdf of the same
+     * pairs too (as strata_pdf does), and how many walks the limit of
+     * events ended (0 on an ordinary stack). */
+    StrataBatch batch = {
+        .n = N,
+        .wi = {.xyz = wi},
+        .wo = {.xyz = wo},
+        .f = {.xyz = f},
+        .stderr = {.xyz = f_err},
+        .pdf = pdf,
+        .truncated = &truncated,
+    };
+    check(strata_eval(bsdf, &batch), "strata_eval");
+    printf("eval: f(wi, wo) per channel (no cosine), +- standard error, and pdf "
+           "(%llu walks truncated)\n",
+           (unsigned long long)truncated);
     for (int k = 0; k < N; k++) {
         printf("  query %d: f = (%.4f, %.4f, %.4f) +- (%.4f, %.4f, %.4f), pdf = %.4f\n", k,
                f[3 * k], f[3 * k + 1], f[3 * k + 2], f_err[3 * k], f_err[3 * k + 1],
@@ -74,7 +89,8 @@ int main(void) {
      * numbers (here: pixel index), so that every call draws fresh noise. */
     StrataSample s[N];
     const uint64_t keys[N] = {1001, 1002, 1003, 1004};
-    check(strata_sample_batch(bsdf, N, wi, keys, s), "strata_sample_batch");
+    StrataBatch sampling = {.n = N, .wi = {.xyz = wi}, .keys = keys, .sample = s};
+    check(strata_sample(bsdf, &sampling), "strata_sample");
     printf("sample: wo, weight = f |cos| / p, pdf, lobe\n");
     for (int k = 0; k < N; k++) {
         if (s[k].flags == 0) {
@@ -86,10 +102,11 @@ int main(void) {
                s[k].weight[2], s[k].pdf,
                (s[k].flags & STRATA_SAMPLE_REFLECTION) ? "reflection" : "transmission",
                (s[k].flags & STRATA_SAMPLE_DELTA) ? ", delta" : "");
-        /* The sample's pdf is the one strata_pdf_batch gives for its
-         * direction, so MIS weights agree between strategies. */
+        /* The sample's pdf is the one strata_pdf gives for its direction,
+         * so MIS weights agree between strategies. */
         float p;
-        check(strata_pdf_batch(bsdf, 1, wi + 3 * k, s[k].wo, &p), "strata_pdf_batch");
+        StrataBatch one = {.n = 1, .wi = {.xyz = wi + 3 * k}, .wo = {.xyz = s[k].wo}, .pdf = &p};
+        check(strata_pdf(bsdf, &one), "strata_pdf");
         if (p != s[k].pdf) {
             fprintf(stderr, "query %d: sample pdf %g != pdf() %g\n", k, s[k].pdf, p);
             return 1;
@@ -98,7 +115,8 @@ int main(void) {
 
     /* A bad direction is an error that names the query and the argument. */
     const float bad_wi[3 * 2] = {0.0f, 0.0f, 1.0f, NAN, 0.0f, 1.0f};
-    int32_t status = strata_eval_batch(bsdf, 2, bad_wi, wo, f, NULL);
+    StrataBatch bad = {.n = 2, .wi = {.xyz = bad_wi}, .wo = {.xyz = wo}, .f = {.xyz = f}};
+    int32_t status = strata_eval(bsdf, &bad);
     printf("a NaN direction: status %d, \"%s\"\n", status, strata_last_error());
     if (status != STRATA_ERR_INVALID_ARGUMENT) {
         return 1;

@@ -68,8 +68,15 @@ int main(void) {
     }
     StrataColumn columns[1] = {{"layers[0].medium.thickness", 1, thickness}};
     float f[3 * N];
-    check(strata_eval_batch_columns(bsdf, N, wi, wo, columns, 1, f, NULL),
-          "strata_eval_batch_columns");
+    StrataBatch batch = {
+        .n = N,
+        .wi = {.xyz = wi},
+        .wo = {.xyz = wo},
+        .columns = columns,
+        .ncolumns = 1,
+        .f = {.xyz = f},
+    };
+    check(strata_eval(bsdf, &batch), "strata_eval");
 
     printf("textured thickness: f(wi, wo) per query\n");
     for (int k = 0; k < N; k++) {
@@ -78,7 +85,9 @@ int main(void) {
         material(text, sizeof text, thickness[k]);
         check(strata_bsdf_from_toml(text, SAMPLES, SEED, &own), "strata_bsdf_from_toml");
         float want[3];
-        check(strata_eval_batch(own, 1, wi + 3 * k, wo + 3 * k, want, NULL), "strata_eval_batch");
+        StrataBatch one = {
+            .n = 1, .wi = {.xyz = wi + 3 * k}, .wo = {.xyz = wo + 3 * k}, .f = {.xyz = want}};
+        check(strata_eval(own, &one), "strata_eval");
         strata_bsdf_free(own);
         printf("  thickness %.2f: f = (%.4f, %.4f, %.4f)\n", (double)thickness[k],
                (double)f[3 * k], (double)f[3 * k + 1], (double)f[3 * k + 2]);
@@ -97,7 +106,7 @@ int main(void) {
     /* An invalid texel stops the batch: nothing is written, and the message
      * names the query, the path and the value. */
     thickness[3] = -1.0f;
-    int32_t status = strata_eval_batch_columns(bsdf, N, wi, wo, columns, 1, f, NULL);
+    int32_t status = strata_eval(bsdf, &batch);
     printf("a negative thickness: status %d, \"%s\"\n", status, strata_last_error());
     if (status != STRATA_ERR_MATERIAL || strstr(strata_last_error(), "query 3") == NULL) {
         return 1;

@@ -13,6 +13,7 @@ use strata_bsdf::{
 };
 use strata_capi::*;
 
+use crate::batch::{aos, aos_out, soa3, soa3_out};
 use crate::common::{COATED_COPPER, SCATTERING_SLAB};
 /// A rough dielectric slab with glass below: transmission between exteriors
 /// of different IOR, where the transport mode matters.
@@ -109,58 +110,38 @@ fn eval_is_the_rust_apis_bit_for_bit_in_both_layouts() {
 
             let (mut f, mut se) = (vec![-1.0f32; 3 * N], vec![-1.0f32; 3 * N]);
             let (wi_f, wo_f) = (flat(&wi), flat(&wo));
-            // SAFETY: every array holds 3 N floats (N keys).
-            let status = unsafe {
-                if keyed {
-                    strata_eval_batch_keyed(
-                        c.0,
-                        N,
-                        wi_f.as_ptr(),
-                        wo_f.as_ptr(),
-                        keys.as_ptr(),
-                        f.as_mut_ptr(),
-                        se.as_mut_ptr(),
-                    )
-                } else {
-                    strata_eval_batch(
-                        c.0,
-                        N,
-                        wi_f.as_ptr(),
-                        wo_f.as_ptr(),
-                        f.as_mut_ptr(),
-                        se.as_mut_ptr(),
-                    )
-                }
+            let kp = if keyed { keys.as_ptr() } else { null() };
+            let mut cut = u64::MAX;
+            let batch = StrataBatch {
+                n: N,
+                wi: aos(&wi_f),
+                wo: aos(&wo_f),
+                keys: kp,
+                f: aos_out(&mut f),
+                stderr: aos_out(&mut se),
+                truncated: &mut cut,
+                ..Default::default()
             };
+            // SAFETY: every array holds 3 N floats (N keys).
+            let status = unsafe { strata_eval(c.0, &batch) };
             assert_eq!(status, STRATA_OK, "{}", last_error());
             assert_eq!(last_error(), "");
             assert_eq!(bits(&f), bits(&want_f));
             assert_eq!(bits(&se), bits(&want_se));
+            assert_eq!(cut, 0, "no walk reaches the default limit");
 
             // Without the standard errors: the same f.
             let mut f2 = vec![0.0f32; 3 * N];
-            // SAFETY: as above; stderr_out may be NULL.
-            let status = unsafe {
-                match keyed {
-                    true => strata_eval_batch_keyed(
-                        c.0,
-                        N,
-                        wi_f.as_ptr(),
-                        wo_f.as_ptr(),
-                        keys.as_ptr(),
-                        f2.as_mut_ptr(),
-                        null_mut(),
-                    ),
-                    false => strata_eval_batch(
-                        c.0,
-                        N,
-                        wi_f.as_ptr(),
-                        wo_f.as_ptr(),
-                        f2.as_mut_ptr(),
-                        null_mut(),
-                    ),
-                }
+            let batch = StrataBatch {
+                n: N,
+                wi: aos(&wi_f),
+                wo: aos(&wo_f),
+                keys: kp,
+                f: aos_out(&mut f2),
+                ..Default::default()
             };
+            // SAFETY: as above; stderr may be NULL.
+            let status = unsafe { strata_eval(c.0, &batch) };
             assert_eq!(status, STRATA_OK);
             assert_eq!(bits(&f2), bits(&want_f));
 
@@ -168,29 +149,17 @@ fn eval_is_the_rust_apis_bit_for_bit_in_both_layouts() {
             let (wis, wos) = (soa(&wi), soa(&wo));
             let mut fs = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
             let mut ses = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
-            let kp = if keyed { keys.as_ptr() } else { null() };
-            let [fr, fg, fb] = &mut fs;
-            let [sr, sg, sb] = &mut ses;
-            // SAFETY: every array holds N elements.
-            let status = unsafe {
-                strata_eval_batch_soa(
-                    c.0,
-                    N,
-                    wis[0].as_ptr(),
-                    wis[1].as_ptr(),
-                    wis[2].as_ptr(),
-                    wos[0].as_ptr(),
-                    wos[1].as_ptr(),
-                    wos[2].as_ptr(),
-                    kp,
-                    fr.as_mut_ptr(),
-                    fg.as_mut_ptr(),
-                    fb.as_mut_ptr(),
-                    sr.as_mut_ptr(),
-                    sg.as_mut_ptr(),
-                    sb.as_mut_ptr(),
-                )
+            let batch = StrataBatch {
+                n: N,
+                wi: soa3(&wis),
+                wo: soa3(&wos),
+                keys: kp,
+                f: soa3_out(&mut fs),
+                stderr: soa3_out(&mut ses),
+                ..Default::default()
             };
+            // SAFETY: every array holds N elements.
+            let status = unsafe { strata_eval(c.0, &batch) };
             assert_eq!(status, STRATA_OK, "{}", last_error());
             for ch in 0..3 {
                 let want_c: Vec<f32> = want.iter().map(|e| e.f[ch]).collect();
@@ -206,17 +175,15 @@ fn eval_is_the_rust_apis_bit_for_bit_in_both_layouts() {
             .value
             .map(|v| v as f32);
         let mut f = [0.0f32; 3];
-        // SAFETY: one query: 3 floats each.
-        let status = unsafe {
-            strata_eval_batch(
-                c.0,
-                1,
-                wi[5].as_ptr(),
-                wo[5].as_ptr(),
-                f.as_mut_ptr(),
-                null_mut(),
-            )
+        let batch = StrataBatch {
+            n: 1,
+            wi: aos(&wi[5]),
+            wo: aos(&wo[5]),
+            f: aos_out(&mut f),
+            ..Default::default()
         };
+        // SAFETY: one query: 3 floats each.
+        let status = unsafe { strata_eval(c.0, &batch) };
         assert_eq!(status, STRATA_OK);
         assert_eq!(bits(&f), bits(&single));
     }
@@ -238,9 +205,15 @@ fn sample_is_the_rust_apis_bit_for_bit_in_both_layouts() {
             let wi_f = flat(&wi);
             let mut out = vec![StrataSample::default(); N];
             let kp = if keyed { keys.as_ptr() } else { null() };
+            let batch = StrataBatch {
+                n: N,
+                wi: aos(&wi_f),
+                keys: kp,
+                sample: out.as_mut_ptr(),
+                ..Default::default()
+            };
             // SAFETY: wi holds 3 N floats, keys N, out N records.
-            let status =
-                unsafe { strata_sample_batch(c.0, N, wi_f.as_ptr(), kp, out.as_mut_ptr()) };
+            let status = unsafe { strata_sample(c.0, &batch) };
             assert_eq!(status, STRATA_OK, "{}", last_error());
             for (o, w) in out.iter().zip(&want) {
                 assert_eq!(bits(&o.wo), bits(&w.wo));
@@ -254,27 +227,18 @@ fn sample_is_the_rust_apis_bit_for_bit_in_both_layouts() {
             let mut wo = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
             let mut weight = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
             let (mut pdf, mut flags) = (vec![0.0f32; N], vec![0u32; N]);
-            let [wx, wy, wz] = &mut wo;
-            let [gr, gg, gb] = &mut weight;
-            // SAFETY: every array holds N elements.
-            let status = unsafe {
-                strata_sample_batch_soa(
-                    c.0,
-                    N,
-                    wis[0].as_ptr(),
-                    wis[1].as_ptr(),
-                    wis[2].as_ptr(),
-                    kp,
-                    wx.as_mut_ptr(),
-                    wy.as_mut_ptr(),
-                    wz.as_mut_ptr(),
-                    gr.as_mut_ptr(),
-                    gg.as_mut_ptr(),
-                    gb.as_mut_ptr(),
-                    pdf.as_mut_ptr(),
-                    flags.as_mut_ptr(),
-                )
+            let batch = StrataBatch {
+                n: N,
+                wi: soa3(&wis),
+                keys: kp,
+                sampled: soa3_out(&mut wo),
+                weight: soa3_out(&mut weight),
+                pdf: pdf.as_mut_ptr(),
+                flags: flags.as_mut_ptr(),
+                ..Default::default()
             };
+            // SAFETY: every array holds N elements.
+            let status = unsafe { strata_sample(c.0, &batch) };
             assert_eq!(status, STRATA_OK, "{}", last_error());
             for (i, w) in want.iter().enumerate() {
                 for ch in 0..3 {
@@ -315,19 +279,21 @@ fn the_unbiased_pdf_is_the_rust_apis() {
     let wo = directions(N, 7, false);
     let (wi_f, wo_f) = (flat(&wi), flat(&wo));
     let (mut pdf, mut se) = (vec![0.0f32; N], vec![0.0f32; N]);
-    // SAFETY: wi, wo hold 3 N floats, pdf and se N each.
-    let status = unsafe {
-        strata_pdf_unbiased_batch(
-            c.0,
-            N,
-            wi_f.as_ptr(),
-            wo_f.as_ptr(),
-            64,
-            pdf.as_mut_ptr(),
-            se.as_mut_ptr(),
-        )
+    let mut cut = u64::MAX;
+    let mut batch = StrataBatch {
+        n: N,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        walks: 64,
+        pdf: pdf.as_mut_ptr(),
+        pdf_stderr: se.as_mut_ptr(),
+        truncated: &mut cut,
+        ..Default::default()
     };
+    // SAFETY: wi, wo hold 3 N floats, pdf and se N each.
+    let status = unsafe { strata_pdf_unbiased(c.0, &batch) };
     assert_eq!(status, STRATA_OK, "{}", last_error());
+    assert_eq!(cut, 0);
     let (mut want, mut want_se) = (vec![0.0f32; N], vec![0.0f32; N]);
     r.pdf_unbiased_into(
         Vectors::Aos(&wi),
@@ -341,46 +307,35 @@ fn the_unbiased_pdf_is_the_rust_apis() {
     assert_eq!(bits(&se), bits(&want_se));
     assert!(pdf.iter().all(|&p| p >= 0.0 && p.is_finite()) && se.iter().any(|&s| s > 0.0));
     // No walks, and outputs that overlap, are errors naming the argument.
-    // SAFETY: as above; the second call passes one buffer as both outputs.
-    let status = unsafe {
-        strata_pdf_unbiased_batch(
-            c.0,
-            N,
-            wi_f.as_ptr(),
-            wo_f.as_ptr(),
-            0,
-            pdf.as_mut_ptr(),
-            se.as_mut_ptr(),
-        )
-    };
+    batch.walks = 0;
+    // SAFETY: as above.
+    let status = unsafe { strata_pdf_unbiased(c.0, &batch) };
     assert_ne!(status, STRATA_OK);
     assert!(last_error().contains("walks = 0"), "{}", last_error());
-    let status = unsafe {
-        strata_pdf_unbiased_batch(
-            c.0,
-            N,
-            wi_f.as_ptr(),
-            wo_f.as_ptr(),
-            8,
-            pdf.as_mut_ptr(),
-            pdf.as_mut_ptr(),
-        )
-    };
+    (batch.walks, batch.pdf_stderr) = (8, pdf.as_mut_ptr());
+    // SAFETY: as above; one buffer as both outputs.
+    let status = unsafe { strata_pdf_unbiased(c.0, &batch) };
     assert_ne!(status, STRATA_OK);
-    assert!(last_error().contains("stderr_out"), "{}", last_error());
+    assert!(last_error().contains("pdf_stderr"), "{}", last_error());
 }
 
 #[test]
-fn a_samples_pdf_is_what_pdf_batch_gives_and_pdf_is_the_rust_apis() {
+fn a_samples_pdf_is_what_strata_pdf_gives_and_pdf_is_the_rust_apis() {
     let c = Capi::toml(COATED_COPPER, 16, 5);
     let r = rust(COATED_COPPER, 16, 5);
     let wi = directions(N, 4, false);
     let wo = directions(N, 5, false);
     let (wi_f, wo_f) = (flat(&wi), flat(&wo));
     let mut pdf = vec![0.0f32; N];
+    let batch = StrataBatch {
+        n: N,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        pdf: pdf.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: wi, wo hold 3 N floats, pdf N.
-    let status =
-        unsafe { strata_pdf_batch(c.0, N, wi_f.as_ptr(), wo_f.as_ptr(), pdf.as_mut_ptr()) };
+    let status = unsafe { strata_pdf(c.0, &batch) };
     assert_eq!(status, STRATA_OK, "{}", last_error());
     let mut want = vec![0.0f32; N];
     r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want)
@@ -396,14 +351,27 @@ fn a_samples_pdf_is_what_pdf_batch_gives_and_pdf_is_the_rust_apis() {
 
     // Every sample's pdf is pdf(wi, its wo).
     let mut s = vec![StrataSample::default(); N];
+    let batch = StrataBatch {
+        n: N,
+        wi: aos(&wi_f),
+        sample: s.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: wi holds 3 N floats, s N records.
-    let status = unsafe { strata_sample_batch(c.0, N, wi_f.as_ptr(), null(), s.as_mut_ptr()) };
+    let status = unsafe { strata_sample(c.0, &batch) };
     assert_eq!(status, STRATA_OK);
     let mut checked = 0;
     for (k, s) in s.iter().enumerate().filter(|(_, s)| s.flags != 0) {
         let mut p = 0.0f32;
+        let batch = StrataBatch {
+            n: 1,
+            wi: aos(&wi[k]),
+            wo: aos(&s.wo),
+            pdf: &mut p,
+            ..Default::default()
+        };
         // SAFETY: one query.
-        let status = unsafe { strata_pdf_batch(c.0, 1, wi[k].as_ptr(), s.wo.as_ptr(), &mut p) };
+        let status = unsafe { strata_pdf(c.0, &batch) };
         assert_eq!(status, STRATA_OK);
         assert_eq!(p.to_bits(), s.pdf.to_bits(), "query {k}");
         checked += 1;
@@ -422,13 +390,25 @@ fn pdf_samples_are_the_rust_apis() {
     let (wi_f, wo_f) = (flat(&wi), flat(&wo));
     let pdfs = |c: &Capi| {
         let mut pdf = vec![0.0f32; N];
+        let batch = StrataBatch {
+            n: N,
+            wi: aos(&wi_f),
+            wo: aos(&wo_f),
+            pdf: pdf.as_mut_ptr(),
+            ..Default::default()
+        };
         // SAFETY: wi, wo hold 3 N floats, pdf N.
-        let status =
-            unsafe { strata_pdf_batch(c.0, N, wi_f.as_ptr(), wo_f.as_ptr(), pdf.as_mut_ptr()) };
+        let status = unsafe { strata_pdf(c.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         let mut s = vec![StrataSample::default(); N];
+        let batch = StrataBatch {
+            n: N,
+            wi: aos(&wi_f),
+            sample: s.as_mut_ptr(),
+            ..Default::default()
+        };
         // SAFETY: wi holds 3 N floats, s N records.
-        let status = unsafe { strata_sample_batch(c.0, N, wi_f.as_ptr(), null(), s.as_mut_ptr()) };
+        let status = unsafe { strata_sample(c.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         (pdf, s.iter().map(|s| s.pdf.to_bits()).collect::<Vec<_>>())
     };
@@ -535,10 +515,20 @@ fn albedo_is_the_rust_apis_bit_for_bit() {
             .unwrap();
         let mut out = vec![StrataAlbedo::default(); N];
         let kp = if keyed { keys.as_ptr() } else { null() };
+        let mut cut = u64::MAX;
+        let batch = StrataBatch {
+            n: N,
+            wi: aos(&wi_f),
+            walks: 300,
+            keys: kp,
+            albedo: out.as_mut_ptr(),
+            truncated: &mut cut,
+            ..Default::default()
+        };
         // SAFETY: wi holds 3 N floats, keys N, out N records.
-        let status =
-            unsafe { strata_albedo_batch(c.0, N, wi_f.as_ptr(), 300, kp, out.as_mut_ptr()) };
+        let status = unsafe { strata_albedo(c.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
+        assert_eq!(cut, 0);
         for ((o, w), d) in out.iter().zip(&want).zip(&wi) {
             assert_eq!(bits(&o.reflected), bits(&w.reflected));
             assert_eq!(bits(&o.transmitted), bits(&w.transmitted));
@@ -568,16 +558,17 @@ fn importance_transport_is_the_rust_apis_and_changes_transmission_only() {
     r.eval_records(Vectors::Aos(&wi), Vectors::Aos(&wo), None, &mut want)
         .unwrap();
     let mut f = [0.0f32; 6];
-    // SAFETY: two queries: 6 floats each.
-    let eval = |b: *mut StrataBsdf, f: &mut [f32; 6]| unsafe {
-        strata_eval_batch(
-            b,
-            2,
-            flat(&wi).as_ptr(),
-            flat(&wo).as_ptr(),
-            f.as_mut_ptr(),
-            null_mut(),
-        )
+    let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+    let eval = |b: *mut StrataBsdf, f: &mut [f32; 6]| {
+        let batch = StrataBatch {
+            n: 2,
+            wi: aos(&wi_f),
+            wo: aos(&wo_f),
+            f: aos_out(f),
+            ..Default::default()
+        };
+        // SAFETY: two queries: 6 floats each.
+        unsafe { strata_eval(b, &batch) }
     };
     assert_eq!(eval(c.0, &mut f), STRATA_OK);
     assert_eq!(bits(&f[..3]), bits(&want[0].f));
@@ -637,10 +628,15 @@ fn json_and_path_give_the_tomls_bsdf() {
     let mut results = vec![];
     for b in [&from_toml, &from_json, &from_path] {
         let mut f = vec![0.0f32; 27];
-        // SAFETY: 9 queries: 27 floats each.
-        let s = unsafe {
-            strata_eval_batch(b.0, 9, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
+        let batch = StrataBatch {
+            n: 9,
+            wi: aos(&wi),
+            wo: aos(&wo),
+            f: aos_out(&mut f),
+            ..Default::default()
         };
+        // SAFETY: 9 queries: 27 floats each.
+        let s = unsafe { strata_eval(b.0, &batch) };
         assert_eq!(s, STRATA_OK);
         results.push(bits(&f));
     }
@@ -798,20 +794,32 @@ fn unkeyed_eval_and_pdf_are_what_strata_eval_prints() {
     let c = Capi::toml(COATED_COPPER, 48, 13);
     let (wi_f, wo_f) = (flat(&wi_cli), flat(&wo_cli));
     let (mut f, mut se, mut pdf) = (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n], vec![0.0f32; n]);
-    // SAFETY: 3 n floats each, n keys and pdfs.
+    let mut pdf2 = vec![0.0f32; n];
+    let eval = StrataBatch {
+        n,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        f: aos_out(&mut f),
+        stderr: aos_out(&mut se),
+        pdf: pdf2.as_mut_ptr(),
+        ..Default::default()
+    };
+    let pdfs = StrataBatch {
+        n,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        pdf: pdf.as_mut_ptr(),
+        ..Default::default()
+    };
+    // SAFETY: 3 n floats each, n pdfs.
     unsafe {
-        let s = strata_eval_batch(
-            c.0,
-            n,
-            wi_f.as_ptr(),
-            wo_f.as_ptr(),
-            f.as_mut_ptr(),
-            se.as_mut_ptr(),
-        );
+        let s = strata_eval(c.0, &eval);
         assert_eq!(s, STRATA_OK, "{}", last_error());
-        let s = strata_pdf_batch(c.0, n, wi_f.as_ptr(), wo_f.as_ptr(), pdf.as_mut_ptr());
+        let s = strata_pdf(c.0, &pdfs);
         assert_eq!(s, STRATA_OK);
     }
+    // An eval that asks for the pdf too gives strata_pdf's.
+    assert_eq!(bits(&pdf2), bits(&pdf));
     for (k, line) in lines.iter().enumerate() {
         for ch in 0..3 {
             let cli_f = line["f"][ch].as_f64().unwrap() as f32;
@@ -826,18 +834,16 @@ fn unkeyed_eval_and_pdf_are_what_strata_eval_prints() {
     // Keyed calls draw other streams.
     let keys: Vec<u64> = (0..n as u64).collect();
     let mut g = vec![0.0f32; 3 * n];
-    // SAFETY: 3 n floats each, n keys.
-    let s = unsafe {
-        strata_eval_batch_keyed(
-            c.0,
-            n,
-            wi_f.as_ptr(),
-            wo_f.as_ptr(),
-            keys.as_ptr(),
-            g.as_mut_ptr(),
-            null_mut(),
-        )
+    let batch = StrataBatch {
+        n,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        keys: keys.as_ptr(),
+        f: aos_out(&mut g),
+        ..Default::default()
     };
+    // SAFETY: 3 n floats each, n keys.
+    let s = unsafe { strata_eval(c.0, &batch) };
     assert_eq!(s, STRATA_OK);
     assert_ne!(bits(&g), bits(&f));
 }
@@ -875,8 +881,14 @@ fn unkeyed_samples_are_what_strata_sample_prints() {
     let wi: Vec<f32> = (0..n).flat_map(|_| [0.3f32, 0.0, 0.9]).collect();
     let c = Capi::toml(COATED_COPPER, 1, 4);
     let mut s = vec![StrataSample::default(); n];
+    let batch = StrataBatch {
+        n,
+        wi: aos(&wi),
+        sample: s.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: 3 n floats, n records.
-    let status = unsafe { strata_sample_batch(c.0, n, wi.as_ptr(), null(), s.as_mut_ptr()) };
+    let status = unsafe { strata_sample(c.0, &batch) };
     assert_eq!(status, STRATA_OK);
     let mut seen = 0;
     for (k, (line, s)) in lines.iter().zip(&s).enumerate() {
@@ -999,14 +1011,15 @@ fn eval_without_walks_is_the_rust_apis() {
         let c = Capi::toml(rough, 16, 0);
         let (wi, wo) = ([0.3f32, 0.1, 0.9], [-0.5f32, 0.2, 0.8]);
         let (mut f, mut se) = ([0f32; 3], [0f32; 3]);
-        let code = strata_eval_batch(
-            c.0,
-            1,
-            wi.as_ptr(),
-            wo.as_ptr(),
-            f.as_mut_ptr(),
-            se.as_mut_ptr(),
-        );
+        let batch = StrataBatch {
+            n: 1,
+            wi: aos(&wi),
+            wo: aos(&wo),
+            f: aos_out(&mut f),
+            stderr: aos_out(&mut se),
+            ..Default::default()
+        };
+        let code = strata_eval(c.0, &batch);
         assert_eq!(code, STRATA_OK);
         let want = rust(rough, 16, 0)
             .eval(glam::Vec3::from(wi), glam::Vec3::from(wo))
@@ -1051,17 +1064,16 @@ fn the_estimator_is_the_rust_apis() {
         r.eval_records(Vectors::Aos(&wi), Vectors::Aos(&wo), None, &mut want)
             .unwrap();
         let mut f = [0.0f32; 6];
-        // SAFETY: two queries: 6 floats each.
-        let status = unsafe {
-            strata_eval_batch(
-                c.0,
-                2,
-                flat(&wi).as_ptr(),
-                flat(&wo).as_ptr(),
-                f.as_mut_ptr(),
-                null_mut(),
-            )
+        let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+        let batch = StrataBatch {
+            n: 2,
+            wi: aos(&wi_f),
+            wo: aos(&wo_f),
+            f: aos_out(&mut f),
+            ..Default::default()
         };
+        // SAFETY: two queries: 6 floats each.
+        let status = unsafe { strata_eval(c.0, &batch) };
         assert_eq!(status, STRATA_OK);
         assert_eq!(bits(&f[..3]), bits(&want[0].f), "{est:?}");
         assert_eq!(bits(&f[3..]), bits(&want[1].f), "{est:?}");
@@ -1088,9 +1100,15 @@ fn max_events_is_the_rust_apis() {
     let albedo = |c: &Capi| {
         let wi = flat(&directions(N, 3, false));
         let mut out = vec![StrataAlbedo::default(); N];
+        let batch = StrataBatch {
+            n: N,
+            wi: aos(&wi),
+            walks: 400,
+            albedo: out.as_mut_ptr(),
+            ..Default::default()
+        };
         // SAFETY: wi holds 3 N floats, out N records.
-        let status =
-            unsafe { strata_albedo_batch(c.0, N, wi.as_ptr(), 400, null(), out.as_mut_ptr()) };
+        let status = unsafe { strata_albedo(c.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         out.iter().map(|a| a.reflected[0]).collect::<Vec<f32>>()
     };
@@ -1132,4 +1150,145 @@ fn max_events_is_the_rust_apis() {
         STRATA_ERR_NULL
     );
     assert_eq!(last_error(), "strata_bsdf_set_max_events: b is NULL");
+}
+
+/// A lossless slab of optical depth 10^4, whose walks diffuse for up to
+/// ~10^8 events (crates/strata-bsdf/tests/api/bounded_walks.rs).
+const LOSSLESS_TAU_1E4: &str =
+    include_str!("../../../strata-bsdf/tests/data/lossless_slab_tau_1e4.toml");
+
+/// `truncated` is the number of walks the limit of events ended in the
+/// call: under a limit of 64 events on the lossless slab, the sum of the
+/// Rust API's `Estimate::truncated` (eval, in both layouts and with
+/// per-query columns), `PdfEstimate::truncated` (the unbiased pdf) and the
+/// albedos' counts, with the same numbers bit for bit; 0 when no walk
+/// reaches the limit (the ordinary stacks of the tests above) and for an
+/// empty batch.
+#[test]
+fn truncated_is_the_rust_apis_count_of_the_walks_the_limit_ended() {
+    let (samples, seed, n) = (256, 5, 6);
+    let c = Capi::toml(LOSSLESS_TAU_1E4, samples, seed);
+    // SAFETY: `c.0` is a live BSDF used by this thread only.
+    assert_eq!(unsafe { strata_bsdf_set_max_events(c.0, 64) }, STRATA_OK);
+    let r = rust(LOSSLESS_TAU_1E4, samples, seed).max_events(64);
+    let wi = directions(n, 21, true);
+    let wo = directions(n, 22, true);
+    let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+    let keys: Vec<u64> = (0..n as u64).map(|k| 3 * k + 1).collect();
+    let pairs: Vec<(Vec3, Vec3)> = (0..n).map(|k| (wi[k].into(), wo[k].into())).collect();
+
+    // Eval: AoS, SoA, and with a column of the material's own thickness
+    // (one material per query, the same numbers).
+    let est = r.eval_batch_keyed(&pairs, samples, &keys).unwrap();
+    let want: u64 = est.iter().map(|e| e.truncated).sum();
+    assert!(want > 0 && want < n as u64 * samples, "{want}");
+    let want_f: Vec<f32> = est.iter().flat_map(|e| e.value.map(|v| v as f32)).collect();
+    let thickness = vec![1.0f32; n];
+    let path = CString::new("layers[0].medium.thickness").unwrap();
+    let column = StrataColumn {
+        path: path.as_ptr(),
+        width: 1,
+        values: thickness.as_ptr(),
+    };
+    let (wis, wos) = (soa(&wi), soa(&wo));
+    for (layout, ncolumns) in [("aos", 0), ("soa", 0), ("aos", 1)] {
+        let mut f = vec![0.0f32; 3 * n];
+        let mut cut = u64::MAX;
+        let (wi_v, wo_v) = match layout {
+            "aos" => (aos(&wi_f), aos(&wo_f)),
+            _ => (soa3(&wis), soa3(&wos)),
+        };
+        let batch = StrataBatch {
+            n,
+            wi: wi_v,
+            wo: wo_v,
+            keys: keys.as_ptr(),
+            columns: if ncolumns > 0 { &column } else { null() },
+            ncolumns,
+            f: aos_out(&mut f),
+            truncated: &mut cut,
+            ..Default::default()
+        };
+        // SAFETY: every array holds n queries' values; one column of n.
+        let status = unsafe { strata_eval(c.0, &batch) };
+        assert_eq!(status, STRATA_OK, "{}", last_error());
+        assert_eq!(cut, want, "{layout}, {ncolumns} columns");
+        assert_eq!(bits(&f), bits(&want_f), "{layout}, {ncolumns} columns");
+    }
+
+    // The unbiased pdf.
+    let walks = 128;
+    let est = r.pdf_unbiased_batch(&pairs, walks).unwrap();
+    let want: u64 = est.iter().map(|e| e.truncated).sum();
+    assert!(want > 0, "{est:?}");
+    let (mut pdf, mut se, mut cut) = (vec![0.0f32; n], vec![0.0f32; n], u64::MAX);
+    let batch = StrataBatch {
+        n,
+        wi: aos(&wi_f),
+        wo: aos(&wo_f),
+        walks,
+        pdf: pdf.as_mut_ptr(),
+        pdf_stderr: se.as_mut_ptr(),
+        truncated: &mut cut,
+        ..Default::default()
+    };
+    // SAFETY: every array holds n queries' values.
+    let status = unsafe { strata_pdf_unbiased(c.0, &batch) };
+    assert_eq!(status, STRATA_OK, "{}", last_error());
+    assert_eq!(cut, want);
+    let want_pdf: Vec<f32> = est.iter().map(|e| e.value as f32).collect();
+    assert_eq!(bits(&pdf), bits(&want_pdf));
+
+    // The albedo: each walk counted once, though it feeds R and T.
+    let wis_v: Vec<Vec3> = wi.iter().map(|&w| w.into()).collect();
+    let albedos = r.albedo_batch_keyed(&wis_v, 500, &keys).unwrap();
+    let want: u64 = albedos.iter().map(|a| a.reflected.truncated).sum();
+    assert!(want > 0 && want < 500 * n as u64, "{want}");
+    let (mut out, mut cut) = (vec![StrataAlbedo::default(); n], u64::MAX);
+    let batch = StrataBatch {
+        n,
+        wi: aos(&wi_f),
+        walks: 500,
+        keys: keys.as_ptr(),
+        albedo: out.as_mut_ptr(),
+        truncated: &mut cut,
+        ..Default::default()
+    };
+    // SAFETY: every array holds n queries' values.
+    let status = unsafe { strata_albedo(c.0, &batch) };
+    assert_eq!(status, STRATA_OK, "{}", last_error());
+    assert_eq!(cut, want);
+    let r0: Vec<f32> = out.iter().map(|a| a.reflected[0]).collect();
+    let want_r0: Vec<f32> = albedos
+        .iter()
+        .map(|a| a.reflected.value[0] as f32)
+        .collect();
+    assert_eq!(bits(&r0), bits(&want_r0));
+
+    // An empty batch writes 0; a failed one writes nothing.
+    let mut cut = u64::MAX;
+    let empty = StrataBatch {
+        truncated: &mut cut,
+        ..Default::default()
+    };
+    // SAFETY: n = 0: no array is read.
+    assert_eq!(unsafe { strata_eval(c.0, &empty) }, STRATA_OK);
+    assert_eq!(cut, 0);
+    let mut cut = 7u64;
+    let bad = [f32::NAN, 0.0, 1.0];
+    let mut f = [0.0f32; 3];
+    let batch = StrataBatch {
+        n: 1,
+        wi: aos(&bad),
+        wo: aos(&bad),
+        f: aos_out(&mut f),
+        truncated: &mut cut,
+        ..Default::default()
+    };
+    // SAFETY: one query.
+    assert_eq!(
+        unsafe { strata_eval(c.0, &batch) },
+        STRATA_ERR_INVALID_ARGUMENT
+    );
+    assert_eq!(cut, 7);
 }

@@ -1,6 +1,6 @@
-//! Per-query parameters through the C ABI (`StrataColumn`, the `*_columns`
-//! calls): query `k` of a batch with columns answers bit for bit what query
-//! `k` of the plain call answers on a BSDF made from a TOML material with
+//! Per-query parameters through the C ABI (`StrataColumn`, a batch's
+//! `columns`): query `k` of a batch with columns answers bit for bit what
+//! query `k` of a batch without answers on a BSDF made from a TOML material with
 //! row `k`'s values (same seed, walk count and keys), for every batch call
 //! and both layouts; bad columns are a status and a message naming the
 //! column or query, the path and the value, and nothing is written.
@@ -8,6 +8,8 @@
 use std::ffi::{c_char, CStr, CString};
 use std::ptr::{null, null_mut};
 use strata_capi::*;
+
+use crate::batch::{aos, aos_out, soa3, soa3_out};
 
 /// The material of query `k`: a dielectric coat with an absorbing medium
 /// over a rough conductor, with `k`'s thickness, `sigma_t`, conductor `eta`
@@ -164,31 +166,36 @@ fn directions(salt: u32) -> (Vec<f32>, Vec<f32>) {
     (wi, wo)
 }
 
-/// Every batch call's answers, per call and per query (as bits): the plain
-/// calls when `cols` is `None`, the `*_columns` calls otherwise.
+/// Every batch call's answers, per call and per query (as bits): without
+/// columns when `cols` is `None`, with them otherwise.
 fn answers(b: &Capi, cols: Option<&[StrataColumn]>) -> Vec<(&'static str, Vec<Vec<u32>>)> {
     let (wi, wo) = directions(1);
     let keys: Vec<u64> = (0..N as u64).map(|k| 1000 + 17 * k).collect();
     let (cp, nc) = cols.map_or((null(), 0), |c| (c.as_ptr(), c.len()));
-    let c = cols.is_some();
     let mut out = Vec::new();
     let per = |v: Vec<u32>, w: usize| v.chunks(w).map(|c| c.to_vec()).collect::<Vec<_>>();
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     let ok = |s: i32| assert_eq!(s, STRATA_OK, "{}", last_error());
+    let base = StrataBatch {
+        n: N,
+        wi: aos(&wi),
+        columns: cp,
+        ncolumns: nc,
+        ..Default::default()
+    };
 
     for keyed in [false, true] {
         let (mut f, mut se) = (vec![-1.0f32; 3 * N], vec![-1.0f32; 3 * N]);
-        let (fp, sp) = (f.as_mut_ptr(), se.as_mut_ptr());
-        let (wp, op, kp) = (wi.as_ptr(), wo.as_ptr(), keys.as_ptr());
+        let kp = if keyed { keys.as_ptr() } else { null() };
+        let batch = StrataBatch {
+            wo: aos(&wo),
+            keys: kp,
+            f: aos_out(&mut f),
+            stderr: aos_out(&mut se),
+            ..base
+        };
         // SAFETY: wi, wo, f, se hold 3 N floats, keys N, the columns N rows.
-        ok(unsafe {
-            match (keyed, c) {
-                (false, false) => strata_eval_batch(b.0, N, wp, op, fp, sp),
-                (false, true) => strata_eval_batch_columns(b.0, N, wp, op, cp, nc, fp, sp),
-                (true, false) => strata_eval_batch_keyed(b.0, N, wp, op, kp, fp, sp),
-                (true, true) => strata_eval_batch_keyed_columns(b.0, N, wp, op, kp, cp, nc, fp, sp),
-            }
-        });
+        ok(unsafe { strata_eval(b.0, &batch) });
         out.push((if keyed { "eval keyed" } else { "eval" }, per(bits(&f), 3)));
         out.push((
             if keyed { "eval keyed se" } else { "eval se" },
@@ -196,14 +203,13 @@ fn answers(b: &Capi, cols: Option<&[StrataColumn]>) -> Vec<(&'static str, Vec<Ve
         ));
 
         let mut s = vec![StrataSample::default(); N];
-        let kp = if keyed { keys.as_ptr() } else { null() };
+        let batch = StrataBatch {
+            keys: kp,
+            sample: s.as_mut_ptr(),
+            ..base
+        };
         // SAFETY: wi holds 3 N floats, keys N, s N records.
-        ok(unsafe {
-            match c {
-                false => strata_sample_batch(b.0, N, wp, kp, s.as_mut_ptr()),
-                true => strata_sample_batch_columns(b.0, N, wp, kp, cp, nc, s.as_mut_ptr()),
-            }
-        });
+        ok(unsafe { strata_sample(b.0, &batch) });
         let s = s
             .iter()
             .map(|s| {
@@ -216,13 +222,14 @@ fn answers(b: &Capi, cols: Option<&[StrataColumn]>) -> Vec<(&'static str, Vec<Ve
         out.push((if keyed { "sample keyed" } else { "sample" }, s));
 
         let mut a = vec![StrataAlbedo::default(); N];
+        let batch = StrataBatch {
+            keys: kp,
+            walks: WALKS,
+            albedo: a.as_mut_ptr(),
+            ..base
+        };
         // SAFETY: wi holds 3 N floats, keys N, a N records.
-        ok(unsafe {
-            match c {
-                false => strata_albedo_batch(b.0, N, wp, WALKS, kp, a.as_mut_ptr()),
-                true => strata_albedo_batch_columns(b.0, N, wp, WALKS, kp, cp, nc, a.as_mut_ptr()),
-            }
-        });
+        ok(unsafe { strata_albedo(b.0, &batch) });
         let a = a
             .iter()
             .map(|a| {
@@ -237,25 +244,25 @@ fn answers(b: &Capi, cols: Option<&[StrataColumn]>) -> Vec<(&'static str, Vec<Ve
     }
 
     let mut pdf = vec![-1.0f32; N];
-    let (wp, op) = (wi.as_ptr(), wo.as_ptr());
+    let batch = StrataBatch {
+        wo: aos(&wo),
+        pdf: pdf.as_mut_ptr(),
+        ..base
+    };
     // SAFETY: wi, wo hold 3 N floats, pdf N.
-    ok(unsafe {
-        match c {
-            false => strata_pdf_batch(b.0, N, wp, op, pdf.as_mut_ptr()),
-            true => strata_pdf_batch_columns(b.0, N, wp, op, cp, nc, pdf.as_mut_ptr()),
-        }
-    });
+    ok(unsafe { strata_pdf(b.0, &batch) });
     out.push(("pdf", per(bits(&pdf), 1)));
 
     let (mut p, mut se) = (vec![-1.0f32; N], vec![-1.0f32; N]);
-    let (pp, sp) = (p.as_mut_ptr(), se.as_mut_ptr());
+    let batch = StrataBatch {
+        wo: aos(&wo),
+        walks: WALKS,
+        pdf: p.as_mut_ptr(),
+        pdf_stderr: se.as_mut_ptr(),
+        ..base
+    };
     // SAFETY: wi, wo hold 3 N floats, p and se N.
-    ok(unsafe {
-        match c {
-            false => strata_pdf_unbiased_batch(b.0, N, wp, op, WALKS, pp, sp),
-            true => strata_pdf_unbiased_batch_columns(b.0, N, wp, op, WALKS, cp, nc, pp, sp),
-        }
-    });
+    ok(unsafe { strata_pdf_unbiased(b.0, &batch) });
     out.push(("pdf unbiased", per(bits(&p), 1)));
     out.push(("pdf unbiased se", per(bits(&se), 1)));
     out
@@ -337,7 +344,7 @@ fn the_bsdfs_transport_mode_holds_for_every_query() {
 }
 
 #[test]
-fn no_columns_is_the_plain_call() {
+fn no_columns_is_the_call_without_columns() {
     let b = Capi::toml(&template());
     let none: [StrataColumn; 0] = [];
     assert_eq!(answers(&b, Some(&none)), answers(&b, None));
@@ -355,60 +362,35 @@ fn the_soa_column_calls_give_the_aos_numbers() {
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for keyed in [false, true] {
         let kp = if keyed { keys.as_ptr() } else { null() };
-        let (mut f, mut se) = (vec![0.0f32; 3 * N], vec![0.0f32; 3 * N]);
-        // SAFETY: every array holds 3 N floats (N keys); the columns N rows.
-        let status = unsafe {
-            match keyed {
-                false => strata_eval_batch_columns(
-                    b.0,
-                    N,
-                    wi.as_ptr(),
-                    wo.as_ptr(),
-                    cols.as_ptr(),
-                    cols.len(),
-                    f.as_mut_ptr(),
-                    se.as_mut_ptr(),
-                ),
-                true => strata_eval_batch_keyed_columns(
-                    b.0,
-                    N,
-                    wi.as_ptr(),
-                    wo.as_ptr(),
-                    kp,
-                    cols.as_ptr(),
-                    cols.len(),
-                    f.as_mut_ptr(),
-                    se.as_mut_ptr(),
-                ),
-            }
+        let base = StrataBatch {
+            n: N,
+            keys: kp,
+            columns: cols.as_ptr(),
+            ncolumns: cols.len(),
+            ..Default::default()
         };
+        let (mut f, mut se) = (vec![0.0f32; 3 * N], vec![0.0f32; 3 * N]);
+        let batch = StrataBatch {
+            wi: aos(&wi),
+            wo: aos(&wo),
+            f: aos_out(&mut f),
+            stderr: aos_out(&mut se),
+            ..base
+        };
+        // SAFETY: every array holds 3 N floats (N keys); the columns N rows.
+        let status = unsafe { strata_eval(b.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         let mut fs = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
         let mut ses = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
-        let [fr, fg, fb] = &mut fs;
-        let [sr, sg, sb] = &mut ses;
-        // SAFETY: every array holds N elements; the columns N rows.
-        let status = unsafe {
-            strata_eval_batch_soa_columns(
-                b.0,
-                N,
-                wis[0].as_ptr(),
-                wis[1].as_ptr(),
-                wis[2].as_ptr(),
-                wos[0].as_ptr(),
-                wos[1].as_ptr(),
-                wos[2].as_ptr(),
-                kp,
-                cols.as_ptr(),
-                cols.len(),
-                fr.as_mut_ptr(),
-                fg.as_mut_ptr(),
-                fb.as_mut_ptr(),
-                sr.as_mut_ptr(),
-                sg.as_mut_ptr(),
-                sb.as_mut_ptr(),
-            )
+        let batch = StrataBatch {
+            wi: soa3(&wis),
+            wo: soa3(&wos),
+            f: soa3_out(&mut fs),
+            stderr: soa3_out(&mut ses),
+            ..base
         };
+        // SAFETY: every array holds N elements; the columns N rows.
+        let status = unsafe { strata_eval(b.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         assert!(f.iter().any(|&x| x > 0.0));
         for ch in 0..3 {
@@ -417,45 +399,27 @@ fn the_soa_column_calls_give_the_aos_numbers() {
         }
 
         let mut s = vec![StrataSample::default(); N];
-        // SAFETY: wi holds 3 N floats, keys N, s N records.
-        let status = unsafe {
-            strata_sample_batch_columns(
-                b.0,
-                N,
-                wi.as_ptr(),
-                kp,
-                cols.as_ptr(),
-                cols.len(),
-                s.as_mut_ptr(),
-            )
+        let batch = StrataBatch {
+            wi: aos(&wi),
+            sample: s.as_mut_ptr(),
+            ..base
         };
+        // SAFETY: wi holds 3 N floats, keys N, s N records.
+        let status = unsafe { strata_sample(b.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         let mut wo_s = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
         let mut weight = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
         let (mut pdf, mut flags) = (vec![0.0f32; N], vec![0u32; N]);
-        let [wx, wy, wz] = &mut wo_s;
-        let [gr, gg, gb] = &mut weight;
-        // SAFETY: every array holds N elements; the columns N rows.
-        let status = unsafe {
-            strata_sample_batch_soa_columns(
-                b.0,
-                N,
-                wis[0].as_ptr(),
-                wis[1].as_ptr(),
-                wis[2].as_ptr(),
-                kp,
-                cols.as_ptr(),
-                cols.len(),
-                wx.as_mut_ptr(),
-                wy.as_mut_ptr(),
-                wz.as_mut_ptr(),
-                gr.as_mut_ptr(),
-                gg.as_mut_ptr(),
-                gb.as_mut_ptr(),
-                pdf.as_mut_ptr(),
-                flags.as_mut_ptr(),
-            )
+        let batch = StrataBatch {
+            wi: soa3(&wis),
+            sampled: soa3_out(&mut wo_s),
+            weight: soa3_out(&mut weight),
+            pdf: pdf.as_mut_ptr(),
+            flags: flags.as_mut_ptr(),
+            ..base
         };
+        // SAFETY: every array holds N elements; the columns N rows.
+        let status = unsafe { strata_sample(b.0, &batch) };
         assert_eq!(status, STRATA_OK, "{}", last_error());
         assert!(s.iter().any(|s| s.flags != 0));
         for (k, s) in s.iter().enumerate() {
@@ -469,26 +433,24 @@ fn the_soa_column_calls_give_the_aos_numbers() {
     }
 }
 
-/// Runs `strata_eval_batch_columns` on 3 queries with `cols`: the status
-/// and the message, checking that `f_out` was not written.
+/// Runs `strata_eval` on 3 queries with `cols`: the status and the
+/// message, checking that `f` was not written.
 fn eval_with(b: &Capi, cols: *const StrataColumn, ncolumns: usize) -> (i32, String) {
     let (wi, wo) = directions(3);
     let mut f = vec![-7.0f32; 3 * 3];
-    // SAFETY: wi, wo, f hold at least 9 floats; `cols` is the test's.
-    let status = unsafe {
-        strata_eval_batch_columns(
-            b.0,
-            3,
-            wi.as_ptr(),
-            wo.as_ptr(),
-            cols,
-            ncolumns,
-            f.as_mut_ptr(),
-            null_mut(),
-        )
+    let batch = StrataBatch {
+        n: 3,
+        wi: aos(&wi),
+        wo: aos(&wo),
+        columns: cols,
+        ncolumns,
+        f: aos_out(&mut f),
+        ..Default::default()
     };
+    // SAFETY: wi, wo, f hold at least 9 floats; `cols` is the test's.
+    let status = unsafe { strata_eval(b.0, &batch) };
     if status != STRATA_OK {
-        assert!(f.iter().all(|&x| x == -7.0), "f_out written on an error");
+        assert!(f.iter().all(|&x| x == -7.0), "f written on an error");
     }
     (status, last_error())
 }
@@ -515,10 +477,7 @@ fn bad_columns_are_errors_naming_the_column_query_path_and_value() {
 
     let (s, m) = eval_with(&b, null(), 2);
     assert_eq!(s, STRATA_ERR_NULL);
-    assert_eq!(
-        m,
-        "strata_eval_batch_columns: columns is NULL (ncolumns = 2)"
-    );
+    assert_eq!(m, "strata_eval: columns is NULL (ncolumns = 2)");
 
     let c = [
         one(thickness.as_ptr(), 1, good.as_ptr())[0],
@@ -526,15 +485,12 @@ fn bad_columns_are_errors_naming_the_column_query_path_and_value() {
     ];
     let (s, m) = eval_with(&b, c.as_ptr(), 2);
     assert_eq!(s, STRATA_ERR_NULL);
-    assert_eq!(m, "strata_eval_batch_columns: columns[1].path is NULL");
+    assert_eq!(m, "strata_eval: columns[1].path is NULL");
 
     let c = one(thickness.as_ptr(), 1, null());
     let (s, m) = eval_with(&b, c.as_ptr(), 1);
     assert_eq!(s, STRATA_ERR_NULL);
-    assert_eq!(
-        m,
-        "strata_eval_batch_columns: columns[0].values is NULL (n = 3)"
-    );
+    assert_eq!(m, "strata_eval: columns[0].values is NULL (n = 3)");
 
     let c = one(thickness.as_ptr(), 2, good.as_ptr());
     let (s, m) = eval_with(&b, c.as_ptr(), 1);
@@ -646,78 +602,149 @@ fn every_columns_call_checks_its_columns_before_anything_runs() {
     // SAFETY: every array holds 3 queries (9 floats for 3-vectors); the
     // SoA components are thirds of wi and wo; the outputs are distinct.
     let rec = |name: &'static str, status: i32| (name, status, last_error());
+    let v3 = |p: *mut f32| StrataVectorsOut {
+        xyz: p,
+        ..Default::default()
+    };
+    let c3 = |x: *mut f32, y: *mut f32, z: *mut f32| StrataVectorsOut {
+        x,
+        y,
+        z,
+        ..Default::default()
+    };
+    let base = StrataBatch {
+        n: 3,
+        wi: StrataVectors {
+            xyz: wp,
+            ..Default::default()
+        },
+        columns: cp,
+        ncolumns: 1,
+        ..Default::default()
+    };
+    let pairs = StrataBatch {
+        wo: StrataVectors {
+            xyz: op,
+            ..Default::default()
+        },
+        ..base
+    };
+    let mut cut = 7u64;
     let calls: Vec<(&str, i32, String)> = unsafe {
         let (wy, wz, oy, oz) = (wp.add(3), wp.add(6), op.add(3), op.add(6));
+        let wi_soa = StrataVectors {
+            x: wp,
+            y: wy,
+            z: wz,
+            ..Default::default()
+        };
+        let wo_soa = StrataVectors {
+            x: op,
+            y: oy,
+            z: oz,
+            ..Default::default()
+        };
         vec![
             rec(
-                "strata_eval_batch_columns",
-                strata_eval_batch_columns(b.0, 3, wp, op, cp, 1, p[0], p[1]),
-            ),
-            rec(
-                "strata_eval_batch_keyed_columns",
-                strata_eval_batch_keyed_columns(b.0, 3, wp, op, keys.as_ptr(), cp, 1, p[0], p[1]),
-            ),
-            rec(
-                "strata_eval_batch_soa_columns",
-                strata_eval_batch_soa_columns(
+                "strata_eval",
+                strata_eval(
                     b.0,
-                    3,
-                    wp,
-                    wy,
-                    wz,
-                    op,
-                    oy,
-                    oz,
-                    null(),
-                    cp,
-                    1,
-                    p[2],
-                    p[3],
-                    p[4],
-                    p[5],
-                    p[6],
-                    p[7],
+                    &StrataBatch {
+                        f: v3(p[0]),
+                        stderr: v3(p[1]),
+                        truncated: &mut cut,
+                        ..pairs
+                    },
                 ),
             ),
             rec(
-                "strata_sample_batch_columns",
-                strata_sample_batch_columns(b.0, 3, wp, null(), cp, 1, s.as_mut_ptr()),
-            ),
-            rec(
-                "strata_sample_batch_soa_columns",
-                strata_sample_batch_soa_columns(
+                "strata_eval",
+                strata_eval(
                     b.0,
-                    3,
-                    wp,
-                    wy,
-                    wz,
-                    keys.as_ptr(),
-                    cp,
-                    1,
-                    p[8],
-                    p[9],
-                    p[10],
-                    p[11],
-                    p[12],
-                    p[13],
-                    p[14],
-                    flags.as_mut_ptr(),
+                    &StrataBatch {
+                        keys: keys.as_ptr(),
+                        f: v3(p[0]),
+                        stderr: v3(p[1]),
+                        ..pairs
+                    },
                 ),
             ),
             rec(
-                "strata_pdf_batch_columns",
-                strata_pdf_batch_columns(b.0, 3, wp, op, cp, 1, p[15]),
+                "strata_eval",
+                strata_eval(
+                    b.0,
+                    &StrataBatch {
+                        wi: wi_soa,
+                        wo: wo_soa,
+                        f: c3(p[2], p[3], p[4]),
+                        stderr: c3(p[5], p[6], p[7]),
+                        ..base
+                    },
+                ),
             ),
             rec(
-                "strata_pdf_unbiased_batch_columns",
-                strata_pdf_unbiased_batch_columns(b.0, 3, wp, op, 8, cp, 1, p[14], p[15]),
+                "strata_sample",
+                strata_sample(
+                    b.0,
+                    &StrataBatch {
+                        sample: s.as_mut_ptr(),
+                        ..base
+                    },
+                ),
             ),
             rec(
-                "strata_albedo_batch_columns",
-                strata_albedo_batch_columns(b.0, 3, wp, 8, null(), cp, 1, a.as_mut_ptr()),
+                "strata_sample",
+                strata_sample(
+                    b.0,
+                    &StrataBatch {
+                        wi: wi_soa,
+                        keys: keys.as_ptr(),
+                        sampled: c3(p[8], p[9], p[10]),
+                        weight: c3(p[11], p[12], p[13]),
+                        pdf: p[14],
+                        flags: flags.as_mut_ptr(),
+                        ..base
+                    },
+                ),
+            ),
+            rec(
+                "strata_pdf",
+                strata_pdf(
+                    b.0,
+                    &StrataBatch {
+                        pdf: p[15],
+                        ..pairs
+                    },
+                ),
+            ),
+            rec(
+                "strata_pdf_unbiased",
+                strata_pdf_unbiased(
+                    b.0,
+                    &StrataBatch {
+                        walks: 8,
+                        pdf: p[14],
+                        pdf_stderr: p[15],
+                        truncated: &mut cut,
+                        ..pairs
+                    },
+                ),
+            ),
+            rec(
+                "strata_albedo",
+                strata_albedo(
+                    b.0,
+                    &StrataBatch {
+                        walks: 8,
+                        albedo: a.as_mut_ptr(),
+                        truncated: &mut cut,
+                        ..base
+                    },
+                ),
             ),
         ]
     };
+    assert_eq!(cut, 7, "truncated was written");
     assert_eq!(calls.len(), 8);
     for (name, status, m) in calls {
         assert_eq!(status, STRATA_ERR_MATERIAL, "{name}: {m}");
@@ -746,57 +773,39 @@ fn a_column_may_not_overlap_an_output_and_n_zero_does_nothing() {
     let (wi, wo) = directions(5);
     let mut f = [0.3f32; 9];
     let c = one(thickness.as_ptr(), 1, f.as_ptr());
+    let mut batch = StrataBatch {
+        n: 3,
+        wi: aos(&wi),
+        wo: aos(&wo),
+        columns: c.as_ptr(),
+        ncolumns: 1,
+        f: aos_out(&mut f),
+        ..Default::default()
+    };
     // SAFETY: wi, wo, f hold 9 floats; the column's values are f's first 3
     // (an overlap the call refuses before making any slice of them).
-    let status = unsafe {
-        strata_eval_batch_columns(
-            b.0,
-            3,
-            wi.as_ptr(),
-            wo.as_ptr(),
-            c.as_ptr(),
-            1,
-            f.as_mut_ptr(),
-            null_mut(),
-        )
-    };
+    let status = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT);
-    contains_all(&last_error(), &["f_out and columns[0].values overlap"]);
+    contains_all(&last_error(), &["f.xyz and columns[0].values overlap"]);
     assert_eq!(f, [0.3; 9]);
 
     // A batch too large to address: an error, not an overflow.
     let c = one(thickness.as_ptr(), 3, f.as_ptr());
+    (batch.n, batch.columns) = (usize::MAX / 2, c.as_ptr());
     // SAFETY: the call fails on the columns' length before reading anything.
-    let status = unsafe {
-        strata_eval_batch_columns(
-            b.0,
-            usize::MAX / 2,
-            wi.as_ptr(),
-            wo.as_ptr(),
-            c.as_ptr(),
-            1,
-            f.as_mut_ptr(),
-            null_mut(),
-        )
-    };
+    let status = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(status, STRATA_ERR_INVALID_ARGUMENT);
     contains_all(&last_error(), &["too large", "columns[0].values"]);
 
     // n = 0: nothing is read, whatever the columns.
     let c = one(null(), 5, null());
-    // SAFETY: n = 0: no array is read.
-    let status = unsafe {
-        strata_eval_batch_columns(
-            b.0,
-            0,
-            null(),
-            null(),
-            c.as_ptr(),
-            1,
-            null_mut(),
-            null_mut(),
-        )
+    let batch = StrataBatch {
+        columns: c.as_ptr(),
+        ncolumns: 1,
+        ..Default::default()
     };
+    // SAFETY: n = 0: no array is read.
+    let status = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(status, STRATA_OK, "{}", last_error());
     assert_eq!(last_error(), "");
 }

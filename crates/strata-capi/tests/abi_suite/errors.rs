@@ -139,6 +139,34 @@ interface = { kind = "diffuse", albedo = 0.8 }
     }
 }
 
+/// `3 n` floats at `p`, `x, y, z` per query.
+fn xyz(p: *const f32) -> StrataVectors {
+    StrataVectors {
+        xyz: p,
+        ..Default::default()
+    }
+}
+
+/// `3 n` floats to write at `p`.
+fn xyz_out(p: *mut f32) -> StrataVectorsOut {
+    StrataVectorsOut {
+        xyz: p,
+        ..Default::default()
+    }
+}
+
+/// The descriptor of an eval of `n` queries in the AoS layout.
+fn eval_of(n: usize, wi: *const f32, wo: *const f32, f: *mut f32, se: *mut f32) -> StrataBatch {
+    StrataBatch {
+        n,
+        wi: xyz(wi),
+        wo: xyz(wo),
+        f: xyz_out(f),
+        stderr: xyz_out(se),
+        ..Default::default()
+    }
+}
+
 #[test]
 fn bad_directions_name_the_query_and_argument_and_write_nothing() {
     let b = good();
@@ -146,56 +174,82 @@ fn bad_directions_name_the_query_and_argument_and_write_nothing() {
     let wo = [0.3f32, 0.0, 0.9].repeat(5);
     wi[3 * 3] = f32::NAN;
     let mut f = vec![-7.0f32; 15];
+    let mut cut = 9u64;
+    let batch = StrataBatch {
+        truncated: &mut cut,
+        ..eval_of(5, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
+    };
     // SAFETY: 5 queries: 15 floats each.
-    let s =
-        unsafe { strata_eval_batch(b.0, 5, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut()) };
+    let s = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
     assert_eq!(
         last_error(),
-        "strata_eval_batch: query 3: wi = [NaN, 0, 1] is not a direction: components must be finite"
+        "strata_eval: query 3: wi = [NaN, 0, 1] is not a direction: components must be finite"
     );
     assert!(f.iter().all(|&x| x == -7.0), "nothing written");
+    assert_eq!(cut, 9, "nothing written");
 
     let mut wo2 = wo.clone();
     wi[3 * 3] = 0.0;
     wo2[3..6].copy_from_slice(&[0.0, 0.0, 0.0]);
     let mut pdf = [0.0f32; 5];
+    let batch = StrataBatch {
+        n: 5,
+        wi: xyz(wi.as_ptr()),
+        wo: xyz(wo2.as_ptr()),
+        pdf: pdf.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: as above.
-    let s = unsafe { strata_pdf_batch(b.0, 5, wi.as_ptr(), wo2.as_ptr(), pdf.as_mut_ptr()) };
+    let s = unsafe { strata_pdf(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
     assert_eq!(
         last_error(),
-        "strata_pdf_batch: query 1: wo = [0, 0, 0] is not a direction: it has zero length"
+        "strata_pdf: query 1: wo = [0, 0, 0] is not a direction: it has zero length"
     );
 
     wi[4 * 3 + 2] = f32::INFINITY;
     let mut out = vec![StrataSample::default(); 5];
+    let batch = StrataBatch {
+        n: 5,
+        wi: xyz(wi.as_ptr()),
+        sample: out.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: 5 queries.
-    let s = unsafe { strata_sample_batch(b.0, 5, wi.as_ptr(), null(), out.as_mut_ptr()) };
+    let s = unsafe { strata_sample(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
     assert_eq!(
         last_error(),
-        "strata_sample_batch: query 4: wi = [0, 0, inf] is not a direction: components must be finite"
+        "strata_sample: query 4: wi = [0, 0, inf] is not a direction: components must be finite"
     );
     assert!(out.iter().all(|s| *s == StrataSample::default()));
 
     let mut a = vec![StrataAlbedo::default(); 5];
+    let mut batch = StrataBatch {
+        n: 5,
+        wi: xyz(wi.as_ptr()),
+        walks: 16,
+        albedo: a.as_mut_ptr(),
+        ..Default::default()
+    };
     // SAFETY: 5 queries.
-    let s = unsafe { strata_albedo_batch(b.0, 5, wi.as_ptr(), 16, null(), a.as_mut_ptr()) };
+    let s = unsafe { strata_albedo(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
-    assert!(last_error().starts_with("strata_albedo_batch: query 4: wi = [0, 0, inf]"));
+    assert!(last_error().starts_with("strata_albedo: query 4: wi = [0, 0, inf]"));
+    (batch.wi, batch.walks) = (xyz(wo.as_ptr()), 0);
     // SAFETY: 5 queries.
-    let s = unsafe { strata_albedo_batch(b.0, 5, wo.as_ptr(), 0, null(), a.as_mut_ptr()) };
+    let s = unsafe { strata_albedo(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
     assert_eq!(
         last_error(),
-        "strata_albedo_batch: walks = 0: at least one walk is needed"
+        "strata_albedo: walks = 0: at least one walk is needed"
     );
 
     // A good call clears the message.
+    let batch = eval_of(5, wo.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut());
     // SAFETY: 5 queries.
-    let s =
-        unsafe { strata_eval_batch(b.0, 5, wo.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut()) };
+    let s = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(s, STRATA_OK);
     assert_eq!(last_error(), "");
     assert!(f.iter().all(|&x| x > 0.0));
@@ -209,58 +263,88 @@ fn null_arrays_are_errors_naming_them_unless_n_is_zero() {
     let mut s = [StrataSample::default(); 2];
     let mut a = [StrataAlbedo::default(); 2];
     let keys = [1u64, 2];
+    let (p, fp) = (v.as_ptr(), f.as_mut_ptr());
+    let eval = eval_of(2, p, p, fp, null_mut());
+    let sample = StrataBatch {
+        n: 2,
+        wi: xyz(p),
+        keys: keys.as_ptr(),
+        sample: s.as_mut_ptr(),
+        ..Default::default()
+    };
+    let pdf = StrataBatch {
+        n: 2,
+        wi: xyz(p),
+        wo: xyz(p),
+        ..Default::default()
+    };
+    let albedo = StrataBatch {
+        n: 2,
+        wi: xyz(p),
+        walks: 4,
+        albedo: a.as_mut_ptr(),
+        ..Default::default()
+    };
+    let none = StrataVectors::default();
+    let mut q = [0.0f32; 2];
     // SAFETY: NULL arrays are reported, not read; others hold 2 queries.
     unsafe {
+        expect_null(strata_eval(null(), &eval), "strata_eval: b is NULL");
+        // A NULL descriptor, for every call.
+        expect_null(strata_eval(b.0, null()), "strata_eval: batch is NULL");
+        expect_null(strata_sample(b.0, null()), "strata_sample: batch is NULL");
+        expect_null(strata_pdf(b.0, null()), "strata_pdf: batch is NULL");
         expect_null(
-            strata_eval_batch(
-                null(),
-                2,
-                v.as_ptr(),
-                v.as_ptr(),
-                f.as_mut_ptr(),
-                null_mut(),
+            strata_pdf_unbiased(b.0, null()),
+            "strata_pdf_unbiased: batch is NULL",
+        );
+        expect_null(strata_albedo(b.0, null()), "strata_albedo: batch is NULL");
+        expect_null(
+            strata_eval(b.0, &StrataBatch { wi: none, ..eval }),
+            "strata_eval: wi is NULL (n = 2): set wi.xyz, or wi.x, .y and .z",
+        );
+        expect_null(
+            strata_eval(b.0, &StrataBatch { wo: none, ..eval }),
+            "strata_eval: wo is NULL (n = 2): set wo.xyz, or wo.x, .y and .z",
+        );
+        expect_null(
+            strata_eval(
+                b.0,
+                &StrataBatch {
+                    f: StrataVectorsOut::default(),
+                    ..eval
+                },
             ),
-            "strata_eval_batch: b is NULL",
+            "strata_eval: f is NULL (n = 2): set f.xyz, or f.x, .y and .z",
         );
         expect_null(
-            strata_eval_batch(b.0, 2, null(), v.as_ptr(), f.as_mut_ptr(), null_mut()),
-            "strata_eval_batch: wi is NULL (n = 2)",
+            strata_sample(b.0, &StrataBatch { wi: none, ..sample }),
+            "strata_sample: wi is NULL (n = 2): set wi.xyz, or wi.x, .y and .z",
         );
         expect_null(
-            strata_eval_batch(b.0, 2, v.as_ptr(), null(), f.as_mut_ptr(), null_mut()),
-            "strata_eval_batch: wo is NULL (n = 2)",
+            strata_sample(
+                b.0,
+                &StrataBatch {
+                    sample: null_mut(),
+                    ..sample
+                },
+            ),
+            "strata_sample: sample is NULL (n = 2): pass records in sample, or sampled, \
+             weight, pdf and flags",
         );
+        expect_null(strata_pdf(b.0, &pdf), "strata_pdf: pdf is NULL (n = 2)");
         expect_null(
-            strata_eval_batch(b.0, 2, v.as_ptr(), v.as_ptr(), null_mut(), null_mut()),
-            "strata_eval_batch: f_out is NULL (n = 2)",
+            strata_albedo(b.0, &StrataBatch { wi: none, ..albedo }),
+            "strata_albedo: wi is NULL (n = 2): set wi.xyz, or wi.x, .y and .z",
         );
+        let unbiased = StrataBatch {
+            walks: 4,
+            pdf: q.as_mut_ptr(),
+            ..pdf
+        };
         expect_null(
-            strata_eval_batch_keyed(
-                    b.0,
-                    2,
-                    v.as_ptr(),
-                    v.as_ptr(),
-                    null(),
-                    f.as_mut_ptr(),
-                    null_mut(),
-                ),
-            "strata_eval_batch_keyed: keys is NULL (n = 2): use strata_eval_batch for unkeyed queries",
-        );
-        expect_null(
-            strata_sample_batch(b.0, 2, null(), keys.as_ptr(), s.as_mut_ptr()),
-            "strata_sample_batch: wi is NULL (n = 2)",
-        );
-        expect_null(
-            strata_sample_batch(b.0, 2, v.as_ptr(), null(), null_mut()),
-            "strata_sample_batch: out is NULL (n = 2)",
-        );
-        expect_null(
-            strata_pdf_batch(b.0, 2, v.as_ptr(), v.as_ptr(), null_mut()),
-            "strata_pdf_batch: pdf_out is NULL (n = 2)",
-        );
-        expect_null(
-            strata_albedo_batch(b.0, 2, null(), 4, null(), a.as_mut_ptr()),
-            "strata_albedo_batch: wi is NULL (n = 2)",
+            strata_pdf_unbiased(b.0, &unbiased),
+            "strata_pdf_unbiased: pdf_stderr is NULL (n = 2)",
         );
         expect_null(
             strata_bsdf_set_transport(null_mut(), 1),
@@ -278,140 +362,189 @@ fn null_arrays_are_errors_naming_them_unless_n_is_zero() {
             strata_bsdf_set_pdf_walks(null_mut(), 8, 128, 0.1),
             "strata_bsdf_set_pdf_walks: b is NULL",
         );
-        let p = v.as_ptr();
         let mut x = [0.0f32; 2];
-        let (fr, fg, fb) = (f.as_mut_ptr(), f.as_mut_ptr().add(2), f.as_mut_ptr().add(4));
-        let status = strata_eval_batch_soa(
-            b.0,
-            2,
-            p,
-            null(),
-            p,
-            p,
-            p,
-            p,
-            null(),
-            fr,
-            fg,
-            fb,
-            null_mut(),
-            null_mut(),
-            null_mut(),
-        );
+        let (fr, fg, fb) = (fp, fp.add(2), fp.add(4));
+        let f_soa = StrataVectorsOut {
+            x: fr,
+            y: fg,
+            z: fb,
+            ..Default::default()
+        };
+        let soa = StrataBatch {
+            n: 2,
+            wi: StrataVectors {
+                x: p,
+                y: null(),
+                z: p,
+                ..Default::default()
+            },
+            wo: StrataVectors {
+                x: p,
+                y: p,
+                z: p,
+                ..Default::default()
+            },
+            f: f_soa,
+            ..Default::default()
+        };
+        let status = strata_eval(b.0, &soa);
         assert_eq!(status, STRATA_ERR_NULL);
-        assert_eq!(last_error(), "strata_eval_batch_soa: wi_y is NULL (n = 2)");
-        let status = strata_eval_batch_soa(
+        assert_eq!(
+            last_error(),
+            "strata_eval: wi.y is NULL but wi.x is not (n = 2): pass all three or none"
+        );
+        let status = strata_eval(
             b.0,
-            2,
-            p,
-            p,
-            p,
-            p,
-            p,
-            p,
-            null(),
-            fr,
-            fg,
-            fb,
-            x.as_mut_ptr(),
-            null_mut(),
-            null_mut(),
+            &StrataBatch {
+                wi: soa.wo,
+                stderr: StrataVectorsOut {
+                    x: x.as_mut_ptr(),
+                    ..Default::default()
+                },
+                ..soa
+            },
         );
         assert_eq!(status, STRATA_ERR_NULL);
         assert_eq!(
             last_error(),
-            "strata_eval_batch_soa: se_g is NULL but se_r is not (n = 2): pass all three or none"
+            "strata_eval: stderr.y is NULL but stderr.x is not (n = 2): pass all three or none"
         );
         let mut w = [0.0f32; 14];
         let o = w.as_mut_ptr();
-        let status = strata_sample_batch_soa(
-            b.0,
-            2,
-            p,
-            p,
-            p,
-            null(),
-            o,
-            o.add(2),
-            o.add(4),
-            o.add(6),
-            o.add(8),
-            o.add(10),
-            o.add(12),
-            null_mut(),
-        );
+        let sample_soa = StrataBatch {
+            n: 2,
+            wi: soa.wo,
+            sampled: StrataVectorsOut {
+                x: o,
+                y: o.add(2),
+                z: o.add(4),
+                ..Default::default()
+            },
+            weight: StrataVectorsOut {
+                x: o.add(6),
+                y: o.add(8),
+                z: o.add(10),
+                ..Default::default()
+            },
+            pdf: o.add(12),
+            ..Default::default()
+        };
+        let status = strata_sample(b.0, &sample_soa);
         assert_eq!(status, STRATA_ERR_NULL);
+        assert_eq!(last_error(), "strata_sample: flags is NULL (n = 2)");
+
+        // n = 0: nothing to do, whatever the arrays (but b and the
+        // descriptor must be valid).
+        let empty = StrataBatch::default();
+        assert_eq!(strata_eval(b.0, &empty), STRATA_OK);
+        let keyed = StrataBatch {
+            keys: null(),
+            ..empty
+        };
+        assert_eq!(strata_eval(b.0, &keyed), STRATA_OK);
+        assert_eq!(strata_sample(b.0, &empty), STRATA_OK);
+        assert_eq!(strata_pdf(b.0, &empty), STRATA_OK);
+        assert_eq!(strata_albedo(b.0, &empty), STRATA_OK);
+        assert_eq!(strata_pdf_unbiased(b.0, &empty), STRATA_OK);
+        assert_eq!(last_error(), "");
+        assert_eq!(strata_eval(null(), &empty), STRATA_ERR_NULL);
+        assert_eq!(last_error(), "strata_eval: b is NULL");
+    }
+}
+
+/// A field the call does not read is an error naming it, so that nothing
+/// passed is silently ignored; so is a vector field given in both layouts,
+/// and a sample batch given both records and components.
+#[test]
+fn fields_a_call_does_not_take_are_errors_naming_them() {
+    let b = good();
+    let v = [0.0f32, 0.0, 1.0, 0.3, 0.0, 0.9];
+    let (mut f, mut pdf, mut flags) = ([0.0f32; 6], [0.0f32; 2], [0u32; 2]);
+    let mut out = [StrataSample::default(); 2];
+    let mut cut = 5u64;
+    let keys = [1u64, 2];
+    let pdfs = StrataBatch {
+        n: 2,
+        wi: xyz(v.as_ptr()),
+        wo: xyz(v.as_ptr()),
+        pdf: pdf.as_mut_ptr(),
+        ..Default::default()
+    };
+    // SAFETY: every array holds 2 queries; the calls fail on their checks.
+    unsafe {
+        for (batch, want) in [
+            (
+                StrataBatch {
+                    keys: keys.as_ptr(),
+                    ..pdfs
+                },
+                "strata_pdf: keys is not NULL, but this call does not take it: set it to NULL",
+            ),
+            (
+                StrataBatch {
+                    truncated: &mut cut,
+                    ..pdfs
+                },
+                "strata_pdf: truncated is not NULL, but this call does not take it: set it to NULL",
+            ),
+            (
+                StrataBatch { walks: 8, ..pdfs },
+                "strata_pdf: walks = 8, but this call takes no walk count: set it to 0",
+            ),
+        ] {
+            assert_eq!(strata_pdf(b.0, &batch), STRATA_ERR_INVALID_ARGUMENT);
+            assert_eq!(last_error(), want);
+        }
+        let eval = StrataBatch {
+            walks: 3,
+            ..eval_of(2, v.as_ptr(), v.as_ptr(), f.as_mut_ptr(), null_mut())
+        };
+        assert_eq!(strata_eval(b.0, &eval), STRATA_ERR_INVALID_ARGUMENT);
         assert_eq!(
             last_error(),
-            "strata_sample_batch_soa: flags is NULL (n = 2)"
+            "strata_eval: walks = 3, but this call takes no walk count: set it to 0"
         );
-
-        // n = 0: nothing to do, whatever the arrays (but b must be valid).
+        let sample = StrataBatch {
+            n: 2,
+            wi: xyz(v.as_ptr()),
+            sample: out.as_mut_ptr(),
+            truncated: &mut cut,
+            ..Default::default()
+        };
+        assert_eq!(strata_sample(b.0, &sample), STRATA_ERR_INVALID_ARGUMENT);
         assert_eq!(
-            strata_eval_batch(b.0, 0, null(), null(), null_mut(), null_mut()),
-            STRATA_OK
+            last_error(),
+            "strata_sample: truncated is not NULL, but this call does not take it: set it to NULL"
         );
+        let both = StrataBatch {
+            truncated: null_mut(),
+            flags: flags.as_mut_ptr(),
+            ..sample
+        };
+        assert_eq!(strata_sample(b.0, &both), STRATA_ERR_INVALID_ARGUMENT);
         assert_eq!(
-            strata_eval_batch_keyed(b.0, 0, null(), null(), null(), null_mut(), null_mut()),
-            STRATA_OK
+            last_error(),
+            "strata_sample: sample and sampled, weight, pdf or flags are set: \
+             pass the records or the components"
         );
+        let layouts = StrataBatch {
+            wi: StrataVectors {
+                xyz: v.as_ptr(),
+                x: v.as_ptr(),
+                y: v.as_ptr(),
+                z: v.as_ptr(),
+            },
+            ..pdfs
+        };
+        assert_eq!(strata_pdf(b.0, &layouts), STRATA_ERR_INVALID_ARGUMENT);
         assert_eq!(
-            strata_sample_batch(b.0, 0, null(), null(), null_mut()),
-            STRATA_OK
+            last_error(),
+            "strata_pdf: wi.xyz and wi.x, .y, .z are both set: pass one layout"
         );
-        assert_eq!(
-            strata_pdf_batch(b.0, 0, null(), null(), null_mut()),
-            STRATA_OK
-        );
-        assert_eq!(
-            strata_albedo_batch(b.0, 0, null(), 0, null(), null_mut()),
-            STRATA_OK
-        );
-        assert_eq!(
-            strata_eval_batch_soa(
-                b.0,
-                0,
-                null(),
-                null(),
-                null(),
-                null(),
-                null(),
-                null(),
-                null(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-            ),
-            STRATA_OK
-        );
-        assert_eq!(
-            strata_sample_batch_soa(
-                b.0,
-                0,
-                null(),
-                null(),
-                null(),
-                null(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-                null_mut(),
-            ),
-            STRATA_OK
-        );
-        assert_eq!(last_error(), "");
-        assert_eq!(
-            strata_eval_batch(null(), 0, null(), null(), null_mut(), null_mut()),
-            STRATA_ERR_NULL
-        );
-        assert_eq!(last_error(), "strata_eval_batch: b is NULL");
+        // Nothing was written.
+        assert_eq!(cut, 5);
+        assert!(out.iter().all(|s| *s == StrataSample::default()));
+        assert_eq!(pdf, [0.0; 2]);
     }
 }
 
@@ -420,64 +553,98 @@ fn huge_misaligned_and_overlapping_arrays_are_errors_not_crashes() {
     let b = good();
     let v = [0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0];
     let mut f = [0.0f32; 6];
+    let (p, fp) = (v.as_ptr(), f.as_mut_ptr());
     // SAFETY: the calls fail on their checks before reading past 2 queries.
     unsafe {
-        let s = strata_eval_batch(
-            b.0,
-            usize::MAX,
-            null(),
-            v.as_ptr(),
-            f.as_mut_ptr(),
-            null_mut(),
-        );
+        let s = strata_eval(b.0, &eval_of(usize::MAX, null(), p, fp, null_mut()));
         assert_eq!(s, STRATA_ERR_NULL);
         assert_eq!(
             last_error(),
-            format!("strata_eval_batch: wi is NULL (n = {})", usize::MAX)
+            format!(
+                "strata_eval: wi is NULL (n = {}): set wi.xyz, or wi.x, .y and .z",
+                usize::MAX
+            )
         );
         for n in [usize::MAX, usize::MAX / 3, isize::MAX as usize / 8] {
-            let s = strata_eval_batch(b.0, n, v.as_ptr(), v.as_ptr(), f.as_mut_ptr(), null_mut());
+            let s = strata_eval(b.0, &eval_of(n, p, p, fp, null_mut()));
             assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT, "n = {n}");
             assert_eq!(
                 last_error(),
-                format!("strata_eval_batch: n = {n} is too large: wi would not fit in memory")
+                format!("strata_eval: n = {n} is too large: wi.xyz would not fit in memory")
             );
         }
         let mut out = [StrataSample::default(); 1];
-        let s = strata_sample_batch(b.0, usize::MAX, v.as_ptr(), null(), out.as_mut_ptr());
+        let sample = StrataBatch {
+            n: usize::MAX,
+            wi: xyz(p),
+            sample: out.as_mut_ptr(),
+            ..Default::default()
+        };
+        let s = strata_sample(b.0, &sample);
         assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
         assert!(last_error().contains("is too large"));
 
         let bytes = [0u8; 64];
         let odd = bytes.as_ptr().add(1).cast::<f32>();
-        let s = strata_eval_batch(b.0, 1, odd, v.as_ptr(), f.as_mut_ptr(), null_mut());
+        let s = strata_eval(b.0, &eval_of(1, odd, p, fp, null_mut()));
         assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
         assert!(
-            last_error().starts_with("strata_eval_batch: wi = 0x")
+            last_error().starts_with("strata_eval: wi.xyz = 0x")
                 && last_error().ends_with("is not aligned to 4 bytes"),
+            "{}",
+            last_error()
+        );
+        let mut cut = 0u64;
+        let odd_count = bytes.as_ptr().add(1).cast::<u64>().cast_mut();
+        let s = strata_eval(
+            b.0,
+            &StrataBatch {
+                truncated: odd_count,
+                ..eval_of(2, p, p, fp, null_mut())
+            },
+        );
+        assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
+        assert!(
+            last_error().starts_with("strata_eval: truncated = 0x")
+                && last_error().ends_with("is not aligned to 8 bytes"),
             "{}",
             last_error()
         );
 
         let mut w = [0.0f32, 0.0, 1.0, 0.0, 0.0, 1.0];
-        let s = strata_eval_batch(b.0, 2, w.as_ptr(), v.as_ptr(), w.as_mut_ptr(), null_mut());
+        let s = strata_eval(b.0, &eval_of(2, w.as_ptr(), p, w.as_mut_ptr(), null_mut()));
         assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
         assert_eq!(
             last_error(),
-            "strata_eval_batch: wi and f_out overlap: an output array must not share memory with another array"
+            "strata_eval: wi.xyz and f.xyz overlap: an output array must not share memory with another array"
         );
-        let s = strata_eval_batch(
+        let s = strata_eval(b.0, &eval_of(2, p, p, fp, fp.add(3)));
+        assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
+        assert!(last_error().contains("f.xyz and stderr.xyz overlap"));
+        // (An output of u64s, so that `truncated` is aligned inside it.)
+        let mut g = [0u64; 3];
+        let gp = g.as_mut_ptr();
+        let s = strata_eval(
             b.0,
-            2,
-            v.as_ptr(),
-            v.as_ptr(),
-            f.as_mut_ptr(),
-            f.as_mut_ptr().add(3),
+            &StrataBatch {
+                truncated: gp,
+                ..eval_of(2, p, p, gp.cast(), null_mut())
+            },
         );
         assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
-        assert!(last_error().contains("f_out and stderr_out overlap"));
+        assert!(
+            last_error().contains("f.xyz and truncated overlap"),
+            "{}",
+            last_error()
+        );
         // Inputs may share memory: wi = wo.
-        let s = strata_eval_batch(b.0, 2, v.as_ptr(), v.as_ptr(), f.as_mut_ptr(), null_mut());
+        let s = strata_eval(
+            b.0,
+            &StrataBatch {
+                truncated: &mut cut,
+                ..eval_of(2, p, p, fp, null_mut())
+            },
+        );
         assert_eq!(s, STRATA_OK);
         assert!(f[0] > 0.0);
     }
@@ -486,17 +653,25 @@ fn huge_misaligned_and_overlapping_arrays_are_errors_not_crashes() {
 #[test]
 fn the_last_error_is_per_thread() {
     let b = good();
+    let batch = eval_of(1, null(), null(), null_mut(), null_mut());
     // SAFETY: NULL wi is reported, not read.
-    let s = unsafe { strata_eval_batch(b.0, 1, null(), null(), null_mut(), null_mut()) };
+    let s = unsafe { strata_eval(b.0, &batch) };
     assert_eq!(s, STRATA_ERR_NULL);
     let here = last_error();
-    assert_eq!(here, "strata_eval_batch: wi is NULL (n = 1)");
+    assert_eq!(
+        here,
+        "strata_eval: wi is NULL (n = 1): set wi.xyz, or wi.x, .y and .z"
+    );
     std::thread::spawn(|| {
         assert_eq!(last_error(), "");
+        let batch = StrataBatch {
+            n: 1,
+            ..Default::default()
+        };
         // SAFETY: a NULL BSDF is reported, not read.
-        let s = unsafe { strata_pdf_batch(null(), 1, null(), null(), null_mut()) };
+        let s = unsafe { strata_pdf(null(), &batch) };
         assert_eq!(s, STRATA_ERR_NULL);
-        assert_eq!(last_error(), "strata_pdf_batch: b is NULL");
+        assert_eq!(last_error(), "strata_pdf: b is NULL");
     })
     .join()
     .unwrap();
@@ -515,10 +690,9 @@ fn one_bsdf_is_shared_by_threads_with_the_same_answers() {
     let run = |p: usize| {
         let b = p as *const StrataBsdf;
         let mut f = vec![0.0f32; 192];
+        let batch = eval_of(64, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut());
         // SAFETY: 64 queries; the BSDF outlives the threads (joined below).
-        let s = unsafe {
-            strata_eval_batch(b, 64, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
-        };
+        let s = unsafe { strata_eval(b, &batch) };
         assert_eq!(s, STRATA_OK);
         f.iter().map(|x| x.to_bits()).collect::<Vec<u32>>()
     };
@@ -566,14 +740,8 @@ fn a_pool_of_its_own_changes_no_result() {
         assert_eq!(last_error(), "strata_bsdf_set_threads: b is NULL");
         let (mut f, mut g) = (vec![0.0f32; 900], vec![0.0f32; 900]);
         for (b, out) in [(&shared, &mut f), (&own, &mut g)] {
-            let s = strata_eval_batch(
-                b.0,
-                300,
-                wi.as_ptr(),
-                wo.as_ptr(),
-                out.as_mut_ptr(),
-                null_mut(),
-            );
+            let batch = eval_of(300, wi.as_ptr(), wo.as_ptr(), out.as_mut_ptr(), null_mut());
+            let s = strata_eval(b.0, &batch);
             assert_eq!(s, STRATA_OK);
         }
         assert!(f.iter().all(|&x| x > 0.0));

@@ -8,6 +8,7 @@
 mod common;
 
 mod abi;
+mod batch;
 mod columns;
 mod errors;
 mod thread_exit;

@@ -63,36 +63,82 @@ fn round() -> Round {
     let (wi, wo) = directions();
     for n in [1, N] {
         let mut f = vec![0f32; 3 * n];
-        // SAFETY: the arrays hold 3 n floats; `b` is live.
-        let s = unsafe {
-            strata_eval_batch(b, n, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut())
+        let base = StrataBatch {
+            n,
+            wi: StrataVectors {
+                xyz: wi.as_ptr(),
+                ..Default::default()
+            },
+            ..Default::default()
         };
+        let pairs = StrataBatch {
+            wo: StrataVectors {
+                xyz: wo.as_ptr(),
+                ..Default::default()
+            },
+            ..base
+        };
+        let batch = StrataBatch {
+            f: StrataVectorsOut {
+                xyz: f.as_mut_ptr(),
+                ..Default::default()
+            },
+            ..pairs
+        };
+        // SAFETY: the arrays hold 3 n floats; `b` is live.
+        let s = unsafe { strata_eval(b, &batch) };
         r.push(("eval", s, last_error(), bits(&f)));
         let mut out = vec![StrataSample::default(); n];
+        let batch = StrataBatch {
+            sample: out.as_mut_ptr(),
+            ..base
+        };
         // SAFETY: `wi` holds 3 n floats, `out` n records.
-        let s =
-            unsafe { strata_sample_batch(b, n, wi.as_ptr(), std::ptr::null(), out.as_mut_ptr()) };
+        let s = unsafe { strata_sample(b, &batch) };
         let v: Vec<f32> = out
             .iter()
             .flat_map(|s| [s.wo[0], s.weight[0], s.pdf])
             .collect();
         r.push(("sample", s, last_error(), bits(&v)));
         let mut p = vec![0f32; n];
+        let batch = StrataBatch {
+            pdf: p.as_mut_ptr(),
+            ..pairs
+        };
         // SAFETY: `wi`, `wo` hold 3 n floats, `p` n.
-        let s = unsafe { strata_pdf_batch(b, n, wi.as_ptr(), wo.as_ptr(), p.as_mut_ptr()) };
+        let s = unsafe { strata_pdf(b, &batch) };
         r.push(("pdf", s, last_error(), bits(&p)));
         let mut a = vec![StrataAlbedo::default(); n];
+        let batch = StrataBatch {
+            walks: 64,
+            albedo: a.as_mut_ptr(),
+            ..base
+        };
         // SAFETY: `wi` holds 3 n floats, `a` n records.
-        let s =
-            unsafe { strata_albedo_batch(b, n, wi.as_ptr(), 64, std::ptr::null(), a.as_mut_ptr()) };
+        let s = unsafe { strata_albedo(b, &batch) };
         let v: Vec<f32> = a.iter().flat_map(|a| a.reflected).collect();
         r.push(("albedo", s, last_error(), bits(&v)));
     }
     let bad = [0.0, f32::NAN, 1.0];
     let mut f = [0f32; 3];
+    let batch = StrataBatch {
+        n: 1,
+        wi: StrataVectors {
+            xyz: bad.as_ptr(),
+            ..Default::default()
+        },
+        wo: StrataVectors {
+            xyz: wo.as_ptr(),
+            ..Default::default()
+        },
+        f: StrataVectorsOut {
+            xyz: f.as_mut_ptr(),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
     // SAFETY: each array holds 3 floats.
-    let s =
-        unsafe { strata_eval_batch(b, 1, bad.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), null_mut()) };
+    let s = unsafe { strata_eval(b, &batch) };
     r.push(("eval NaN", s, last_error(), vec![]));
     // SAFETY: from `strata_bsdf_from_toml`, freed once.
     unsafe { strata_bsdf_free(b) };

@@ -1,6 +1,6 @@
 //! `strata_bsdf_set_threads(b, 1)` holds for every batch call (issue 40):
-//! each of the C ABI's batch functions (eval, keyed eval, sample, pdf,
-//! unbiased pdf, albedo; with and without columns; AoS and SoA) on a BSDF
+//! each of the C ABI's batch functions (eval, sample, pdf, unbiased pdf,
+//! albedo; with and without keys and columns; AoS and SoA) on a BSDF
 //! set to one thread runs on the calling thread alone. Watched as the Rust
 //! API's tests/api/threads.rs watches (tests/common/threads.rs explains
 //! the method): the call is made on the test's thread, which is no rayon
@@ -127,110 +127,133 @@ impl Outputs {
     }
 }
 
-/// Every batch function of the C ABI.
+/// Every batch function of the C ABI, in each form of its descriptor:
+/// AoS or SoA, with or without keys, with or without a column.
 const CALLS: &[&str] = &[
-    "strata_eval_batch",
-    "strata_eval_batch_keyed",
-    "strata_eval_batch_columns",
-    "strata_eval_batch_keyed_columns",
-    "strata_eval_batch_soa",
-    "strata_eval_batch_soa_columns",
-    "strata_sample_batch",
-    "strata_sample_batch_columns",
-    "strata_sample_batch_soa",
-    "strata_sample_batch_soa_columns",
-    "strata_pdf_batch",
-    "strata_pdf_batch_columns",
-    "strata_pdf_unbiased_batch",
-    "strata_pdf_unbiased_batch_columns",
-    "strata_albedo_batch",
-    "strata_albedo_batch_columns",
+    "strata_eval",
+    "strata_eval keys",
+    "strata_eval columns",
+    "strata_eval keys columns",
+    "strata_eval pdf truncated",
+    "strata_eval soa keys",
+    "strata_eval soa columns",
+    "strata_sample",
+    "strata_sample keys columns",
+    "strata_sample soa keys",
+    "strata_sample soa columns",
+    "strata_pdf",
+    "strata_pdf columns",
+    "strata_pdf_unbiased",
+    "strata_pdf_unbiased columns",
+    "strata_albedo keys",
+    "strata_albedo columns",
 ];
 
-/// Runs the batch function `name` on `b` with `x`'s inputs into `o`;
-/// returns its status.
+/// Runs the batch function of the form `name` on `b` with `x`'s inputs
+/// into `o`; returns its status.
 fn call(name: &str, b: &Bsdf, x: &Inputs, o: &mut Outputs) -> i32 {
     let b = b.0 as *const StrataBsdf;
     let col = [x.column()];
-    let (c, nc) = (col.as_ptr(), col.len());
-    let (wi, wo, keys) = (x.wi.as_ptr(), x.wo.as_ptr(), x.keys.as_ptr());
-    let [wix, wiy, wiz] = [0, 1, 2].map(|i| x.wi_soa[i].as_ptr());
-    let [wox, woy, woz] = [0, 1, 2].map(|i| x.wo_soa[i].as_ptr());
+    let has = |word: &str| name.split(' ').any(|w| w == word);
+    let soa = has("soa");
+    let in3 = |aos: &Vec<f32>, c: &[Vec<f32>; 3]| match soa {
+        false => StrataVectors {
+            xyz: aos.as_ptr(),
+            ..Default::default()
+        },
+        true => StrataVectors {
+            x: c[0].as_ptr(),
+            y: c[1].as_ptr(),
+            z: c[2].as_ptr(),
+            ..Default::default()
+        },
+    };
     let [v0, v1] = &mut o.v3;
     let (v0, v1) = (v0.as_mut_ptr(), v1.as_mut_ptr());
     let [f0, f1, f2, f3, f4, f5, f6, f7] = &mut o.f;
     let [f0, f1, f2, f3, f4, f5, f6, f7] = [f0, f1, f2, f3, f4, f5, f6, f7].map(|f| f.as_mut_ptr());
-    let flags = o.flags.as_mut_ptr();
-    let samples = o.samples.as_mut_ptr();
-    let albedo = o.albedo.as_mut_ptr();
+    let out3 = |aos: *mut f32, [x, y, z]: [*mut f32; 3]| match soa {
+        false => StrataVectorsOut {
+            xyz: aos,
+            ..Default::default()
+        },
+        true => StrataVectorsOut {
+            x,
+            y,
+            z,
+            ..Default::default()
+        },
+    };
+    let mut cut = 0u64;
+    let verb = name.split(' ').next().unwrap();
+    let pairs = verb != "strata_sample" && verb != "strata_albedo";
+    let batch = StrataBatch {
+        n: N,
+        wi: in3(&x.wi, &x.wi_soa),
+        wo: if pairs {
+            in3(&x.wo, &x.wo_soa)
+        } else {
+            StrataVectors::default()
+        },
+        keys: if has("keys") { x.keys.as_ptr() } else { null() },
+        columns: if has("columns") { col.as_ptr() } else { null() },
+        ncolumns: has("columns") as usize,
+        truncated: if has("truncated") {
+            &mut cut
+        } else {
+            null_mut()
+        },
+        ..Default::default()
+    };
     // SAFETY: every input holds `N` queries' worth, every output is sized
     // for `N` queries and overlaps nothing, the column holds `N` values,
     // and `b` is live.
     unsafe {
-        match name {
-            "strata_eval_batch" => strata_eval_batch(b, N, wi, wo, v0, v1),
-            "strata_eval_batch_keyed" => strata_eval_batch_keyed(b, N, wi, wo, keys, v0, v1),
-            "strata_eval_batch_columns" => strata_eval_batch_columns(b, N, wi, wo, c, nc, v0, v1),
-            "strata_eval_batch_keyed_columns" => {
-                strata_eval_batch_keyed_columns(b, N, wi, wo, keys, c, nc, v0, v1)
-            }
-            "strata_eval_batch_soa" => strata_eval_batch_soa(
-                b, N, wix, wiy, wiz, wox, woy, woz, keys, f0, f1, f2, f3, f4, f5,
-            ),
-            "strata_eval_batch_soa_columns" => strata_eval_batch_soa_columns(
+        match verb {
+            "strata_eval" => strata_eval(
                 b,
-                N,
-                wix,
-                wiy,
-                wiz,
-                wox,
-                woy,
-                woz,
-                null(),
-                c,
-                nc,
-                f0,
-                f1,
-                f2,
-                f3,
-                f4,
-                f5,
+                &StrataBatch {
+                    f: out3(v0, [f0, f1, f2]),
+                    stderr: out3(v1, [f3, f4, f5]),
+                    pdf: if has("pdf") { f7 } else { null_mut() },
+                    ..batch
+                },
             ),
-            "strata_sample_batch" => strata_sample_batch(b, N, wi, null(), samples),
-            "strata_sample_batch_columns" => {
-                strata_sample_batch_columns(b, N, wi, keys, c, nc, samples)
-            }
-            "strata_sample_batch_soa" => strata_sample_batch_soa(
-                b, N, wix, wiy, wiz, keys, f0, f1, f2, f3, f4, f5, f6, flags,
-            ),
-            "strata_sample_batch_soa_columns" => strata_sample_batch_soa_columns(
+            "strata_sample" if soa => strata_sample(
                 b,
-                N,
-                wix,
-                wiy,
-                wiz,
-                null(),
-                c,
-                nc,
-                f0,
-                f1,
-                f2,
-                f3,
-                f4,
-                f5,
-                f6,
-                flags,
+                &StrataBatch {
+                    sampled: out3(v0, [f0, f1, f2]),
+                    weight: out3(v1, [f3, f4, f5]),
+                    pdf: f6,
+                    flags: o.flags.as_mut_ptr(),
+                    ..batch
+                },
             ),
-            "strata_pdf_batch" => strata_pdf_batch(b, N, wi, wo, f7),
-            "strata_pdf_batch_columns" => strata_pdf_batch_columns(b, N, wi, wo, c, nc, f7),
-            "strata_pdf_unbiased_batch" => strata_pdf_unbiased_batch(b, N, wi, wo, WALKS, f6, f7),
-            "strata_pdf_unbiased_batch_columns" => {
-                strata_pdf_unbiased_batch_columns(b, N, wi, wo, WALKS, c, nc, f6, f7)
-            }
-            "strata_albedo_batch" => strata_albedo_batch(b, N, wi, WALKS, keys, albedo),
-            "strata_albedo_batch_columns" => {
-                strata_albedo_batch_columns(b, N, wi, WALKS, null(), c, nc, albedo)
-            }
+            "strata_sample" => strata_sample(
+                b,
+                &StrataBatch {
+                    sample: o.samples.as_mut_ptr(),
+                    ..batch
+                },
+            ),
+            "strata_pdf" => strata_pdf(b, &StrataBatch { pdf: f7, ..batch }),
+            "strata_pdf_unbiased" => strata_pdf_unbiased(
+                b,
+                &StrataBatch {
+                    walks: WALKS,
+                    pdf: f6,
+                    pdf_stderr: f7,
+                    ..batch
+                },
+            ),
+            "strata_albedo" => strata_albedo(
+                b,
+                &StrataBatch {
+                    walks: WALKS,
+                    albedo: o.albedo.as_mut_ptr(),
+                    ..batch
+                },
+            ),
             _ => unreachable!("{name}"),
         }
     }

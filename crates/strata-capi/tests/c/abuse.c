@@ -52,16 +52,28 @@ int main(void) {
     uint64_t keys[4] = {1, 2, 3, 4};
     StrataSample s[4];
     StrataAlbedo a[4];
+    uint64_t truncated = 7;
+    /* The descriptors of good calls; each check below changes one field. */
+    const StrataBatch eval = {.n = 4, .wi = {.xyz = wi}, .wo = {.xyz = wo}, .f = {.xyz = f}};
+    const StrataBatch sample = {.n = 4, .wi = {.xyz = wi}, .keys = keys, .sample = s};
+    const StrataBatch pdfs = {.n = 4, .wi = {.xyz = wi}, .wo = {.xyz = wo}, .pdf = pdf};
+    const StrataBatch albedo = {.n = 4, .wi = {.xyz = wi}, .walks = 8, .albedo = a};
+    const StrataBatch empty = {0};
+    StrataBatch d;
 
-    /* ---- NULL BSDF */
-    expect("eval, NULL b", strata_eval_batch(NULL, 4, wi, wo, f, NULL), STRATA_ERR_NULL,
-           "b is NULL", "strata_eval_batch");
-    expect("sample, NULL b", strata_sample_batch(NULL, 4, wi, NULL, s), STRATA_ERR_NULL,
-           "b is NULL", NULL);
-    expect("pdf, NULL b", strata_pdf_batch(NULL, 4, wi, wo, pdf), STRATA_ERR_NULL, "b is NULL",
-           NULL);
-    expect("albedo, NULL b", strata_albedo_batch(NULL, 4, wi, 8, NULL, a), STRATA_ERR_NULL,
-           "b is NULL", NULL);
+    /* ---- NULL BSDF, NULL descriptor */
+    expect("eval, NULL b", strata_eval(NULL, &eval), STRATA_ERR_NULL, "b is NULL",
+           "strata_eval");
+    expect("sample, NULL b", strata_sample(NULL, &sample), STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("pdf, NULL b", strata_pdf(NULL, &pdfs), STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("albedo, NULL b", strata_albedo(NULL, &albedo), STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("eval, NULL batch", strata_eval(b, NULL), STRATA_ERR_NULL, "batch is NULL",
+           "strata_eval");
+    expect("sample, NULL batch", strata_sample(b, NULL), STRATA_ERR_NULL, "batch is NULL", NULL);
+    expect("pdf, NULL batch", strata_pdf(b, NULL), STRATA_ERR_NULL, "batch is NULL", NULL);
+    expect("pdf unbiased, NULL batch", strata_pdf_unbiased(b, NULL), STRATA_ERR_NULL,
+           "batch is NULL", "strata_pdf_unbiased");
+    expect("albedo, NULL batch", strata_albedo(b, NULL), STRATA_ERR_NULL, "batch is NULL", NULL);
     expect("transport, NULL b", strata_bsdf_set_transport(NULL, 0), STRATA_ERR_NULL,
            "b is NULL", NULL);
     expect("estimator, NULL b", strata_bsdf_set_estimator(NULL, 0), STRATA_ERR_NULL,
@@ -70,10 +82,8 @@ int main(void) {
            "b is NULL", NULL);
     expect("pdf walks, NULL b", strata_bsdf_set_pdf_walks(NULL, 8, 128, 0.1), STRATA_ERR_NULL,
            "b is NULL", NULL);
-    expect("NULL b even with n = 0", strata_eval_batch(NULL, 0, NULL, NULL, NULL, NULL),
-           STRATA_ERR_NULL, "b is NULL", NULL);
-    expect("keyed, NULL b and keys", strata_eval_batch_keyed(NULL, 4, wi, wo, NULL, f, NULL),
-           STRATA_ERR_NULL, "b is NULL", NULL);
+    expect("NULL b even with n = 0", strata_eval(NULL, &empty), STRATA_ERR_NULL, "b is NULL",
+           NULL);
     expect("threads, NULL b", strata_bsdf_set_threads(NULL, 1), STRATA_ERR_NULL, "b is NULL",
            NULL);
     StrataStackInfo info;
@@ -92,91 +102,151 @@ int main(void) {
            "threads = 5000", NULL);
     strata_bsdf_free(NULL); /* a no-op */
 
-    /* ---- NULL arrays, n > 0: the message names the argument and n */
-    expect("eval, NULL wi", strata_eval_batch(b, 4, NULL, wo, f, NULL), STRATA_ERR_NULL,
-           "wi is NULL (n = 4)", NULL);
-    expect("eval, NULL wo", strata_eval_batch(b, 4, wi, NULL, f, NULL), STRATA_ERR_NULL,
-           "wo is NULL (n = 4)", NULL);
-    expect("eval, NULL f_out", strata_eval_batch(b, 4, wi, wo, NULL, NULL), STRATA_ERR_NULL,
-           "f_out is NULL (n = 4)", NULL);
-    expect("eval keyed, NULL keys", strata_eval_batch_keyed(b, 4, wi, wo, NULL, f, NULL),
-           STRATA_ERR_NULL, "keys is NULL (n = 4)", NULL);
-    expect("sample, NULL wi", strata_sample_batch(b, 4, NULL, keys, s), STRATA_ERR_NULL,
-           "wi is NULL (n = 4)", "strata_sample_batch");
-    expect("sample, NULL out", strata_sample_batch(b, 4, wi, keys, NULL), STRATA_ERR_NULL,
-           "out is NULL (n = 4)", NULL);
-    expect("pdf, NULL pdf_out", strata_pdf_batch(b, 4, wi, wo, NULL), STRATA_ERR_NULL,
-           "pdf_out is NULL (n = 4)", NULL);
-    expect("albedo, NULL out", strata_albedo_batch(b, 4, wi, 8, NULL, NULL), STRATA_ERR_NULL,
-           "out is NULL (n = 4)", NULL);
-    expect("eval soa, NULL wi_y",
-           strata_eval_batch_soa(b, 4, wi, NULL, wi, wo, wo, wo, NULL, f, f + 4, f + 8, NULL,
-                                 NULL, NULL),
-           STRATA_ERR_NULL, "wi_y is NULL (n = 4)", NULL);
-    expect("eval soa, one stderr array",
-           strata_eval_batch_soa(b, 4, wi, wi + 4, wi + 8, wo, wo + 4, wo + 8, NULL, f, f + 4,
-                                 f + 8, se, NULL, NULL),
-           STRATA_ERR_NULL, "se_g is NULL", "pass all three or none");
-    expect("sample soa, NULL flags",
-           strata_sample_batch_soa(b, 4, wi, wi + 4, wi + 8, NULL, f, f + 4, f + 8, se, se + 4,
-                                   se + 8, pdf, NULL),
-           STRATA_ERR_NULL, "flags is NULL (n = 4)", NULL);
+    /* ---- NULL arrays, n > 0: the message names the field and n */
+    d = eval;
+    d.wi.xyz = NULL;
+    expect("eval, NULL wi", strata_eval(b, &d), STRATA_ERR_NULL, "wi is NULL (n = 4)", NULL);
+    d = eval;
+    d.wo.xyz = NULL;
+    expect("eval, NULL wo", strata_eval(b, &d), STRATA_ERR_NULL, "wo is NULL (n = 4)", NULL);
+    d = eval;
+    d.f.xyz = NULL;
+    expect("eval, NULL f", strata_eval(b, &d), STRATA_ERR_NULL, "f is NULL (n = 4)", NULL);
+    d = sample;
+    d.wi.xyz = NULL;
+    expect("sample, NULL wi", strata_sample(b, &d), STRATA_ERR_NULL, "wi is NULL (n = 4)",
+           "strata_sample");
+    d = sample;
+    d.sample = NULL;
+    expect("sample, NULL out", strata_sample(b, &d), STRATA_ERR_NULL, "sample is NULL (n = 4)",
+           NULL);
+    d = pdfs;
+    d.pdf = NULL;
+    expect("pdf, NULL pdf", strata_pdf(b, &d), STRATA_ERR_NULL, "pdf is NULL (n = 4)", NULL);
+    d = albedo;
+    d.albedo = NULL;
+    expect("albedo, NULL out", strata_albedo(b, &d), STRATA_ERR_NULL, "albedo is NULL (n = 4)",
+           NULL);
+    d = pdfs;
+    d.walks = 8;
+    expect("pdf unbiased, NULL pdf_stderr", strata_pdf_unbiased(b, &d), STRATA_ERR_NULL,
+           "pdf_stderr is NULL (n = 4)", NULL);
+    d = eval;
+    d.wi = (StrataVectors){.x = wi, .z = wi};
+    d.wo = (StrataVectors){.x = wo, .y = wo + 4, .z = wo + 8};
+    d.f = (StrataVectorsOut){.x = f, .y = f + 4, .z = f + 8};
+    expect("eval soa, NULL wi.y", strata_eval(b, &d), STRATA_ERR_NULL,
+           "wi.y is NULL but wi.x is not (n = 4)", NULL);
+    d.wi = (StrataVectors){.x = wi, .y = wi + 4, .z = wi + 8};
+    d.stderr = (StrataVectorsOut){.x = se};
+    expect("eval soa, one stderr array", strata_eval(b, &d), STRATA_ERR_NULL,
+           "stderr.y is NULL", "pass all three or none");
+    d = (StrataBatch){.n = 4,
+                      .wi = {.x = wi, .y = wi + 4, .z = wi + 8},
+                      .sampled = {.x = f, .y = f + 4, .z = f + 8},
+                      .weight = {.x = se, .y = se + 4, .z = se + 8},
+                      .pdf = pdf};
+    expect("sample soa, NULL flags", strata_sample(b, &d), STRATA_ERR_NULL,
+           "flags is NULL (n = 4)", NULL);
 
-    /* ---- n = 0 does nothing, whatever the arrays */
-    expect("eval, n = 0", strata_eval_batch(b, 0, NULL, NULL, NULL, NULL), STRATA_OK, NULL,
-           NULL);
-    expect("eval keyed, n = 0", strata_eval_batch_keyed(b, 0, NULL, NULL, NULL, NULL, NULL),
-           STRATA_OK, NULL, NULL);
-    expect("sample, n = 0", strata_sample_batch(b, 0, NULL, NULL, NULL), STRATA_OK, NULL, NULL);
-    expect("pdf, n = 0", strata_pdf_batch(b, 0, NULL, NULL, NULL), STRATA_OK, NULL, NULL);
-    expect("albedo, n = 0", strata_albedo_batch(b, 0, NULL, 8, NULL, NULL), STRATA_OK, NULL,
-           NULL);
-    expect("eval soa, n = 0",
-           strata_eval_batch_soa(b, 0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL,
-                                 NULL, NULL, NULL, NULL),
-           STRATA_OK, NULL, NULL);
-    expect("sample soa, n = 0",
-           strata_sample_batch_soa(b, 0, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL, NULL,
-                                   NULL, NULL, NULL),
-           STRATA_OK, NULL, NULL);
+    /* ---- fields a call does not take, and one layout per field */
+    d = pdfs;
+    d.keys = keys;
+    expect("pdf, keys", strata_pdf(b, &d), STRATA_ERR_INVALID_ARGUMENT, "keys is not NULL",
+           "does not take it");
+    d = sample;
+    d.truncated = &truncated;
+    expect("sample, truncated", strata_sample(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "truncated is not NULL", NULL);
+    d = eval;
+    d.walks = 16;
+    expect("eval, walks", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT, "walks = 16",
+           "takes no walk count");
+    d = eval;
+    d.wi.x = wi;
+    expect("eval, both layouts", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "wi.xyz and wi.x, .y, .z are both set", NULL);
+    uint32_t flags[4];
+    d = sample;
+    d.flags = flags;
+    expect("sample, records and components", strata_sample(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "pass the records or the components", NULL);
+
+    /* ---- n = 0 does nothing, whatever the arrays (but writes truncated) */
+    expect("eval, n = 0", strata_eval(b, &empty), STRATA_OK, NULL, NULL);
+    expect("sample, n = 0", strata_sample(b, &empty), STRATA_OK, NULL, NULL);
+    expect("pdf, n = 0", strata_pdf(b, &empty), STRATA_OK, NULL, NULL);
+    expect("pdf unbiased, n = 0", strata_pdf_unbiased(b, &empty), STRATA_OK, NULL, NULL);
+    expect("albedo, n = 0", strata_albedo(b, &empty), STRATA_OK, NULL, NULL);
+    d = empty;
+    d.truncated = &truncated;
+    expect("eval, n = 0, truncated", strata_eval(b, &d), STRATA_OK, NULL, NULL);
+    checks++;
+    if (truncated != 0) {
+        failures++;
+        fprintf(stderr, "FAIL: an empty eval left truncated = %llu\n",
+                (unsigned long long)truncated);
+    }
 
     /* ---- huge n: an error, not a crash */
-    expect("eval, huge n, NULL", strata_eval_batch(b, SIZE_MAX, NULL, wo, f, NULL),
-           STRATA_ERR_NULL, "wi is NULL", NULL);
-    expect("eval, huge n", strata_eval_batch(b, SIZE_MAX / 2, wi, wo, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "too large", NULL);
+    d = eval;
+    d.n = SIZE_MAX;
+    d.wi.xyz = NULL;
+    expect("eval, huge n, NULL", strata_eval(b, &d), STRATA_ERR_NULL, "wi is NULL", NULL);
+    d = eval;
+    d.n = SIZE_MAX / 2;
+    expect("eval, huge n", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT, "too large", NULL);
 
     /* ---- bad directions: the message names the query and the argument */
     float bad[12];
     memcpy(bad, wi, sizeof bad);
     bad[6] = NAN; /* query 2, wi.x */
     for (int i = 0; i < 12; i++) f[i] = -7.0f;
-    expect("eval, NaN wi", strata_eval_batch(b, 4, bad, wo, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "query 2: wi = [NaN", "must be finite");
+    d = eval;
+    d.wi.xyz = bad;
+    d.truncated = &truncated;
+    truncated = 7;
+    expect("eval, NaN wi", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "query 2: wi = [NaN", "must be finite");
     int untouched = 1;
     for (int i = 0; i < 12; i++) untouched &= f[i] == -7.0f;
     checks++;
-    if (!untouched) {
+    if (!untouched || truncated != 7) {
         failures++;
-        fprintf(stderr, "FAIL: a failed eval wrote to f_out\n");
+        fprintf(stderr, "FAIL: a failed eval wrote to f or truncated\n");
     }
-    expect("sample, NaN wi", strata_sample_batch(b, 4, bad, NULL, s),
-           STRATA_ERR_INVALID_ARGUMENT, "query 2: wi = [NaN", NULL);
-    expect("albedo, NaN wi", strata_albedo_batch(b, 4, bad, 8, NULL, a),
-           STRATA_ERR_INVALID_ARGUMENT, "query 2: wi", NULL);
+    d = sample;
+    d.wi.xyz = bad;
+    d.keys = NULL;
+    expect("sample, NaN wi", strata_sample(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "query 2: wi = [NaN", NULL);
+    d = albedo;
+    d.wi.xyz = bad;
+    expect("albedo, NaN wi", strata_albedo(b, &d), STRATA_ERR_INVALID_ARGUMENT, "query 2: wi",
+           NULL);
     memcpy(bad, wo, sizeof bad);
     bad[3] = bad[4] = bad[5] = 0.0f; /* query 1, wo = 0 */
-    expect("eval, zero wo", strata_eval_batch(b, 4, wi, bad, f, se),
-           STRATA_ERR_INVALID_ARGUMENT, "query 1: wo = [0, 0, 0]", "zero length");
-    expect("pdf, zero wo", strata_pdf_batch(b, 4, wi, bad, pdf), STRATA_ERR_INVALID_ARGUMENT,
+    d = eval;
+    d.wo.xyz = bad;
+    d.stderr.xyz = se;
+    expect("eval, zero wo", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "query 1: wo = [0, 0, 0]", "zero length");
+    d = pdfs;
+    d.wo.xyz = bad;
+    expect("pdf, zero wo", strata_pdf(b, &d), STRATA_ERR_INVALID_ARGUMENT,
            "query 1: wo = [0, 0, 0]", NULL);
     bad[3] = INFINITY;
-    expect("eval keyed, infinite wo", strata_eval_batch_keyed(b, 4, wi, bad, keys, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "query 1: wo = [inf", NULL);
+    d = eval;
+    d.wo.xyz = bad;
+    d.keys = keys;
+    expect("eval keyed, infinite wo", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "query 1: wo = [inf", NULL);
 
     /* ---- other bad arguments */
-    expect("albedo, 0 walks", strata_albedo_batch(b, 4, wi, 0, NULL, a),
-           STRATA_ERR_INVALID_ARGUMENT, "walks = 0", NULL);
+    d = albedo;
+    d.walks = 0;
+    expect("albedo, 0 walks", strata_albedo(b, &d), STRATA_ERR_INVALID_ARGUMENT, "walks = 0",
+           NULL);
     expect("transport 7", strata_bsdf_set_transport(b, 7), STRATA_ERR_INVALID_ARGUMENT,
            "mode = 7", NULL);
     expect("estimator 3", strata_bsdf_set_estimator(b, 3), STRATA_ERR_INVALID_ARGUMENT,
@@ -185,44 +255,63 @@ int main(void) {
            STRATA_ERR_INVALID_ARGUMENT, "pilot = 1", NULL);
     expect("pdf walks, NaN error", strata_bsdf_set_pdf_walks(b, 8, 64, NAN),
            STRATA_ERR_INVALID_ARGUMENT, "rel_stderr = NaN", NULL);
-    expect("overlapping arrays", strata_eval_batch(b, 4, wi, wo, (float *)wi, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "wi and f_out overlap", NULL);
+    d = eval;
+    d.f.xyz = wi;
+    expect("overlapping arrays", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "wi.xyz and f.xyz overlap", NULL);
     char raw[64];
-    expect("misaligned wi", strata_eval_batch(b, 1, (const float *)(raw + 1), wo, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "not aligned", NULL);
+    d = eval;
+    d.n = 1;
+    d.wi.xyz = (const float *)(raw + 1);
+    expect("misaligned wi", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT, "not aligned",
+           NULL);
 
     /* ---- per-query columns: the message names the column or query, the
      * path and the value; nothing is written */
     const float thick[4] = {0.1f, 0.2f, -0.5f, 0.4f}; /* query 2 is invalid */
     const float good_thick[4] = {0.1f, 0.2f, 0.3f, 0.4f};
     StrataColumn col = {"layers[0].medium.thickness", 1, good_thick};
-    expect("columns, NULL array",
-           strata_eval_batch_columns(b, 4, wi, wo, NULL, 1, f, NULL), STRATA_ERR_NULL,
-           "columns is NULL (ncolumns = 1)", "strata_eval_batch_columns");
+    d = eval;
+    d.ncolumns = 1;
+    expect("columns, NULL array", strata_eval(b, &d), STRATA_ERR_NULL,
+           "columns is NULL (ncolumns = 1)", "strata_eval");
     col.path = NULL;
-    expect("columns, NULL path", strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, NULL),
-           STRATA_ERR_NULL, "columns[0].path is NULL", NULL);
+    d.columns = &col;
+    expect("columns, NULL path", strata_eval(b, &d), STRATA_ERR_NULL, "columns[0].path is NULL",
+           NULL);
     col.path = "layers[0].medium.thickness";
     col.values = NULL;
-    expect("columns, NULL values", strata_sample_batch_columns(b, 4, wi, NULL, &col, 1, s),
-           STRATA_ERR_NULL, "columns[0].values is NULL (n = 4)", "strata_sample_batch_columns");
+    d = sample;
+    d.keys = NULL;
+    d.columns = &col;
+    d.ncolumns = 1;
+    expect("columns, NULL values", strata_sample(b, &d), STRATA_ERR_NULL,
+           "columns[0].values is NULL (n = 4)", "strata_sample");
     col.values = good_thick;
     col.width = 2;
-    expect("columns, width 2", strata_pdf_batch_columns(b, 4, wi, wo, &col, 1, pdf),
-           STRATA_ERR_INVALID_ARGUMENT, "columns[0].width = 2", "layers[0].medium.thickness");
+    d = pdfs;
+    d.columns = &col;
+    d.ncolumns = 1;
+    expect("columns, width 2", strata_pdf(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "columns[0].width = 2", "layers[0].medium.thickness");
     col.width = 1;
     col.path = "layers[0].medium.kind";
-    expect("columns, not a settable path",
-           strata_albedo_batch_columns(b, 4, wi, 8, NULL, &col, 1, a),
-           STRATA_ERR_INVALID_ARGUMENT, "columns[0]", "layers[0].medium.kind");
+    d = albedo;
+    d.columns = &col;
+    d.ncolumns = 1;
+    expect("columns, not a settable path", strata_albedo(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "columns[0]", "layers[0].medium.kind");
     col.path = "layers[0].medium.thick\xffness";
-    expect("columns, path not UTF-8", strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "columns[0].path is not UTF-8", NULL);
+    d = eval;
+    d.columns = &col;
+    d.ncolumns = 1;
+    expect("columns, path not UTF-8", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "columns[0].path is not UTF-8", NULL);
     col.path = "layers[0].medium.thickness";
     col.values = thick;
     for (int i = 0; i < 12; i++) f[i] = -7.0f;
-    expect("columns, negative thickness at query 2",
-           strata_eval_batch_columns(b, 4, wi, wo, &col, 1, f, se), STRATA_ERR_MATERIAL,
+    d.stderr.xyz = se;
+    expect("columns, negative thickness at query 2", strata_eval(b, &d), STRATA_ERR_MATERIAL,
            "query 2: set `layers[0].medium.thickness` = -0.5",
            "layer 0: medium.thickness = -0.5");
     untouched = 1;
@@ -230,27 +319,48 @@ int main(void) {
     checks++;
     if (!untouched) {
         failures++;
-        fprintf(stderr, "FAIL: a failed eval with columns wrote to f_out\n");
+        fprintf(stderr, "FAIL: a failed eval with columns wrote to f\n");
     }
     const float nan_sigma[12] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, NAN, 1}; /* query 3 */
     StrataColumn two[2] = {{"layers[0].medium.thickness", 1, good_thick},
                            {"layers[0].medium.sigma_t", 3, nan_sigma}};
-    expect("columns, NaN sigma_t at query 3",
-           strata_pdf_unbiased_batch_columns(b, 4, wi, wo, 8, two, 2, pdf, se),
+    d = pdfs;
+    d.walks = 8;
+    d.pdf_stderr = se;
+    d.columns = two;
+    d.ncolumns = 2;
+    expect("columns, NaN sigma_t at query 3", strata_pdf_unbiased(b, &d),
            STRATA_ERR_INVALID_ARGUMENT, "query 3: set `layers[0].medium.sigma_t` = NaN",
            "not a finite number");
     for (int i = 0; i < 12; i++) f[i] = 0.3f;
-    StrataColumn in_f = {"layers[0].medium.thickness", 1, f}; /* f is also f_out */
-    expect("columns, overlapping an output",
-           strata_eval_batch_keyed_columns(b, 4, wi, wo, keys, &in_f, 1, f, NULL),
-           STRATA_ERR_INVALID_ARGUMENT, "f_out and columns[0].values overlap", NULL);
-    expect("columns, n = 0", strata_eval_batch_columns(b, 0, NULL, NULL, NULL, 3, NULL, NULL),
-           STRATA_OK, NULL, NULL);
-    expect("columns, good", strata_eval_batch_columns(b, 4, wi, wo, two, 1, f, se), STRATA_OK,
-           NULL, NULL);
+    StrataColumn in_f = {"layers[0].medium.thickness", 1, f}; /* f is also an output */
+    d = eval;
+    d.keys = keys;
+    d.columns = &in_f;
+    d.ncolumns = 1;
+    expect("columns, overlapping an output", strata_eval(b, &d), STRATA_ERR_INVALID_ARGUMENT,
+           "f.xyz and columns[0].values overlap", NULL);
+    d = empty;
+    d.ncolumns = 3;
+    expect("columns, n = 0", strata_eval(b, &d), STRATA_OK, NULL, NULL);
+    d = eval;
+    d.stderr.xyz = se;
+    d.columns = two;
+    d.ncolumns = 1;
+    expect("columns, good", strata_eval(b, &d), STRATA_OK, NULL, NULL);
 
-    /* ---- a good call clears the message */
-    expect("good eval", strata_eval_batch(b, 4, wi, wo, f, se), STRATA_OK, NULL, NULL);
+    /* ---- a good call clears the message, and counts no truncated walk */
+    d = eval;
+    d.stderr.xyz = se;
+    d.truncated = &truncated;
+    truncated = 7;
+    expect("good eval", strata_eval(b, &d), STRATA_OK, NULL, NULL);
+    checks++;
+    if (truncated != 0) {
+        failures++;
+        fprintf(stderr, "FAIL: a good eval left truncated = %llu\n",
+                (unsigned long long)truncated);
+    }
 
     /* ---- materials */
     StrataBsdf *m = (StrataBsdf *)&failures; /* must be reset to NULL on failure */

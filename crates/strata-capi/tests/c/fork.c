@@ -46,9 +46,13 @@ static struct Results expected[2], got;
 /* Fills `r` from the batches of `b`; 0 on success. */
 static int run(const StrataBsdf *b, struct Results *r) {
     memset(r, 0, sizeof *r);
-    if (strata_eval_batch(b, N, wi, wo, r->f, r->se) != STRATA_OK) return 1;
-    if (strata_sample_batch(b, N, wi, NULL, r->s) != STRATA_OK) return 1;
-    if (strata_pdf_batch(b, N, wi, wo, r->pdf) != STRATA_OK) return 1;
+    StrataBatch eval = {
+        .n = N, .wi = {.xyz = wi}, .wo = {.xyz = wo}, .f = {.xyz = r->f}, .stderr = {.xyz = r->se}};
+    StrataBatch sample = {.n = N, .wi = {.xyz = wi}, .sample = r->s};
+    StrataBatch pdf = {.n = N, .wi = {.xyz = wi}, .wo = {.xyz = wo}, .pdf = r->pdf};
+    if (strata_eval(b, &eval) != STRATA_OK) return 1;
+    if (strata_sample(b, &sample) != STRATA_OK) return 1;
+    if (strata_pdf(b, &pdf) != STRATA_OK) return 1;
     return 0;
 }
 

@@ -43,7 +43,15 @@ static double now(void) {
 
 static int eval_columns(const struct StrataBsdf *b, size_t n) {
     struct StrataColumn col = {"layers[0].medium.thickness", 1, thickness};
-    return strata_eval_batch_columns(b, n, wi, wo, &col, 1, f, NULL);
+    StrataBatch batch = {
+        .n = n,
+        .wi = {.xyz = wi},
+        .wo = {.xyz = wo},
+        .columns = &col,
+        .ncolumns = 1,
+        .f = {.xyz = f},
+    };
+    return strata_eval(b, &batch);
 }
 
 /* The address space the process has mapped now, in bytes. */
@@ -84,7 +92,7 @@ static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
             fprintf(stderr, "limited call: status %d (%s)\n", status, msg);
             _exit(5);
         }
-        if (strstr(msg, "strata_eval_batch_columns") == NULL ||
+        if (strstr(msg, "strata_eval") == NULL ||
             strstr(msg, "out of memory") == NULL || strstr(msg, "bytes") == NULL) {
             fprintf(stderr, "limited call: message does not name the call: %s\n", msg);
             _exit(6);
