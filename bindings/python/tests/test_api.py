@@ -140,6 +140,8 @@ def test_pdf_rules_bit_identical_to_cli(strata_cli, materials):
     pdfs = {}
     for arg, flag, back in (
         ("default", "default", None),
+        ("adaptive", "adaptive", "adaptive"),
+        ((8, 64, 0.15), "8,64,0.15", "adaptive"),
         ("tight", "tight", "tight"),
         ((8, 128, 0.1), "8,128,0.1", "tight"),
         ((4, 24, 0.3), "4,24,0.3", (4, 24, 0.3)),
@@ -153,6 +155,7 @@ def test_pdf_rules_bit_identical_to_cli(strata_cli, materials):
         pdfs[flag] = cli
     np.testing.assert_array_equal(pdfs["default"], Bsdf.from_path(path, samples=4, seed=seed).pdf(wi, wo))
     assert np.any(pdfs["tight"] != pdfs["default"]) and np.any(pdfs["4,24,0.3"] != pdfs["tight"])
+    assert np.any(pdfs["adaptive"] != pdfs["default"]) and np.any(pdfs["adaptive"] != pdfs["tight"])
     for bad, kind, message in (
         ("tighter", ValueError, "pdf_samples = 'tighter': expected None"),
         ((1, 64, 0.1), ValueError, r"pdf_samples = \(1, 64, 0.1\): pilot = 1: expected 2 to"),

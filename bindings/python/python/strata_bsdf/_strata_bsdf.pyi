@@ -19,7 +19,7 @@ Params = Optional[Dict[str, F32]]
 #: Density walks per approximate pdf: None or "default" (the library's rule), a fixed count,
 #: "tight" (a pdf within 0.7-1.3x of sample's density nearly everywhere, about twice the
 #: walks), or an adaptive rule (pilot, max, rel_stderr).
-PdfSamples = Union[None, int, Literal["default", "tight"], Tuple[int, int, float]]
+PdfSamples = Union[None, int, Literal["default", "lobes", "adaptive", "tight"], Tuple[int, int, float]]
 
 REFLECTION: int
 TRANSMISSION: int
@@ -165,8 +165,9 @@ class Bsdf:
         """The limit of events per walk."""
     @property
     def pdf_samples(self) -> PdfSamples:
-        """The density walks per approximate pdf as pdf_samples takes them: None for the
-        library's rule, a fixed count, "tight", or (pilot, max, rel_stderr)."""
+        """How the approximate pdf is made, as pdf_samples takes it: None for the
+        library's default (the lobe pdf), "adaptive", "tight", a fixed count of
+        density walks, or (pilot, max, rel_stderr)."""
     @property
     def bidirectional(self) -> bool: ...
     @property

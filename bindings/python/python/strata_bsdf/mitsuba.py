@@ -21,12 +21,12 @@ Parameters of ``"strata"``:
 * ``samples`` (int, default 1): walks per ``eval`` (each eval is an unbiased
   estimate; more walks, less noise per call).
 * ``seed`` (int, default 0): seeds strata's random streams.
-* ``pdf_samples`` (int or string, default: the library's rule): a fixed
-  number of density walks per pdf (at least 1), in place of the pilot round
-  (8 walks, then 8 to 64 for a relative standard error of 0.15), or
-  ``"tight"`` (8, then 8 to 128 for 0.1: a pdf within 0.7–1.3× of the
-  density of the samples at nearly every direction, for about twice the
-  walks); docs/method.md §6 compares them.
+* ``pdf_samples`` (int or string, default: the library's, the lobe pdf, a
+  closed form with no walk): a fixed number of density walks per pdf (at
+  least 1), ``"adaptive"`` (a pilot of 8 walks, then 8 to 64 for a relative
+  standard error of 0.15) or ``"tight"`` (8, then 8 to 128 for 0.1: a pdf
+  within 0.7–1.3× of the density of the samples at nearly every direction);
+  docs/method.md §6 compares them.
 * ``param:<path>`` (float, RGB or texture, any number of them): a parameter
   of the material that varies over the surface, e.g.
   ``"param:layers[0]:medium:thickness": {"type": "bitmap", ...}``. The path

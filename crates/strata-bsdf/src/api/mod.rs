@@ -733,8 +733,21 @@ impl LayeredBsdf {
         // Each query's estimator is its own stack's (parameter sets answer
         // what their material files answer): without walks, or walks of one
         // of the two estimators. A batch whose queries differ runs as one
-        // batch per kind, merged back in query order.
+        // batch per kind, merged back in query order. On the BSDF's own
+        // stack the route is decided once where directions cannot change it.
+        let own = if !per.is_own() {
+            None
+        } else if self.without_walks().is_some() {
+            Some(Route::WithoutWalks)
+        } else if !self.estimator.is_bidirectional_for(self.stack()) {
+            Some(Route::Unidirectional)
+        } else {
+            None
+        };
         let route = |k: usize| {
+            if let Some(r) = own {
+                return r;
+            }
             let ((a, b), _) = query(k);
             if self.without_walks_in(per, k).is_some() {
                 Route::WithoutWalks

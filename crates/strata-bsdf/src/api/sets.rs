@@ -120,6 +120,11 @@ impl<'a> Per<'a> {
     /// Every query has the BSDF's own parameters.
     pub const OWN: Per<'static> = Per(None);
 
+    /// Every query has the BSDF's own parameters.
+    pub fn is_own(&self) -> bool {
+        self.0.is_none()
+    }
+
     /// Query `k`'s set (0 without sets).
     pub fn set(&self, k: usize) -> usize {
         self.0.map_or(0, |(_, s)| s[k] as usize)

@@ -25,7 +25,7 @@ use super::{
     LayeredBsdf, Materials, Pair, PerQuery, Sample,
 };
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
-use crate::estimator::wavefront::{Sets, PDF_CHUNK};
+use crate::estimator::wavefront::{with_kept, Sets, PDF_CHUNK};
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -493,18 +493,35 @@ impl LayeredBsdf {
     ) -> Result<u64, BatchError> {
         let n = wi.len();
         check_walks("samples", self.samples).map_err(BatchError::call)?;
-        check_pairs(wi, wo)?;
-        if let Some(k) = keys {
-            one_each("keys", k.len(), n)?;
-        }
-        let key = |k: usize| keys.map_or_else(|| direction_key(wi.get(k), wo.get(k)), |x| x[k]);
-        let query = |k: usize| (pair_at(wi, wo, k), key(k));
-        let mut cut = 0;
-        self.eval_each(Per::OWN, n, self.samples, query, |k, e| {
-            cut += e.truncated;
-            out(k, &e)
-        });
-        Ok(cut)
+        // Each query's directions, normalized and keyed once (the engines
+        // read a query several times), in a buffer the thread keeps.
+        with_kept(&QUERIES, |queries| {
+            queries.clear();
+            for k in 0..n {
+                let (a, b) = (wi.get(k), wo.get(k));
+                let pair = (direction_at("wi", k, a)?, direction_at("wo", k, b)?);
+                queries.push((pair, direction_key(a, b)));
+            }
+            if let Some(keys) = keys {
+                one_each("keys", keys.len(), n)?;
+                for (q, &key) in queries.iter_mut().zip(keys) {
+                    q.1 = key;
+                }
+            }
+            let queries = &queries[..];
+            let mut cut = 0;
+            self.eval_each(
+                Per::OWN,
+                n,
+                self.samples,
+                |k| queries[k],
+                |k, e| {
+                    cut += e.truncated;
+                    out(k, &e)
+                },
+            );
+            Ok(cut)
+        })
     }
 
     /// The sample of every query, handed to `out` in query order: unkeyed
@@ -927,6 +944,12 @@ fn check_pairs(wi: &Vectors, wo: &Vectors) -> Result<(), BatchError> {
         direction_at("wo", k, wo.get(k))?;
     }
     Ok(())
+}
+
+thread_local! {
+    /// The checked queries of this thread's eval calls.
+    static QUERIES: std::cell::RefCell<Option<Vec<(Pair, u64)>>> =
+        const { std::cell::RefCell::new(None) };
 }
 
 /// Direction `k` of a checked batch.
