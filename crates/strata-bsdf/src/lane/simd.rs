@@ -11,7 +11,7 @@
 //! arithmetic of [`Lane`] (gathers and scatters of walk columns, and the 32-bit
 //! integer lanes of the random number generator).
 
-use super::{Lane, LaneBits, LaneMask};
+use super::traits::{Lane, LaneBits, LaneMask};
 use std::ops::{
     Add, AddAssign, BitAnd, BitOr, BitXor, Div, DivAssign, Mul, MulAssign, Neg, Not, Shl, Shr, Sub,
     SubAssign,
@@ -63,7 +63,7 @@ pub trait Wide: Lane + LaneBits {
     fn bits_lane(b: Self::Bits, j: usize) -> u32;
     /// `t` where `m` is set, `f` elsewhere.
     fn select_bits(m: Self::Mask, t: Self::Bits, f: Self::Bits) -> Self::Bits;
-    /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that `rng::to_unit` makes.
+    /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that [`to_unit`] makes.
     fn bits_to_unit(b: Self::Bits) -> Self;
     /// One bit per lane, lane 0 in bit 0.
     fn bitmask(m: Self::Mask) -> u32;
@@ -608,6 +608,14 @@ impl Shr<u32> for U32 {
 }
 impl BitLanes for U32 {}
 
+/// Maps 32 random bits to `[0, 1)` with 24 bits of resolution: the uniform
+/// of the scalar walks' streams (`crate::rng`), which [`Wide::bits_to_unit`]
+/// makes per lane.
+#[inline]
+pub fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
 /// One lane: the wavefront engine finishes the last, longest walks of a task
 /// on it, where a lone walk would leave seven of eight SIMD lanes idle. The
 /// same kernels and stages run, so its walks are bit for bit those of the
@@ -648,7 +656,7 @@ impl Wide for f32 {
     }
     #[inline]
     fn bits_to_unit(b: U32) -> Self {
-        crate::rng::to_unit(b.0)
+        to_unit(b.0)
     }
     #[inline]
     fn bitmask(m: bool) -> u32 {
