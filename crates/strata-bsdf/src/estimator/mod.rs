@@ -30,10 +30,10 @@ pub mod rough_coat;
 pub mod scalar;
 pub mod wavefront;
 
+pub use crate::math::MIN_COS;
 pub use accumulate::{BlockReducer, MeanVar, BLOCK};
 #[doc(hidden)]
 pub use orient::orient;
-pub use orient::MIN_COS;
 
 /// Walk controls shared by the estimators.
 #[derive(Clone, Copy, Debug, PartialEq)]

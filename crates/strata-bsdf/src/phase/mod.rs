@@ -29,8 +29,6 @@ pub use crate::stack::PhaseKind;
 use crate::stack::{Phase, MAX_COMPONENTS};
 use sggx::Sggx;
 
-pub(crate) const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
-
 /// The parameters a phase function needs beyond `g`, in one row: a mixture's
 /// weights (`0..4`) and asymmetries (`4..8`), or an SGGX axis (`0..3`) and
 /// its eigenvalues along (`3`) and across (`4`) it.
