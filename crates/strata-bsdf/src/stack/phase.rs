@@ -1,7 +1,7 @@
 //! A medium's validated phase function, and what kind of walk it asks for.
 
 use super::description::{ComponentKind, FlakeScattering, Flakes, PhaseDesc};
-use super::StackError;
+use super::error::StackError;
 
 /// Most lobes a mixture holds (a fixed bound keeps its lanes a fixed size).
 pub const MAX_COMPONENTS: usize = 4;
