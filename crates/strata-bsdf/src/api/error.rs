@@ -183,9 +183,7 @@ impl fmt::Display for BatchError {
 
 impl std::error::Error for BatchError {}
 
-/// The most walks one query may ask for, 2^40: beyond it the walk counts of
-/// a batch could overflow, and a query would run for weeks anyway.
-pub const MAX_WALKS: u64 = 1 << 40;
+pub use crate::estimator::MAX_WALKS;
 
 /// Checks a walk count passed as `argument` (`"samples"`, `"n"`): from 1 to
 /// [`MAX_WALKS`]. The one check behind every call that takes a walk count,

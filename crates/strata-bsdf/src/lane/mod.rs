@@ -26,6 +26,8 @@ pub(crate) mod traits;
 mod v3;
 
 pub use rgb::Rgb;
-pub use simd::{to_unit, BitLanes, F32x16, F32x8, Wide, LANE_IDS, M16, M8, MAX_LANES};
+pub use simd::{
+    load16, to_unit, BitLanes, DefaultWide, F32x16, F32x8, Wide, LANE_IDS, M16, M8, MAX_LANES,
+};
 pub use traits::{Lane, LaneBits, LaneMask};
 pub use v3::V3;

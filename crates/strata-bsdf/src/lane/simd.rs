@@ -17,6 +17,10 @@ use std::ops::{
     SubAssign,
 };
 
+/// The lane type of the wavefront engine (and of the closed forms it
+/// samples over lanes): the one place the width is set.
+pub type DefaultWide = F32x8;
+
 /// The widest lane type's lane count ([`F32x16`]): per-chunk index arrays
 /// are this long.
 pub const MAX_LANES: usize = 16;
@@ -81,6 +85,14 @@ pub trait Wide: Lane + LaneBits {
     /// every lane's record, the last lane first (where `idx` repeats an index,
     /// the lowest lane's record is the one that stays).
     fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize);
+}
+
+/// Fields `first..first + 16` of records `recs[idx[j]]` in lanes (two
+/// [`Wide::load8`]s): a chain link's twelve fields and what follows them.
+#[inline(always)]
+pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [W; 16] {
+    let (lo, hi) = (W::load8(recs, idx, first), W::load8(recs, idx, first + 8));
+    std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] })
 }
 
 /// Eight rows of eight floats, transposed.

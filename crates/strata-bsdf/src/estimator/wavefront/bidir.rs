@@ -12,7 +12,7 @@
 use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
 use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers, Tracing, Vertex};
-use crate::estimator::Estimate;
+use crate::estimator::estimate::Estimate;
 use crate::lane::{LaneMask, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 

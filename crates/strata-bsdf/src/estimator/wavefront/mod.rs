@@ -49,13 +49,15 @@ pub mod walks;
 
 use super::accumulate::{BlockReducer, MeanVar, BLOCK};
 use super::coat_lambertian::CoatLambertian;
+use super::estimate::{Albedo, Estimate, WalkSample};
 use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
 use super::params::{LaneSets, SetTable};
 use super::pdf::{PdfEstimate, PdfKind, PdfWalks};
-use super::{Albedo, Estimate, Settings, WalkSample};
+use super::settings::Settings;
+use super::terms;
 use crate::interface::InterfaceLanes;
-use crate::lane::{F32x8, LaneMask, Wide, V3};
+use crate::lane::{LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use stages::{PdfScratch, TaskBuffers};
 use std::borrow::Cow;
@@ -63,8 +65,7 @@ use std::cell::RefCell;
 use std::thread::LocalKey;
 use walks::Walks;
 
-/// The lane type of the wavefront engine: the one place the width is set.
-pub type DefaultWide = F32x8;
+pub use crate::lane::DefaultWide;
 
 /// Walk slots per wave, per lane of width.
 const SLOTS_PER_LANE: usize = 64;
@@ -853,7 +854,7 @@ impl<W: Wide> Wavefront<W> {
         let cv = exact.filter(|_| cv);
         let same = e_in == queries.e_out[q] as usize;
         let (n, prefix) = (sum.count(), queries.prefix[q]);
-        sum.estimate_with(&events::eval_terms(entrance, same, cv, wi, wo, n, prefix))
+        sum.estimate_with(&terms::eval_terms(entrance, same, cv, wi, wo, n, prefix))
     }
 
     /// Each walk's value of the unidirectional estimator (without the
