@@ -15,8 +15,8 @@
 //! engine sums them the same way (`Connect::from_collisions`), so walk values
 //! stay bit for bit the scalar engine's.
 
+use super::engine::{Queries, Wavefront};
 use super::walks::{lane_ids, lane_rows, Chunk};
-use super::{Queries, Wavefront};
 use crate::estimator::events;
 use crate::lane::{load16, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 

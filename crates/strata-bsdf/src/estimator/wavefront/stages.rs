@@ -7,8 +7,8 @@
 //! which queue next, what is loaded, stored or deferred.
 
 use super::deferred::Deferred;
+use super::engine::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use super::walks::{lane_ids, lane_rows, Chunk, Link, LinkLanes, Stage, Walks, FREE};
-use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
 use crate::estimator::density::{DensityWalk, WalkLanes};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::events::{ChainStack, Flight};
