@@ -101,7 +101,7 @@ impl fmt::Display for QueryError {
                 "set = {value}: there are {sets} parameter sets (0 to {})",
                 sets.saturating_sub(1)
             ),
-            QueryError::ForeignSets => write!(f, "{}", super::SetsError::Foreign),
+            QueryError::ForeignSets => write!(f, "{}", super::param_sets::SetsError::Foreign),
             QueryError::NoSuchMaterial { value, materials } => write!(
                 f,
                 "material = {value}: there are {materials} materials (0 to {})",
