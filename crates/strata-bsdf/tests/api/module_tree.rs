@@ -119,21 +119,19 @@ fn tokenize(src: &str) -> Vec<(Tok, usize)> {
                 let hashes = c[i..].iter().take_while(|&&h| h == '#').count();
                 if c.get(i + hashes) == Some(&'"') {
                     i += hashes + 1;
-                    loop {
-                        if i >= c.len() {
-                            break;
-                        }
-                        if c[i] == '"' && c[i + 1..].iter().take(hashes).all(|&h| h == '#') {
-                            if c[i + 1..].len() >= hashes {
-                                i += 1 + hashes;
-                                break;
-                            }
-                        }
+                    // The string ends at a quote followed by as many hashes.
+                    let closes = |i: usize| {
+                        c[i] == '"'
+                            && c.len() > i + hashes
+                            && c[i + 1..=i + hashes].iter().all(|&h| h == '#')
+                    };
+                    while i < c.len() && !closes(i) {
                         if c[i] == '\n' {
                             line += 1;
                         }
                         i += 1;
                     }
+                    i += 1 + hashes;
                 } else {
                     // r#name: the identifier after the hash.
                     i += 1;
