@@ -1,4 +1,5 @@
-//! Per-query parameters: parameter sets of a BSDF's shape.
+//! Per-query parameters: the calls that build parameter sets of a BSDF's shape
+//! (`api::param_sets`) and the batch calls that take them.
 //!
 //! A renderer evaluates textures at every hit. A [`LayeredBsdf`] is built for
 //! a stack's *shape* ([`crate::stack::Shape`]); [`ParamSets`] holds the numbers
