@@ -17,7 +17,7 @@
 
 use crate::fresnel;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
-use crate::math::{sample_cosine_hemisphere, Frame};
+use crate::math::{sample_cosine_hemisphere, Frame, MIN_COS};
 use crate::microfacet::Microfacet;
 
 /// One interface per lane.
@@ -171,7 +171,7 @@ impl<L: Lane> InterfaceLanes<L> {
     #[inline]
     fn to_shading(f: &Frame<L>, flat: L::Mask, d: V3<L>) -> (V3<L>, L::Mask) {
         let dl = V3::select(flat, d, f.to_local(d));
-        let open = (dl.z * d.z).gt(L::zero()) & dl.z.abs().ge(L::splat(crate::estimator::MIN_COS));
+        let open = (dl.z * d.z).gt(L::zero()) & dl.z.abs().ge(L::splat(MIN_COS));
         (dl, flat | open)
     }
 
@@ -213,8 +213,7 @@ impl<L: Lane> InterfaceLanes<L> {
         let (al, front) = Self::to_shading(&f, flat, a);
         let s = self.sample_local(al, u_select, u1, u2, transmit_only);
         let b = V3::select(flat, s.b, f.to_world(s.b));
-        let agree = flat
-            | ((s.b.z * b.z).gt(L::zero()) & b.z.abs().ge(L::splat(crate::estimator::MIN_COS)));
+        let agree = flat | ((s.b.z * b.z).gt(L::zero()) & b.z.abs().ge(L::splat(MIN_COS)));
         let valid = s.valid & front & agree;
         let weight = if self.adjoint {
             s.weight.scale(self.veach(a, b))

@@ -46,9 +46,10 @@
 //! materials ([`materials`]) and query-line parsing ([`query`]). The modules
 //! that implement the method are public only for the workspace's harnesses,
 //! tests and benches; they are hidden here and may change in any release.
-//! Read them in the source, in the order of the method: `lane` and `math`;
-//! `fresnel`, `microfacet`, `interface`; `medium`; `stack`; `estimator`;
-//! `api` (docs/architecture.md has the map).
+//! Read them in the source, in the order of the method: `lane`, `math` and
+//! `rng`; `fresnel`, `microfacet`, `interface`; `medium` and `phase`; `stack`;
+//! `estimator`; `api` (docs/architecture.md has the map: no file names a file
+//! that names it back, which `tests/api/module_tree.rs` checks).
 
 #![warn(missing_docs)]
 

@@ -5,7 +5,7 @@
 //! on those numbers: not on the thread that ran it, the batch it was in, or the
 //! engine (the wavefront's lane generator is tested bit for bit against it).
 
-use crate::lane::{Wide, LANE_IDS, MAX_LANES};
+use crate::lane::{to_unit, Wide, LANE_IDS, MAX_LANES};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro128PlusPlus;
 
@@ -115,12 +115,6 @@ pub fn xoshiro_step(s: &mut [u32; 4]) -> u32 {
     s[2] ^= t;
     s[3] = s[3].rotate_left(11);
     out
-}
-
-/// Maps 32 random bits to `[0, 1)` with 24 bits of resolution.
-#[inline]
-pub fn to_unit(x: u32) -> f32 {
-    (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
 /// Xoshiro128++ on SIMD lanes: lane `j` runs the stream of one walk, bit for

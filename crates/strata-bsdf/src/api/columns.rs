@@ -9,7 +9,9 @@
 //! [`Column`]). This is the one implementation behind the
 //! C ABI's and the Python module's per-query arrays.
 
-use super::{BatchError, LayeredBsdf, Materials, QueryError};
+use super::bsdf::LayeredBsdf;
+use super::error::{BatchError, QueryError};
+use super::materials::Materials;
 use crate::stack::{LayerStack, SetError, SetPath};
 use serde_json::Value;
 use std::collections::HashMap;

@@ -101,7 +101,7 @@ impl fmt::Display for QueryError {
                 "set = {value}: there are {sets} parameter sets (0 to {})",
                 sets.saturating_sub(1)
             ),
-            QueryError::ForeignSets => write!(f, "{}", super::SetsError::Foreign),
+            QueryError::ForeignSets => write!(f, "{}", super::param_sets::SetsError::Foreign),
             QueryError::NoSuchMaterial { value, materials } => write!(
                 f,
                 "material = {value}: there are {materials} materials (0 to {})",
@@ -183,9 +183,7 @@ impl fmt::Display for BatchError {
 
 impl std::error::Error for BatchError {}
 
-/// The most walks one query may ask for, 2^40: beyond it the walk counts of
-/// a batch could overflow, and a query would run for weeks anyway.
-pub const MAX_WALKS: u64 = 1 << 40;
+pub use crate::estimator::MAX_WALKS;
 
 /// Checks a walk count passed as `argument` (`"samples"`, `"n"`): from 1 to
 /// [`MAX_WALKS`]. The one check behind every call that takes a walk count,

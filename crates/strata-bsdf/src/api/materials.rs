@@ -9,8 +9,9 @@
 //! alone answers, with the same configuration and key
 //! (`tests/api/param_sets.rs`).
 
-use super::sets::Returns;
-use super::{BatchError, LayeredBsdf, ParamSets, QueryError, Sample};
+use super::bsdf::{one_each, LayeredBsdf, Sample};
+use super::error::{BatchError, QueryError};
+use super::param_sets::{ParamSets, Returns};
 use crate::estimator::pdf::PdfEstimate;
 use crate::estimator::{Albedo, Estimate};
 use crate::stack::LayerStack;
@@ -263,5 +264,5 @@ fn pick<T: Copy>(v: &[T], ids: &[usize]) -> Vec<T> {
 
 /// One entry of a per-query argument per query.
 fn lengths(argument: &'static str, len: usize, queries: usize) -> Result<(), BatchError> {
-    super::one_each(argument, len, queries)
+    one_each(argument, len, queries)
 }

@@ -19,13 +19,14 @@
 //! `k` of `strata sample` does). With `Some(keys)` the renderer's sampler
 //! drives the streams: query `k` draws from `(seed, keys[k])`.
 
-use super::sets::Per;
-use super::{
-    check_walks, direction_at, direction_key, one_each, pdf_key, BatchError, Direction, Estimate,
-    LayeredBsdf, Materials, Pair, PerQuery, Sample,
-};
+use super::bsdf::{direction_at, direction_key, one_each, pdf_key, LayeredBsdf, Pair, Sample};
+use super::columns::PerQuery;
+use super::error::{check_walks, BatchError, Direction};
+use super::materials::Materials;
+use super::param_sets::Per;
 use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::wavefront::{with_kept, Sets, PDF_CHUNK};
+use crate::estimator::Estimate;
 use glam::Vec3;
 
 /// The 3-vectors of a batch (directions), in either layout.
@@ -238,7 +239,7 @@ impl SampleFlags {
     pub const DELTA: u32 = 4;
 
     /// The flags of a sample, or of an absorbed walk (`None`).
-    pub fn of(s: Option<&super::Sample>) -> Self {
+    pub fn of(s: Option<&Sample>) -> Self {
         SampleFlags(s.map_or(0, |s| {
             let side = if s.reflection {
                 Self::REFLECTION
@@ -266,7 +267,7 @@ pub struct SampleRecord {
 }
 
 impl SampleRecord {
-    fn of(s: Option<&super::Sample>) -> Self {
+    fn of(s: Option<&Sample>) -> Self {
         match s {
             Some(s) => SampleRecord {
                 wo: s.wo.to_array(),
@@ -532,7 +533,7 @@ impl LayeredBsdf {
         &self,
         wi: &Vectors,
         keys: Option<&[u64]>,
-        mut out: impl FnMut(usize, Option<&super::Sample>),
+        mut out: impl FnMut(usize, Option<&Sample>),
     ) -> Result<(), BatchError> {
         let n = wi.len();
         for k in 0..n {

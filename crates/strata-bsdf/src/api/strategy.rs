@@ -107,7 +107,7 @@ impl Estimator {
     /// query, on the query's own stack (a parameter set's, so that a set
     /// answers what its material file answers); a batch whose sets fall on
     /// both sides of the rule runs as two batches.
-    pub fn bidirectional_pays(stack: &crate::LayerStack) -> bool {
+    pub fn bidirectional_pays(stack: &crate::stack::LayerStack) -> bool {
         use crate::stack::InterfaceKind;
         // A bidirectional walk's cost grows with the cube of its length
         // (every pair of vertices, each weight O(n)): an optically thick
@@ -139,7 +139,7 @@ impl Estimator {
     /// Whether this estimator answers `stack`'s eval with the
     /// bidirectional estimator (for `Auto`, at some direction pairs: see
     /// [`Estimator::is_bidirectional_at`]).
-    pub fn is_bidirectional_for(self, stack: &crate::LayerStack) -> bool {
+    pub fn is_bidirectional_for(self, stack: &crate::stack::LayerStack) -> bool {
         match self {
             Estimator::Bidirectional => true,
             Estimator::Auto => Self::bidirectional_pays(stack),
@@ -157,7 +157,7 @@ impl Estimator {
     /// the bidirectional estimator*).
     pub fn is_bidirectional_at(
         self,
-        stack: &crate::LayerStack,
+        stack: &crate::stack::LayerStack,
         wi: [f64; 3],
         wo: [f64; 3],
     ) -> bool {
@@ -194,7 +194,7 @@ impl std::str::FromStr for Estimator {
 /// `(wi, wo)` is a reflected pair whose half vector lies within the top
 /// interface's roughness of the normal: `tan θh ≤ α` (the larger α of an
 /// anisotropic coat).
-fn specular_peak(stack: &crate::LayerStack, wi: [f64; 3], wo: [f64; 3]) -> bool {
+fn specular_peak(stack: &crate::stack::LayerStack, wi: [f64; 3], wo: [f64; 3]) -> bool {
     if wi[2] * wo[2] <= 0.0 {
         return false;
     }

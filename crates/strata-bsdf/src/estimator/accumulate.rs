@@ -1,6 +1,6 @@
 //! Streaming mean and variance (Welford), per RGB channel, in f64.
 
-use super::Estimate;
+use super::estimate::Estimate;
 
 /// Running mean and variance of RGB samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -61,8 +61,9 @@
 //! order (`Settings::max_scatter_order`) counts a path's collisions on both
 //! subpaths: a subpath stops past it, a connection beyond it scores nothing.
 
+use super::events;
 use super::layout::{LayerKind, Layout, MediumLanes};
-use super::{events, Settings};
+use super::settings::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, MAX_LANES, V3};
 use crate::medium;

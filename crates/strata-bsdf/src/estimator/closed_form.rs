@@ -33,7 +33,9 @@
 //! way, with integrals in place of the Fresnel terms
 //! ([`super::rough_coat`]).
 
-use super::{coat_return, Settings};
+use super::coat_and_base::coat_and_base;
+use super::coat_return;
+use super::settings::Settings;
 use crate::fresnel;
 use crate::stack::LayerStack;
 use std::f64::consts::PI;
@@ -74,7 +76,7 @@ impl SmoothCoatLambertian {
     /// does not scatter it is the whole BSDF. `None` for other stacks, and
     /// under a depth cap (which truncates these paths too).
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        let (coat, base) = super::coat_lambertian::coat_and_base(stack, settings)?;
+        let (coat, base) = coat_and_base(stack, settings)?;
         if !coat.smooth {
             return None;
         }

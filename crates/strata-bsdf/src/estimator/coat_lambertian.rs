@@ -10,11 +10,14 @@
 //! the paths with a collision, where that pays
 //! ([`CoatLambertian::control_variate_pays`]).
 
+use super::accumulate::MeanVar;
 use super::closed_form::SmoothCoatLambertian;
+use super::coat_and_base::coat_and_base;
+use super::estimate::WalkSample;
 use super::rough_coat::RoughCoatLambertian;
-use super::{events, MeanVar, Settings, WalkSample};
+use super::settings::Settings;
 use crate::rng::WalkRng;
-use crate::stack::{Interface, InterfaceKind, LayerStack, PhaseKind};
+use crate::stack::{LayerStack, PhaseKind};
 use std::sync::Arc;
 
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
@@ -31,28 +34,6 @@ pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
 /// of bounces that the control variate takes out of the walks is short, and
 /// sampling `f₀` costs about what it saves (docs/performance.md).
 pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
-
-/// The coat and the base of `stack` if it is a dielectric coat over one
-/// layer over a Lambertian base that the walk-free forms can answer under
-/// `settings`: untilted (a tilted normal breaks their planar geometry), an
-/// extinction that does not depend on the direction (SGGX breaks their
-/// one-dimensional transmittances), no depth cap (which truncates the series
-/// of bounces).
-pub(super) fn coat_and_base<'a>(
-    stack: &'a LayerStack,
-    settings: &Settings,
-) -> Option<(&'a Interface, &'a Interface)> {
-    let tilted = stack.interfaces().iter().any(|i| i.tilted());
-    let directional = stack
-        .medium(0)
-        .is_some_and(|m| m.phase_kind().directional());
-    if stack.len() != 2 || settings.max_events < events::MAX_EVENTS || tilted || directional {
-        return None;
-    }
-    let (coat, base) = (stack.interface(0), stack.interface(1));
-    let shape = coat.kind == InterfaceKind::Dielectric && base.kind == InterfaceKind::Diffuse;
-    shape.then_some((coat, base))
-}
 
 /// A coat over a layer over a Lambertian base, smooth or rough.
 #[derive(Clone, Debug)]

@@ -83,7 +83,7 @@
 
 use super::events::{self, Flight};
 use super::layout::{depth_to_boundary, flight_limit, LayerKind, Layout, MediumLanes};
-use super::Settings;
+use super::settings::Settings;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;

@@ -18,9 +18,9 @@
 //! already holds the exit interface's value, the cosine of `u` and the
 //! inverse density of `u` (next-event estimation "from the other side").
 
-use super::coat_lambertian::CoatLambertian;
 use super::layout::{depth_to_boundary, flight_limit, move_depth, LayerKind, Layout, MediumLanes};
-use super::{Settings, Terms};
+use super::settings::Settings;
+pub use super::settings::{MAX_CAP, MAX_EVENTS};
 use crate::interface::{BsdfSample, InterfaceLanes};
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::medium;
@@ -95,14 +95,6 @@ pub fn power_heuristic<L: Lane>(a: L, b: L) -> L {
     let big = L::one() / (L::one() + r2);
     L::select(ok, L::select(a.ge(b), big, r2 * big), zero)
 }
-
-/// The largest limit of events honoured exactly (see
-/// [`Settings::max_events`]): events are counted in single precision.
-pub const MAX_CAP: u32 = 1 << 24;
-
-/// The default limit of events per walk ([`Settings::max_events`]): more
-/// than five times the longest walk of the stress suite (docs/numerics.md).
-pub const MAX_EVENTS: u32 = 1 << 20;
 
 /// The lanes whose walk has made as many events as `s` allows: its next
 /// roulette ends it, and it counts as cut.
@@ -807,43 +799,4 @@ pub fn chain_roulette<L: Lane>(
 ) -> (Connection<L>, L::Mask) {
     let (v, alive) = roulette(c.v, events, u, s.rr_start, MAX_CAP);
     (Connection { v, ..c }, alive)
-}
-
-/// What an eval adds to its walks, in f64: the first-order term (the
-/// entrance alone, when it is also the exit: `same`), plus, with the control
-/// variate `cv`, the part of `f` its walks leave out at the walks' directions
-/// (taken from the engine's precision, so that both engines add the same
-/// numbers): a smooth coat's closed form exactly, a rough coat's
-/// factorized part as the mean of `n` samples from the query's streams
-/// (`prefix`). A smooth coat's first-order term is a delta, 0 here, and not
-/// a path of `f₀` (which enters the coat); a rough coat's is the coat
-/// reflection of `f₀`, which `cv` leaves to this term: nothing is counted
-/// twice.
-pub fn eval_terms<S: Lane>(
-    entrance: &InterfaceLanes<S>,
-    same: bool,
-    cv: Option<&CoatLambertian>,
-    wi: V3<S>,
-    wo: V3<S>,
-    n: u64,
-    prefix: u64,
-) -> Terms {
-    let lane0 = |c: Rgb<S>| [c.r.lane(0), c.g.lane(0), c.b.lane(0)];
-    let direct = if same {
-        lane0(entrance.eval(wi, wo))
-    } else {
-        [0.0; 3]
-    };
-    let Some(cv) = cv else {
-        return Terms {
-            exact: direct,
-            sampled: None,
-        };
-    };
-    let dir = |v: V3<S>| [v.x.lane(0), v.y.lane(0), v.z.lane(0)];
-    let f0 = cv.exact(dir(wi), dir(wo));
-    Terms {
-        exact: std::array::from_fn(|c| direct[c] + f0[c]),
-        sampled: cv.sampled(dir(wi), dir(wo), n, prefix),
-    }
 }

@@ -1,5 +1,6 @@
 //! Which side light enters and leaves, shared by every engine.
 
+use crate::math::MIN_COS;
 use crate::stack::LayerStack;
 
 /// A query after orientation: directions in the stack's frame with the top
@@ -50,13 +51,6 @@ fn negates(stack: &LayerStack) -> bool {
             .filter_map(|l| stack.medium(l))
             .any(|m| m.phase_kind().directional())
 }
-
-/// Directions closer to the horizon than this (`|cos θ| < MIN_COS`) are
-/// treated as grazing exactly, where no light enters or leaves. Single
-/// precision cannot hold them: the kernels multiply two cosines (and
-/// squares of cosines), which must stay normal numbers (>= 1.2e-38). The
-/// stiff suite runs down to cos 1e-7.
-pub const MIN_COS: f64 = 1e-18;
 
 /// Orients the incident direction for `stack`, or `None` when no light enters:
 /// `wi` grazing (|cos| < [`MIN_COS`]), or arriving at the back of an opaque

@@ -12,9 +12,8 @@
 
 use super::coat_lambertian::CoatLambertian;
 use super::layout::MediumLanes;
-use super::wavefront::walks::load16;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
+use crate::lane::{load16, Lane, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::microfacet::Microfacet;
 use crate::phase::{PhaseKind, PHASE_ROW};
 use crate::stack::LayerStack;

@@ -17,6 +17,7 @@
 
 use super::density::DensityWalk;
 use super::scalar::{v3, Scalar, ScalarEngine};
+use super::settings::MAX_WALKS;
 use crate::lane::LaneMask;
 use crate::rng::{query_prefix, Stream, WalkRng};
 
@@ -98,7 +99,7 @@ impl PdfWalks {
     pub fn fixed(n: u64) -> Self {
         PdfWalks {
             pilot: 0,
-            max: n.clamp(1, crate::MAX_WALKS),
+            max: n.clamp(1, MAX_WALKS),
             rel_stderr: 0.0,
         }
     }
@@ -108,10 +109,10 @@ impl PdfWalks {
     /// `rel_stderr` (one that is not positive, or NaN, means `max`); both
     /// counts at most [`crate::MAX_WALKS`].
     pub fn adaptive(pilot: u64, max: u64, rel_stderr: f64) -> Self {
-        let pilot = pilot.clamp(2, crate::MAX_WALKS);
+        let pilot = pilot.clamp(2, MAX_WALKS);
         PdfWalks {
             pilot,
-            max: max.clamp(pilot, crate::MAX_WALKS),
+            max: max.clamp(pilot, MAX_WALKS),
             rel_stderr: if rel_stderr > 0.0 { rel_stderr } else { 0.0 },
         }
     }
@@ -121,16 +122,16 @@ impl PdfWalks {
     /// a positive finite number is an error naming the field and the value,
     /// not clamped.
     pub fn try_adaptive(pilot: u64, max: u64, rel_stderr: f64) -> Result<Self, String> {
-        if !(2..=crate::MAX_WALKS).contains(&pilot) {
+        if !(2..=MAX_WALKS).contains(&pilot) {
             return Err(format!(
                 "pilot = {pilot}: expected 2 to {} walks (one walk has no spread)",
-                crate::MAX_WALKS
+                MAX_WALKS
             ));
         }
-        if !(pilot..=crate::MAX_WALKS).contains(&max) {
+        if !(pilot..=MAX_WALKS).contains(&max) {
             return Err(format!(
                 "max = {max}: expected pilot ({pilot}) to {} walks",
-                crate::MAX_WALKS
+                MAX_WALKS
             ));
         }
         if !(rel_stderr.is_finite() && rel_stderr > 0.0) {
@@ -245,8 +246,8 @@ impl std::str::FromStr for PdfWalks {
             t => match t.split(',').map(str::trim).collect::<Vec<_>>()[..] {
                 [n] if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => {
                     match n.parse::<u64>() {
-                        Ok(n @ 1..=crate::MAX_WALKS) => Ok(PdfWalks::fixed(n)),
-                        _ => Err(format!("{n} walks: expected 1 to {}", crate::MAX_WALKS)),
+                        Ok(n @ 1..=MAX_WALKS) => Ok(PdfWalks::fixed(n)),
+                        _ => Err(format!("{n} walks: expected 1 to {}", MAX_WALKS)),
                     }
                 }
                 [pilot, max, rel] => {

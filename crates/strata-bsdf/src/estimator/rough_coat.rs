@@ -29,13 +29,14 @@
 //! variate that the walks, which then score only paths with a collision,
 //! leave out ([`super::coat_lambertian`]).
 
+use super::accumulate::{BlockReducer, MeanVar};
 use super::closed_form::ExactSample;
+use super::coat_and_base::coat_and_base;
 use super::coat_return;
 use super::layout::MediumLanes;
-use super::wavefront::DefaultWide;
-use super::{MeanVar, Settings};
+use super::settings::Settings;
 use crate::interface::InterfaceLanes;
-use crate::lane::{Lane, LaneMask, Rgb, V3};
+use crate::lane::{DefaultWide, Lane, LaneMask, Rgb, V3};
 use crate::math::sample_cosine_hemisphere;
 use crate::microfacet::Microfacet;
 use crate::rng::{seed_state_from, LaneRng, Stream};
@@ -87,7 +88,7 @@ impl RoughCoatLambertian {
     /// anisotropic coat's `R̄` is not built; outside [`DOMAIN`] `R̄` is not
     /// checked.)
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        let (coat, _) = super::coat_lambertian::coat_and_base(stack, settings)?;
+        let (coat, _) = coat_and_base(stack, settings)?;
         if !Self::in_domain(coat) {
             return None;
         }
@@ -174,7 +175,7 @@ impl RoughCoatLambertian {
         let mut rng =
             LaneRng::<W>::from_states(|j| seed_state_from(prefix, j as u64, Stream::Coat));
         let all = <W as Lane>::Mask::splat(true);
-        let mut sum = super::BlockReducer::new();
+        let mut sum = BlockReducer::new();
         let mut k = 0;
         while k < n {
             let u = [(); 4].map(|_| rng.uniform(all));

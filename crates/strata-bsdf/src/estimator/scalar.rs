@@ -27,9 +27,11 @@
 
 use super::accumulate::{BlockReducer, MeanVar};
 use super::coat_lambertian::CoatLambertian;
+use super::estimate::{Albedo, Estimate, WalkSample};
 use super::events::{self, ChainLink, ChainStack, Flight};
 use super::layout::{toward_exit, LayerKind, Layout, MediumLanes};
-use super::{Albedo, Estimate, Settings, Terms, WalkSample};
+use super::settings::Settings;
+use super::terms::{self, Terms};
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, Rgb, V3};
 use crate::rng::{query_prefix, Stream, WalkRng};
@@ -199,7 +201,7 @@ impl<S: Scalar> ScalarEngine<S> {
         };
         let (wi, wo) = (v3::<S>(o.wi), v3::<S>(o.apply(wo)));
         let prefix = query_prefix(seed, query);
-        let terms = events::eval_terms(&self.ifaces[0], true, Some(coat), wi, wo, n, prefix);
+        let terms = terms::eval_terms(&self.ifaces[0], true, Some(coat), wi, wo, n, prefix);
         Estimate {
             samples: n,
             ..MeanVar::new().estimate_with(&terms)
@@ -619,7 +621,7 @@ impl<S: Scalar> ScalarEngine<S> {
         // First-order term: the entrance alone, when it is also the exit.
         let entrance = &self.ifaces[e_in];
         let cv = self.cv.as_ref();
-        events::eval_terms(entrance, e_in == e_out, cv, wi, wo, n, prefix)
+        terms::eval_terms(entrance, e_in == e_out, cv, wi, wo, n, prefix)
     }
 
     /// Runs the `n` bidirectional walks of an eval query, handing each
@@ -651,7 +653,7 @@ impl<S: Scalar> ScalarEngine<S> {
         });
         let e_in = self.layout.outer(wi.z > S::zero());
         let e_out = self.layout.outer(wo.z > S::zero());
-        events::eval_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo, n, prefix)
+        terms::eval_terms(&self.ifaces[e_in], e_in == e_out, None, wi, wo, n, prefix)
     }
 }
 

@@ -1,6 +1,6 @@
 //! An RGB triple of lanes: throughputs, Fresnel terms, extinction.
 
-use super::Lane;
+use super::traits::Lane;
 use std::ops::{Add, AddAssign, Mul, MulAssign, Sub};
 
 /// One value per colour channel, per lane.

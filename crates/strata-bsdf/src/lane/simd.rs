@@ -11,11 +11,15 @@
 //! arithmetic of [`Lane`] (gathers and scatters of walk columns, and the 32-bit
 //! integer lanes of the random number generator).
 
-use super::{Lane, LaneBits, LaneMask};
+use super::traits::{Lane, LaneBits, LaneMask};
 use std::ops::{
     Add, AddAssign, BitAnd, BitOr, BitXor, Div, DivAssign, Mul, MulAssign, Neg, Not, Shl, Shr, Sub,
     SubAssign,
 };
+
+/// The lane type of the wavefront engine (and of the closed forms it
+/// samples over lanes): the one place the width is set.
+pub type DefaultWide = F32x8;
 
 /// The widest lane type's lane count ([`F32x16`]): per-chunk index arrays
 /// are this long.
@@ -63,7 +67,7 @@ pub trait Wide: Lane + LaneBits {
     fn bits_lane(b: Self::Bits, j: usize) -> u32;
     /// `t` where `m` is set, `f` elsewhere.
     fn select_bits(m: Self::Mask, t: Self::Bits, f: Self::Bits) -> Self::Bits;
-    /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that `rng::to_unit` makes.
+    /// `(b >> 8) · 2⁻²⁴`: the uniform in `[0, 1)` that [`to_unit`] makes.
     fn bits_to_unit(b: Self::Bits) -> Self;
     /// One bit per lane, lane 0 in bit 0.
     fn bitmask(m: Self::Mask) -> u32;
@@ -81,6 +85,14 @@ pub trait Wide: Lane + LaneBits {
     /// every lane's record, the last lane first (where `idx` repeats an index,
     /// the lowest lane's record is the one that stays).
     fn store8<const R: usize>(vals: [Self; 8], recs: &mut [[f32; R]], idx: &[u32], first: usize);
+}
+
+/// Fields `first..first + 16` of records `recs[idx[j]]` in lanes (two
+/// [`Wide::load8`]s): a chain link's twelve fields and what follows them.
+#[inline(always)]
+pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [W; 16] {
+    let (lo, hi) = (W::load8(recs, idx, first), W::load8(recs, idx, first + 8));
+    std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] })
 }
 
 /// Eight rows of eight floats, transposed.
@@ -608,6 +620,14 @@ impl Shr<u32> for U32 {
 }
 impl BitLanes for U32 {}
 
+/// Maps 32 random bits to `[0, 1)` with 24 bits of resolution: the uniform
+/// of the scalar walks' streams (`crate::rng`), which [`Wide::bits_to_unit`]
+/// makes per lane.
+#[inline]
+pub fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
 /// One lane: the wavefront engine finishes the last, longest walks of a task
 /// on it, where a lone walk would leave seven of eight SIMD lanes idle. The
 /// same kernels and stages run, so its walks are bit for bit those of the
@@ -648,7 +668,7 @@ impl Wide for f32 {
     }
     #[inline]
     fn bits_to_unit(b: U32) -> Self {
-        crate::rng::to_unit(b.0)
+        to_unit(b.0)
     }
     #[inline]
     fn bitmask(m: bool) -> u32 {

@@ -1,6 +1,6 @@
 //! A 3-vector of lanes, with glam's method names.
 
-use super::Lane;
+use super::traits::Lane;
 use std::ops::{Add, Mul, Neg, Sub};
 
 /// A direction or vector per lane. In strata's frame `z` is the stack normal.

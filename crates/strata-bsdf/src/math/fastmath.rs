@@ -14,7 +14,7 @@
 //! Its functions are `#[inline(always)]` (docs/architecture.md, *Code
 //! generation is part of the design*).
 
-use crate::lane::LaneBits;
+use crate::lane::traits::LaneBits;
 
 /// e^x. Inputs below -87 (where e^x is below the smallest normal f32) give 0;
 /// inputs above 88 are clamped to 88 (e^88 ≈ 1.65e38).

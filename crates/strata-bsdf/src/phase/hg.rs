@@ -6,9 +6,11 @@
 //! for `g > 0`). Its functions are `#[inline(always)]` (docs/architecture.md,
 //! *Code generation is part of the design*).
 
-use super::INV_4PI;
 use crate::lane::{Lane, V3};
 use crate::math::Frame;
+
+/// `1 / 4π`: the isotropic phase function's value, HG's factor.
+const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
 
 /// Henyey–Greenstein phase function value for `μ = d·d'`.
 ///

@@ -21,15 +21,13 @@
 //! an estimate of its own, or no MIS ([`PhaseLanes::exact`]).
 
 pub mod hg;
+mod kind;
 pub mod mixture;
 pub mod sggx;
 
 use crate::lane::{Lane, V3};
-pub use crate::stack::PhaseKind;
-use crate::stack::{Phase, MAX_COMPONENTS};
+pub use kind::{PhaseKind, MAX_COMPONENTS};
 use sggx::Sggx;
-
-pub(crate) const INV_4PI: f64 = 1.0 / (4.0 * std::f64::consts::PI);
 
 /// The parameters a phase function needs beyond `g`, in one row: a mixture's
 /// weights (`0..4`) and asymmetries (`4..8`), or an SGGX axis (`0..3`) and
@@ -48,36 +46,6 @@ pub struct PhaseLanes<L: Lane> {
 }
 
 impl<L: Lane> PhaseLanes<L> {
-    /// The lanes of `phase`, as a layer of kind `kind` runs it (an absorbing
-    /// layer keeps only what its extinction needs).
-    pub fn new(phase: &Phase, kind: PhaseKind) -> Self {
-        let mut p = [0.0; PHASE_ROW];
-        match phase {
-            Phase::Mixture(lobes) => {
-                for (k, &(w, g)) in lobes.iter().enumerate() {
-                    p[k] = w;
-                    p[MAX_COMPONENTS + k] = g;
-                }
-            }
-            Phase::Sggx {
-                axis,
-                along,
-                across,
-                ..
-            } => {
-                p[..3].copy_from_slice(axis);
-                p[3] = *along;
-                p[4] = *across;
-            }
-            Phase::Hg { .. } => {}
-        }
-        PhaseLanes {
-            kind,
-            g: L::splat(phase.g().unwrap_or(0.0)),
-            p: p.map(L::splat),
-        }
-    }
-
     /// Isotropic, direction-independent: what a layer without a medium has.
     pub fn isotropic() -> Self {
         PhaseLanes {

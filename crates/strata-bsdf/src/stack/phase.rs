@@ -1,10 +1,10 @@
-//! A medium's validated phase function, and what kind of walk it asks for.
+//! A medium's validated phase function, and its lanes.
 
 use super::description::{ComponentKind, FlakeScattering, Flakes, PhaseDesc};
-use super::StackError;
-
-/// Most lobes a mixture holds (a fixed bound keeps its lanes a fixed size).
-pub const MAX_COMPONENTS: usize = 4;
+use super::error::StackError;
+use crate::lane::Lane;
+pub use crate::phase::{PhaseKind, MAX_COMPONENTS};
+use crate::phase::{PhaseLanes, PHASE_ROW};
 
 /// The smallest SGGX roughness: below it `r²` and `1 / r²` leave the
 /// range single precision holds with the margin the kernels need
@@ -37,27 +37,6 @@ pub enum Phase {
         /// Diffuse flakes (else specular).
         diffuse: bool,
     },
-}
-
-/// What a phase function asks of a walk: part of a stack's shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PhaseKind {
-    /// Henyey–Greenstein (or isotropic).
-    Hg,
-    /// A mixture of this many Henyey–Greenstein lobes.
-    Mixture(u8),
-    /// SGGX with specular flakes: direction-dependent extinction.
-    SggxSpecular,
-    /// SGGX with diffuse flakes: direction-dependent extinction, and a
-    /// phase value that is estimated.
-    SggxDiffuse,
-}
-
-impl PhaseKind {
-    /// The extinction depends on the direction of travel.
-    pub fn directional(self) -> bool {
-        matches!(self, PhaseKind::SggxSpecular | PhaseKind::SggxDiffuse)
-    }
 }
 
 impl Phase {
@@ -207,6 +186,38 @@ impl Phase {
                     diffuse: *scattering == FlakeScattering::Diffuse,
                 })
             }
+        }
+    }
+}
+
+impl<L: Lane> PhaseLanes<L> {
+    /// The lanes of `phase`, as a layer of kind `kind` runs it (an absorbing
+    /// layer keeps only what its extinction needs).
+    pub fn new(phase: &Phase, kind: PhaseKind) -> Self {
+        let mut p = [0.0; PHASE_ROW];
+        match phase {
+            Phase::Mixture(lobes) => {
+                for (k, &(w, g)) in lobes.iter().enumerate() {
+                    p[k] = w;
+                    p[MAX_COMPONENTS + k] = g;
+                }
+            }
+            Phase::Sggx {
+                axis,
+                along,
+                across,
+                ..
+            } => {
+                p[..3].copy_from_slice(axis);
+                p[3] = *along;
+                p[4] = *across;
+            }
+            Phase::Hg { .. } => {}
+        }
+        PhaseLanes {
+            kind,
+            g: L::splat(phase.g().unwrap_or(0.0)),
+            p: p.map(L::splat),
         }
     }
 }

@@ -24,7 +24,9 @@
 //!   order of a set does not matter; the same path twice is an error.
 
 use super::description::{InterfaceDesc, LayerDesc, MaterialDesc, PhaseDesc, RgbParam};
-use super::{presets, LayerStack, StackError};
+use super::error::StackError;
+use super::layer_stack::LayerStack;
+use super::presets;
 use serde::Deserialize;
 use serde_json::Value;
 use std::fmt;

@@ -13,7 +13,9 @@
 //! above, a tilted normal on an untilted interface or back, a single-scattering albedo of 0 in a scattering layer) gives a
 //! stack of another shape, which an engine of this one does not run.
 
-use super::{Distribution, InterfaceKind, LayerStack, Medium, PhaseKind, Shadowing};
+use super::description::{Distribution, Shadowing};
+use super::layer_stack::{InterfaceKind, LayerStack, Medium};
+use super::phase::PhaseKind;
 
 /// What a layer asks of a walk crossing it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,5 +1,6 @@
 //! The public API and its batches: embedding, settings, material sets and per-
-//! query parameters, property tests of its contracts, and the README's example.
+//! query parameters, property tests of its contracts, the README's example,
+//! and the library's one-way module tree.
 //!
 //! One test binary per theme, so that the suite links a handful of times;
 //! each file below is a module whose doc says what it checks.
@@ -11,6 +12,7 @@ mod api_embedding;
 mod bounded_walks;
 mod layered_settings;
 mod material_set;
+mod module_tree;
 mod param_sets;
 mod per_query_chunks;
 mod proptest_api;

@@ -9,10 +9,11 @@
 //! reduced in sample order and merged in block order: the scalar engine's
 //! reduction, whatever the threads.
 
-use super::{zero_sum, Pair, Queries, Unit, Wavefront, CALLS};
+use super::buffers::{with_kept, CALLS};
+use super::engine::{zero_sum, Mode, Pair, Queries, Sets, Unit, Wavefront};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
 use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers, Tracing, Vertex};
-use crate::estimator::Estimate;
+use crate::estimator::estimate::Estimate;
 use crate::lane::{LaneMask, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 
@@ -237,7 +238,7 @@ impl<W: Wide> Wavefront<W> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn eval_bidir_each(
         &self,
-        sets: super::Sets,
+        sets: Sets,
         m: usize,
         mut query: impl FnMut(usize) -> (Pair, u64),
         samples: u64,
@@ -245,8 +246,8 @@ impl<W: Wide> Wavefront<W> {
         serial: bool,
         mut out: impl FnMut(usize, Estimate),
     ) {
-        super::with_kept(&CALLS, |c| {
-            self.prepare_into(&mut c.queries, super::Mode::Eval, seed, sets, m, |k| {
+        with_kept(&CALLS, |c| {
+            self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)
             });
@@ -297,7 +298,7 @@ impl<W: Wide> Wavefront<W> {
         assert_eq!(pairs.len(), keys.len(), "one key per query");
         let mut est = Vec::with_capacity(pairs.len());
         let query = |k: usize| (pairs[k], keys[k]);
-        let sets = super::Sets::Own;
+        let sets = Sets::Own;
         self.eval_bidir_each(sets, pairs.len(), query, samples, seed, false, |_, e| {
             est.push(e)
         });
@@ -314,12 +315,7 @@ impl<W: Wide> Wavefront<W> {
         seed: u64,
         key: u64,
     ) -> Vec<[f64; 3]> {
-        let q = self.prepare(
-            super::Mode::Eval,
-            seed,
-            super::Sets::Own,
-            &[(wi, Some(wo), key)],
-        );
+        let q = self.prepare(Mode::Eval, seed, Sets::Own, &[(wi, Some(wo), key)]);
         if !q.valid[0] {
             return vec![[0.0; 3]; samples as usize];
         }

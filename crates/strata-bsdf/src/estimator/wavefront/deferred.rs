@@ -15,10 +15,10 @@
 //! engine sums them the same way (`Connect::from_collisions`), so walk values
 //! stay bit for bit the scalar engine's.
 
-use super::walks::{lane_ids, lane_rows, load16, Chunk};
-use super::{Queries, Wavefront};
+use super::engine::{Queries, Wavefront};
+use super::walks::{lane_ids, lane_rows, Chunk};
 use crate::estimator::events;
-use crate::lane::{Rgb, Wide, LANE_IDS, MAX_LANES, V3};
+use crate::lane::{load16, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 
 /// One pending continuation: the viewer direction `wo` (3), the direction
 /// before the collision (3) and after it (3), the depth to the exit's side

@@ -7,8 +7,8 @@
 //! which queue next, what is loaded, stored or deferred.
 
 use super::deferred::Deferred;
-use super::walks::{lane_ids, lane_rows, load16, Chunk, Link, LinkLanes, Stage, Walks, FREE};
-use super::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
+use super::engine::{Mode, Queries, Stats, Unit, WalkOut, Wavefront};
+use super::walks::{lane_ids, lane_rows, Chunk, Link, LinkLanes, Stage, Walks, FREE};
 use crate::estimator::density::{DensityWalk, WalkLanes};
 use crate::estimator::events::{self, Connection};
 use crate::estimator::events::{ChainStack, Flight};
@@ -16,7 +16,7 @@ use crate::estimator::layout::{toward_exit, LayerKind, MediumLanes, Next};
 use crate::estimator::params::LaneSets;
 use crate::estimator::pdf::{DensitySums, PdfEstimate, PdfKind, PdfWalks};
 use crate::interface::InterfaceLanes;
-use crate::lane::{LaneMask, Rgb, Wide, MAX_LANES, V3};
+use crate::lane::{load16, LaneMask, Rgb, Wide, MAX_LANES, V3};
 use crate::rng::{seed_state_from, LaneRng, Stream};
 use std::borrow::Cow;
 

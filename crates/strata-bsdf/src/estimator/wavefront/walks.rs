@@ -13,7 +13,7 @@
 //! scattering layer `l` (`key = n + l`), or [`FREE`].
 
 use crate::estimator::events::{ChainLink, Connection, WalkStart};
-use crate::lane::{LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
+use crate::lane::{load16, LaneMask, Rgb, Wide, LANE_IDS, MAX_LANES, V3};
 use crate::rng::LaneRng;
 
 /// The key of an empty slot.
@@ -116,14 +116,6 @@ impl<W: Wide> LinkLanes<W> {
             start: W::zero(),
         }
     }
-}
-
-/// Fields `first..first + 16` of records `recs[idx[j]]` in lanes (two
-/// [`Wide::load8`]s): a chain link's twelve fields and what follows them.
-#[inline(always)]
-pub fn load16<W: Wide, const R: usize>(recs: &[[f32; R]], idx: &[u32], first: usize) -> [W; 16] {
-    let (lo, hi) = (W::load8(recs, idx, first), W::load8(recs, idx, first + 8));
-    std::array::from_fn(|k| if k < 8 { lo[k] } else { hi[k - 8] })
 }
 
 /// One index per lane from the items of a chunk (at most

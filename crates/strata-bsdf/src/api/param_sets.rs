@@ -1,0 +1,141 @@
+//! Parameter sets of a BSDF's shape ([`ParamSets`]), and which one each
+//! query of a call has ([`Per`]).
+
+use super::strategy::Estimator;
+use crate::estimator::coat_lambertian::CoatLambertian;
+use crate::estimator::params::SetTable;
+use crate::estimator::scalar::ScalarEngine;
+use crate::estimator::wavefront::Sets;
+use crate::estimator::Settings;
+use crate::stack::{LayerStack, Shape};
+use std::fmt;
+
+/// The parameter sets of one [`LayeredBsdf`]'s shape, ready for its batch
+/// calls. Building one costs the validation of its stacks and a few
+/// hundred bytes of numbers per set: no engine is rebuilt.
+#[derive(Clone, Debug)]
+pub struct ParamSets {
+    /// What they were built for: the BSDF's shape, settings and estimator.
+    pub(super) shape: Shape,
+    pub(super) settings: Settings,
+    pub(super) estimator: Estimator,
+    /// The walks follow the adjoint of tilted interfaces (importance mode).
+    pub(super) adjoint: bool,
+    pub(super) stacks: Vec<LayerStack>,
+    /// The sets' numbers in the wavefront's one-lane form.
+    pub(super) table: SetTable,
+    /// Per set, the scalar engine's form of its numbers (the scalar engine
+    /// holds nothing but them).
+    pub(super) scalar: Vec<ScalarEngine<f32>>,
+    /// Per set, what is known of it without walks (where the shape is a
+    /// coat over a layer over a Lambertian base, and the set's integral is
+    /// available: see [`LayeredBsdf::param_sets`]).
+    pub(super) coat: Vec<Option<CoatLambertian>>,
+}
+
+impl ParamSets {
+    /// Number of sets.
+    pub fn len(&self) -> usize {
+        self.stacks.len()
+    }
+
+    /// No sets.
+    pub fn is_empty(&self) -> bool {
+        self.stacks.is_empty()
+    }
+
+    /// Set `s`'s stack.
+    ///
+    /// # Panics
+    /// If `s` is not below [`ParamSets::len`] (as a slice's index).
+    pub fn stack(&self, s: usize) -> &LayerStack {
+        &self.stacks[s]
+    }
+}
+
+/// Parameter sets that do not fit a BSDF.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SetsError {
+    /// Set `set`'s stack has another shape than the BSDF's.
+    Shape {
+        /// The set's index.
+        set: usize,
+        /// The first difference.
+        why: String,
+    },
+    /// The sets were built by a BSDF of another shape, settings, estimator
+    /// or (on a tilted stack) transport mode.
+    Foreign,
+}
+
+impl fmt::Display for SetsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SetsError::Shape { set, why } => write!(
+                f,
+                "parameter set {set} has another shape than the material: {why} \
+                 (a BSDF runs stacks of its own shape only)"
+            ),
+            SetsError::Foreign => write!(
+                f,
+                "these parameter sets were built by a BSDF of another shape, \
+                 settings or estimator: build them with this one's param_sets"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SetsError {}
+
+/// Which parameter sets of a rough coat over a Lambertian base integrate
+/// their own `R̄` (an integral, `estimator::coat_return`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Returns<'a> {
+    /// Every set (explicit parameter sets and materials: a handful).
+    Own,
+    /// None: a set shares the `R̄` of this coat (a template's) where its
+    /// coat and layer are the same, and is answered by the walks, without
+    /// the control variate, where they are not. For per-query columns, where
+    /// an integral per texel would cost far more than the walks; the rule is
+    /// the query's own values against the template's, so an answer does not
+    /// depend on the batch.
+    SharedWith(Option<&'a CoatLambertian>),
+}
+
+/// Which parameters each query of a call has: the BSDF's own, or a set
+/// each (`set[k]` for query `k`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Per<'a>(pub(super) Option<(&'a ParamSets, &'a [u32])>);
+
+impl<'a> Per<'a> {
+    /// Every query has the BSDF's own parameters.
+    pub const OWN: Per<'static> = Per(None);
+
+    /// Every query has the BSDF's own parameters.
+    pub fn is_own(&self) -> bool {
+        self.0.is_none()
+    }
+
+    /// Query `k`'s set (0 without sets).
+    pub fn set(&self, k: usize) -> usize {
+        self.0.map_or(0, |(_, s)| s[k] as usize)
+    }
+
+    /// The same sets, for queries whose sets are `set`.
+    pub fn with_set(&self, set: &'a [u32]) -> Per<'a> {
+        Per(self.0.map(|(p, _)| (p, set)))
+    }
+
+    /// Query `k` alone.
+    pub fn one(&self, k: usize) -> Per<'a> {
+        Per(self.0.map(|(p, s)| (p, &s[k..k + 1])))
+    }
+
+    /// The wavefront's form.
+    pub fn sets(&self) -> Sets<'a> {
+        match self.0 {
+            None => Sets::Own,
+            Some((p, s)) => Sets::Table(&p.table, s),
+        }
+    }
+}
