@@ -287,6 +287,9 @@ pub struct PerQuery<'a> {
     columns: Vec<Column<'a>>,
     /// The most distinct rows a chunk holds.
     rows: usize,
+    /// A batch of one chunk: its materials and each query's among them,
+    /// built once by the check in [`PerQuery::new`] and used by every call.
+    one_chunk: Option<(Materials, Vec<u32>)>,
 }
 
 impl<'a> PerQuery<'a> {
@@ -304,14 +307,21 @@ impl<'a> PerQuery<'a> {
     ) -> Result<Self, ColumnsError> {
         check_lengths(template, queries, columns)?;
         let layers = template.stack().desc().layers.len().max(1);
-        let q = PerQuery {
+        let mut q = PerQuery {
             template,
             queries,
             columns: columns.to_vec(),
             rows: (CHUNK_LAYERS / layers).clamp(1, CHUNK_ROWS),
+            one_chunk: None,
         };
         let mut rows = Rows::new(&q).map_err(|bytes| ColumnsError::OutOfMemory { bytes })?;
-        let mut start = 0;
+        // The first chunk's materials are kept when it is the whole batch
+        // (a renderer's batch), so that its calls do not build them again.
+        let mut start = rows.next(&q, 0, true)?;
+        if start >= queries && queries > 0 {
+            let m = Materials::building(template, rows.stacks.drain(..), true);
+            q.one_chunk = Some((m, std::mem::take(&mut rows.of)));
+        }
         while start < queries {
             start = rows.next(&q, start, false)?;
         }
@@ -323,6 +333,13 @@ impl<'a> PerQuery<'a> {
     #[must_use]
     pub fn with_chunk_rows(mut self, rows: usize) -> Self {
         self.rows = rows.max(1);
+        if self
+            .one_chunk
+            .as_ref()
+            .is_some_and(|(m, _)| m.len() > self.rows)
+        {
+            self.one_chunk = None;
+        }
         self
     }
 
@@ -350,6 +367,9 @@ impl<'a> PerQuery<'a> {
         call: &'static str,
         mut run: impl FnMut(&Materials, &[u32], Range<usize>) -> Result<(), BatchError>,
     ) -> Result<(), BatchError> {
+        if let Some((m, of)) = &self.one_chunk {
+            return run(m, of, 0..self.queries);
+        }
         let oom = |bytes| BatchError::call(QueryError::OutOfMemory { call, bytes });
         let mut rows = Rows::new(self).map_err(oom)?;
         let mut start = 0;
@@ -515,9 +535,18 @@ fn check_columns(base: &LayerStack, columns: &[Column]) -> Result<(), ColumnsErr
 fn decimal(x: f32) -> f64 {
     let wide = f64::from(x);
     let digits = |p: usize| format!("{:.*e}", p - 1, wide);
-    // Nine digits always read back (any f32), and what `format!` writes
-    // always parses: the widened value is never reached.
-    (1..=9)
+    // No fewer digits than the shortest that read back (`{:e}`'s) can: the
+    // search starts there. Nine digits always read back (any f32), and
+    // what `format!` writes always parses: the widened value is never
+    // reached.
+    let shortest = format!("{x:e}");
+    let mantissa = shortest.split('e').next().unwrap_or("");
+    let fewest = mantissa
+        .bytes()
+        .filter(u8::is_ascii_digit)
+        .count()
+        .clamp(1, 9);
+    (fewest..=9)
         .map(digits)
         .find(|s| s.parse::<f32>() == Ok(x))
         .and_then(|s| s.parse().ok())

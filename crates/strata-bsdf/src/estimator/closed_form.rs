@@ -82,7 +82,11 @@ impl SmoothCoatLambertian {
         }
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
-        let r_bar = tau.map(|t| coat_return::smooth(eta, t));
+        let r_bar = if tau[0] == tau[1] && tau[1] == tau[2] {
+            [coat_return::smooth(eta, tau[0]); 3]
+        } else {
+            coat_return::smooth_channels(eta, tau)
+        };
         Some(SmoothCoatLambertian {
             eta,
             tau,
