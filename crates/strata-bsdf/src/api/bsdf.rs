@@ -227,7 +227,7 @@ impl LayeredBsdf {
     }
 
     /// Sets the number of walks per `eval` (at least 1; a call with more
-    /// than [`MAX_WALKS`] is a [`QueryError::TooManySamples`]).
+    /// than [`MAX_WALKS`](crate::MAX_WALKS) is a [`QueryError::TooManySamples`]).
     #[must_use]
     pub fn samples(mut self, n: u64) -> Self {
         self.samples = n.max(1);

@@ -10,7 +10,7 @@ use crate::estimator::Settings;
 use crate::stack::{LayerStack, Shape};
 use std::fmt;
 
-/// The parameter sets of one [`LayeredBsdf`]'s shape, ready for its batch
+/// The parameter sets of one [`LayeredBsdf`](crate::LayeredBsdf)'s shape, ready for its batch
 /// calls. Building one costs the validation of its stacks and a few
 /// hundred bytes of numbers per set: no engine is rebuilt.
 #[derive(Clone, Debug)]
