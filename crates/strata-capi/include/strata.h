@@ -95,8 +95,8 @@
 #define STRATA_ESTIMATOR_BIDIRECTIONAL 2
 
 /**
- * `strata_bsdf_set_pdf_samples`'s `n` for the library's rule (a pilot
- * round), the default; any other `n` is a fixed count.
+ * `strata_bsdf_set_pdf_samples`'s `n` for the library's default rule (the
+ * lobe pdf, no walks); any other `n` is a fixed count of density walks.
  */
 #define STRATA_PDF_SAMPLES_RULE 0
 
@@ -486,12 +486,12 @@ int32_t strata_bsdf_set_estimator(struct StrataBsdf *b,
                                   uint32_t estimator);
 
 /**
- * Sets how many density walks each approximate pdf runs (the pdf that
- * `strata_pdf` returns and that the samples carry):
- * `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's pilot round,
- * 8 walks and then 8 to 64 fresh ones for a relative standard error of
- * 0.15; `n ≥ 1` is exactly `n` walks, a fixed cost (docs/method.md §6
- * compares the two; `strata_bsdf_set_pdf_walks` sets any other rule).
+ * Sets how the approximate pdf is made (the pdf that `strata_pdf` returns
+ * and that the samples carry):
+ * `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's default, the
+ * lobe pdf (no walks: a closed-form density for MIS); `n ≥ 1` is exactly
+ * `n` density walks (docs/method.md §6 compares them;
+ * `strata_bsdf_set_pdf_walks` sets an adaptive rule).
  * Every `n` is valid. (The Rust API's `pdf_samples(0)` is one walk; here 0
  * names the rule.)
  * Configure a BSDF before sharing it: this call must not run while another
@@ -525,7 +525,8 @@ int32_t strata_bsdf_set_max_events(struct StrataBsdf *b, uint32_t n);
  * `pilot` walks (at least 2) measures one walk's relative variance, then
  * `pilot` to `max` fresh walks run for a relative standard error of about
  * `rel_stderr` (a positive number), as the Rust API's `PdfWalks::adaptive`.
- * The library's default is (8, 64, 0.15); (8, 128, 0.1), its `TIGHT` rule,
+ * (8, 64, 0.15) is the Rust API's `PdfWalks::ADAPTIVE` (the default is the
+ * lobe pdf, no walks: `strata_bsdf_set_pdf_samples`); (8, 128, 0.1), its `TIGHT` rule,
  * gives a pdf within 0.7–1.3× of the density of the samples at nearly
  * every direction for about twice the walks (docs/method.md §6). A pilot
  * under 2, a `max` under `pilot`, or a `rel_stderr` that is not a positive

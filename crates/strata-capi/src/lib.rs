@@ -87,8 +87,8 @@ pub const STRATA_ESTIMATOR_UNIDIRECTIONAL: u32 = 1;
 /// Estimator of eval: the bidirectional walks, always.
 pub const STRATA_ESTIMATOR_BIDIRECTIONAL: u32 = 2;
 
-/// `strata_bsdf_set_pdf_samples`'s `n` for the library's rule (a pilot
-/// round), the default; any other `n` is a fixed count.
+/// `strata_bsdf_set_pdf_samples`'s `n` for the library's default rule (the
+/// lobe pdf, no walks); any other `n` is a fixed count of density walks.
 pub const STRATA_PDF_SAMPLES_RULE: u32 = 0;
 
 /// `StrataSample::flags` bit: the walk left on the side it entered.
@@ -706,8 +706,8 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
     })
 }
 
-/// Sets how many density walks each approximate pdf runs (the pdf that
-/// `strata_pdf` returns and that the samples carry):
+/// Sets how the approximate pdf is made (the pdf that `strata_pdf` returns
+/// and that the samples carry):
 /// `STRATA_PDF_SAMPLES_RULE` (0, the default) is the library's default, the
 /// lobe pdf (no walks: a closed-form density for MIS); `n ≥ 1` is exactly
 /// `n` density walks (docs/method.md §6 compares them;
@@ -769,7 +769,8 @@ pub unsafe extern "C" fn strata_bsdf_set_max_events(b: *mut StrataBsdf, n: u32) 
 /// `pilot` walks (at least 2) measures one walk's relative variance, then
 /// `pilot` to `max` fresh walks run for a relative standard error of about
 /// `rel_stderr` (a positive number), as the Rust API's `PdfWalks::adaptive`.
-/// The library's default is (8, 64, 0.15); (8, 128, 0.1), its `TIGHT` rule,
+/// (8, 64, 0.15) is the Rust API's `PdfWalks::ADAPTIVE` (the default is the
+/// lobe pdf, no walks: `strata_bsdf_set_pdf_samples`); (8, 128, 0.1), its `TIGHT` rule,
 /// gives a pdf within 0.7–1.3× of the density of the samples at nearly
 /// every direction for about twice the walks (docs/method.md §6). A pilot
 /// under 2, a `max` under `pilot`, or a `rel_stderr` that is not a positive

@@ -34,7 +34,7 @@ fn readme_example() -> Result<(), Box<dyn std::error::Error>> {
         println!("sampled {wo:?} with weight {w:?}, pdf {p}");
         assert_eq!(s.pdf, bsdf.pdf(wi, s.wo)?);
     }
-    let pdf = bsdf.pdf(wi, wo)?; // approximate density of sample(), for MIS
+    let pdf = bsdf.pdf(wi, wo)?; // the density sample() carries, for MIS
     let a = bsdf.albedo(wi, 10_000)?; // reflected and transmitted fractions
     let (r, t) = (a.reflected.value, a.transmitted.value);
     println!("pdf = {pdf}, R = {r:?}, T = {t:?}");
