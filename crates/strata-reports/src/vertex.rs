@@ -244,7 +244,9 @@ impl Batch {
     }
 
     /// The three calls of a batch of vertices: sample, and eval and pdf of
-    /// the light samples.
+    /// the light samples, on the BSDF's own parameters or, with a texture,
+    /// on per-vertex columns (each call taking them, as the C ABI's and
+    /// Python's per-query calls do); their CPU times are added to `ns`.
     fn run(
         &mut self,
         bsdf: &LayeredBsdf,
@@ -252,87 +254,48 @@ impl Batch {
         ns: &mut [f64; 3],
     ) -> Result<(), String> {
         let e = |e: strata_bsdf::BatchError| e.to_string();
-        let t0 = thread_cpu_ns();
-        let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
-        if let Some(t) = texture {
-            return self.run_textured(bsdf, t, ns);
+        let n = self.keys.len();
+        let columns = texture.map(Texture::columns).unwrap_or_default();
+        let per = || PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string());
+        // `$on` is evaluated at each call: the BSDF, or fresh columns.
+        macro_rules! calls {
+            ($on:expr) => {{
+                let t0 = thread_cpu_ns();
+                let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
+                let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
+                $on.sample_into(
+                    wi(),
+                    Some(&self.keys),
+                    flat_mut(&mut self.wo),
+                    flat_mut(&mut self.weight),
+                    &mut self.pdf,
+                    &mut self.flags,
+                )
+                .map_err(e)?;
+                let t1 = thread_cpu_ns();
+                let f = flat_mut(&mut self.f);
+                $on.eval_into(wi(), light(), Some(&self.light_keys), f, None)
+                    .map_err(e)?;
+                let t2 = thread_cpu_ns();
+                $on.pdf_into(wi(), light(), &mut self.light_pdf)
+                    .map_err(e)?;
+                [t1 - t0, t2 - t1, thread_cpu_ns() - t2]
+            }};
         }
-        bsdf.sample_into(
-            wi(),
-            Some(&self.keys),
-            VectorsMut::from_flat(&mut self.wo).expect("3 floats a vertex"),
-            VectorsMut::from_flat(&mut self.weight).expect("3 floats a vertex"),
-            &mut self.pdf,
-            &mut self.flags,
-        )
-        .map_err(e)?;
-        let t1 = thread_cpu_ns();
-        let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
-        bsdf.eval_into(
-            wi(),
-            light(),
-            Some(&self.light_keys),
-            VectorsMut::from_flat(&mut self.f).expect("3 floats a vertex"),
-            None,
-        )
-        .map_err(e)?;
-        let t2 = thread_cpu_ns();
-        bsdf.pdf_into(wi(), light(), &mut self.light_pdf)
-            .map_err(e)?;
-        let t3 = thread_cpu_ns();
-        for (n, d) in ns.iter_mut().zip([t1 - t0, t2 - t1, t3 - t2]) {
+        let dt = match texture {
+            None => calls!(bsdf),
+            Some(_) => calls!(per()?),
+        };
+        for (n, d) in ns.iter_mut().zip(dt) {
             *n += d;
         }
         Ok(())
     }
 }
 
-impl Batch {
-    /// [`Batch::run`] with per-vertex parameters: each call takes the
-    /// columns, as the C ABI's and Python's per-query calls do.
-    fn run_textured(
-        &mut self,
-        bsdf: &LayeredBsdf,
-        t: &Texture,
-        ns: &mut [f64; 3],
-    ) -> Result<(), String> {
-        let e = |e: strata_bsdf::BatchError| e.to_string();
-        let n = self.keys.len();
-        let columns = t.columns();
-        let per = || PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string());
-        let t0 = thread_cpu_ns();
-        let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
-        per()?
-            .sample_into(
-                wi(),
-                Some(&self.keys),
-                VectorsMut::from_flat(&mut self.wo).expect("3 floats a vertex"),
-                VectorsMut::from_flat(&mut self.weight).expect("3 floats a vertex"),
-                &mut self.pdf,
-                &mut self.flags,
-            )
-            .map_err(e)?;
-        let t1 = thread_cpu_ns();
-        let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
-        per()?
-            .eval_into(
-                wi(),
-                light(),
-                Some(&self.light_keys),
-                VectorsMut::from_flat(&mut self.f).expect("3 floats a vertex"),
-                None,
-            )
-            .map_err(e)?;
-        let t2 = thread_cpu_ns();
-        per()?
-            .pdf_into(wi(), light(), &mut self.light_pdf)
-            .map_err(e)?;
-        let t3 = thread_cpu_ns();
-        for (n, d) in ns.iter_mut().zip([t1 - t0, t2 - t1, t3 - t2]) {
-            *n += d;
-        }
-        Ok(())
-    }
+/// Three floats a vertex, as the calls write them.
+fn flat_mut(v: &mut [f32]) -> VectorsMut<'_> {
+    VectorsMut::from_flat(v).expect("3 floats a vertex")
 }
 
 /// SplitMix64: the benchmark's own uniforms (light directions, keys).
