@@ -7,8 +7,10 @@
 //! follows `sample()`'s density. The lobe pdf follows it with the parts a
 //! walk takes first: the entry interface's own density (exact for a stack of
 //! one interface), and, for light that crosses it into the stack, a cosine
-//! lobe on the side the light leaves (the whole of it for an opaque stack,
-//! half on each side for a transmissive one), mixed with the uniform density
+//! lobe on the side the light leaves (for an opaque stack weighted by what
+//! the stack returns, [`super::body_return`], so that the pdf integrates to
+//! about the albedo as the density does; half on each side of a
+//! transmissive one), mixed with the uniform density
 //! as the walked pdf is ([`super::pdf::mix_uniform`]). It costs one
 //! interface pdf and one Fresnel term: no walk.
 
@@ -47,7 +49,7 @@ impl<S: Scalar> ScalarEngine<S> {
             (false, false) => 0.0,
             (true, _) => 0.5,
         };
-        let lobe = enters * share * b[2].abs() * std::f64::consts::FRAC_1_PI;
+        let lobe = enters * self.body * share * b[2].abs() * std::f64::consts::FRAC_1_PI;
         mix_uniform(if reflected { own + lobe } else { lobe })
     }
 }

@@ -17,6 +17,7 @@
 
 mod accumulate;
 pub mod bidir;
+pub mod body_return;
 pub mod closed_form;
 mod coat_and_base;
 pub mod coat_lambertian;

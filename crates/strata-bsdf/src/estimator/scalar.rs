@@ -104,6 +104,9 @@ pub struct ScalarEngine<S: Scalar> {
     pub(super) ifaces: Vec<InterfaceLanes<S>>,
     pub(super) media: Vec<MediumLanes<S>>,
     pub(super) settings: Settings,
+    /// What the stack returns of the light that enters it
+    /// ([`super::body_return::body_return`]), for the lobe pdf.
+    pub(super) body: f64,
     /// With the control variate: the exact part of `f` carried by paths
     /// without a medium collision, which the walks then leave out.
     pub(super) cv: Option<CoatLambertian>,
@@ -141,6 +144,7 @@ impl<S: Scalar> ScalarEngine<S> {
                 .map(|l| MediumLanes::new(stack, l))
                 .collect(),
             settings,
+            body: super::body_return::body_return(stack),
             cv: None,
         }
     }
