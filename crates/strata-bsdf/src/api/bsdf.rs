@@ -7,8 +7,9 @@ use super::strategy::{Estimator, EvalStart};
 use super::transport::Transport;
 use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::coat_lambertian::CoatLambertian;
+use crate::estimator::lobe_pdf::lobe_pdf;
 use crate::estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};
-use crate::estimator::scalar::ScalarEngine;
+use crate::estimator::scalar::{eval_without_walks, ScalarEngine};
 use crate::estimator::wavefront::{
     with_kept, DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS,
 };
@@ -17,6 +18,7 @@ use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::{LayerStack, Shape};
 use glam::Vec3;
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::sync::Arc;
 
@@ -315,8 +317,10 @@ impl LayeredBsdf {
     /// Whether query `k`'s eval, from `a` to `b`, runs the bidirectional
     /// estimator: by its own stack and directions.
     pub(super) fn bidirectional_in(&self, per: Per, k: usize, a: Pt, b: Pt) -> bool {
-        self.estimator
-            .is_bidirectional_at(self.stack_in(per, k), a, b)
+        match per.0 {
+            None => self.estimator.is_bidirectional_at(self.stack(), a, b),
+            Some((p, s)) => p.route[s[k] as usize].bidirectional_at(a, b),
+        }
     }
 
     /// The estimator of `eval`.
@@ -825,8 +829,11 @@ impl LayeredBsdf {
             // Reflection only (the stack is opaque): both transport modes
             // and both starting sides agree.
             Some(coat) => {
-                let eng = self.scalar_in(per, k);
-                return eng.eval_without_walks(coat, a, b, samples, self.seed, key);
+                let top = match per.0 {
+                    None => &self.scalar.ifaces()[0],
+                    Some((p, s)) => p.table.iface(s[k] as usize, 0),
+                };
+                return eval_without_walks(stack, top, coat, a, b, samples, self.seed, key);
             }
             None => {}
         }
@@ -982,7 +989,7 @@ impl LayeredBsdf {
                     pairs
                         .iter()
                         .enumerate()
-                        .map(|(j, &(a, wo))| self.scalar_in(sub, j).lobe_pdf(a, wo) as f32),
+                        .map(|(j, &(a, wo))| self.lobe_pdf_in(sub, j, a, wo)),
                 );
             } else if serial || b.pairs.len() <= PDF_CHUNK {
                 // On this thread (where `pdf_validated` would run them too),
@@ -1064,7 +1071,7 @@ impl LayeredBsdf {
             return exact.pdf_query(self.stack_in(per, k), a, b) as f32;
         }
         if self.pdf_walks.is_lobes() {
-            return self.scalar_in(per, k).lobe_pdf(a, b) as f32;
+            return self.lobe_pdf_in(per, k, a, b);
         }
         let key = pdf_key(a, b);
         if self.pdf_engine(1) == Engine::Scalar {
@@ -1226,20 +1233,37 @@ impl LayeredBsdf {
         });
     }
 
-    /// Query `k`'s stack.
+    /// Query `k`'s stack, as far as the calls read it beyond the lanes'
+    /// numbers: its shape, IORs and sidedness.
     pub(super) fn stack_in<'a>(&'a self, per: Per<'a>, k: usize) -> &'a LayerStack {
         match per.0 {
-            None => self.stack(),
-            Some((p, s)) => &p.stacks[s[k] as usize],
+            Some((p, s)) if !p.stacks.is_empty() => &p.stacks[s[k] as usize],
+            _ => self.stack(),
         }
     }
 
-    /// Query `k`'s scalar engine.
-    pub(super) fn scalar_in<'a>(&'a self, per: Per<'a>, k: usize) -> &'a ScalarEngine<f32> {
+    /// Query `k`'s scalar engine: the BSDF's, or one made for its set.
+    pub(super) fn scalar_in<'a>(&'a self, per: Per<'a>, k: usize) -> Cow<'a, ScalarEngine<f32>> {
         match per.0 {
-            None => &self.scalar,
-            Some((p, s)) => &p.scalar[s[k] as usize],
+            None => Cow::Borrowed(&self.scalar),
+            Some((p, s)) => {
+                let s = s[k] as usize;
+                Cow::Owned(self.scalar.for_set(p.stacks.get(s), &p.table, s))
+            }
         }
+    }
+
+    /// Query `k`'s lobe pdf (`estimator::lobe_pdf`), with no engine made.
+    pub(super) fn lobe_pdf_in(&self, per: Per, k: usize, a: Pt, b: Pt) -> f32 {
+        let v = match per.0 {
+            None => self.scalar.lobe_pdf(a, b),
+            Some((p, s)) => {
+                let s = s[k] as usize;
+                let ifaces = p.table.ifaces_of(s);
+                lobe_pdf(self.stack_in(per, k), ifaces, p.table.body(s), a, b)
+            }
+        };
+        v as f32
     }
 
     /// What answers query `k`'s eval without walks, if anything

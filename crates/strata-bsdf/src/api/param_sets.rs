@@ -1,14 +1,14 @@
 //! Parameter sets of a BSDF's shape ([`ParamSets`]), and which one each
 //! query of a call has ([`Per`]).
 
-use super::strategy::Estimator;
+use super::strategy::{Estimator, EvalRoute};
 use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
-use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::wavefront::Sets;
 use crate::estimator::Settings;
 use crate::stack::{LayerStack, Shape};
 use std::fmt;
+use std::sync::Arc;
 
 /// The parameter sets of one [`LayeredBsdf`](crate::LayeredBsdf)'s shape, ready for its batch
 /// calls. Building one costs the validation of its stacks and a few
@@ -21,27 +21,30 @@ pub struct ParamSets {
     pub(super) estimator: Estimator,
     /// The walks follow the adjoint of tilted interfaces (importance mode).
     pub(super) adjoint: bool,
-    pub(super) stacks: Vec<LayerStack>,
+    /// Per set, its stack; none for the rows of per-query columns
+    /// ([`crate::PerQuery`]), which cannot change what the calls read of a
+    /// stack beyond its numbers (its IORs, its sidedness): theirs is the
+    /// BSDF's.
+    pub(super) stacks: Vec<Arc<LayerStack>>,
     /// The sets' numbers in the wavefront's one-lane form.
     pub(super) table: SetTable,
-    /// Per set, the scalar engine's form of its numbers (the scalar engine
-    /// holds nothing but them).
-    pub(super) scalar: Vec<ScalarEngine<f32>>,
     /// Per set, what is known of it without walks (where the shape is a
     /// coat over a layer over a Lambertian base, and the set's integral is
     /// available: see [`LayeredBsdf::param_sets`]).
     pub(super) coat: Vec<Option<CoatLambertian>>,
+    /// Per set, how its evals pick their estimator.
+    pub(super) route: Vec<EvalRoute>,
 }
 
 impl ParamSets {
     /// Number of sets.
     pub fn len(&self) -> usize {
-        self.stacks.len()
+        self.coat.len()
     }
 
     /// No sets.
     pub fn is_empty(&self) -> bool {
-        self.stacks.is_empty()
+        self.coat.is_empty()
     }
 
     /// Set `s`'s stack.

@@ -15,10 +15,10 @@ use super::param_sets::{ParamSets, Per, Returns, SetsError};
 use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::pdf::PdfEstimate;
-use crate::estimator::scalar::ScalarEngine;
 use crate::estimator::{Albedo, Estimate};
 use crate::stack::LayerStack;
 use glam::Vec3;
+use std::sync::Arc;
 
 impl LayeredBsdf {
     /// Parameter sets for this BSDF's batch calls: `stacks` must all have
@@ -50,41 +50,49 @@ impl LayeredBsdf {
                 return Err(SetsError::Shape { set, why });
             }
         }
-        let settings = self.settings;
-        let mut table = SetTable::new(shape.interfaces.len());
-        let mut scalar = Vec::with_capacity(stacks.len());
-        let mut coats = Vec::with_capacity(stacks.len());
+        let mut sets = self.empty_sets();
         for st in &stacks {
-            let coat = CoatLambertian::unscattered(st, &settings).and_then(|c| {
-                let (with, own) = match returns {
-                    Returns::Own => (self.coat.as_ref(), true),
-                    Returns::SharedWith(t) => (t, false),
-                };
-                let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
-                    (_, None) => true,
-                    (Some(o), Some(r)) => o.same_return(r),
-                    (None, Some(_)) => false,
-                };
-                (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
-            });
-            let cv = coat.clone().filter(|_| self.control_variate_for(st));
-            table.push(st, cv.clone());
-            let mut eng = ScalarEngine::new(st, settings).with_cv(cv);
-            eng.set_adjoint(self.adjoint());
-            scalar.push(eng);
-            coats.push(coat);
+            self.push_set(&mut sets, st, returns);
         }
-        table.set_adjoint(self.adjoint());
-        Ok(ParamSets {
-            shape,
-            settings,
+        sets.stacks = stacks.into_iter().map(Arc::new).collect();
+        Ok(sets)
+    }
+
+    /// No parameter sets yet, for this BSDF.
+    pub(super) fn empty_sets(&self) -> ParamSets {
+        ParamSets {
+            shape: self.shape.clone(),
+            settings: self.settings,
             estimator: self.estimator,
             adjoint: self.adjoint(),
-            stacks,
-            table,
-            scalar,
-            coat: coats,
-        })
+            stacks: Vec::new(),
+            table: SetTable::new(self.shape.interfaces.len()),
+            coat: Vec::new(),
+            route: Vec::new(),
+        }
+    }
+
+    /// Adds the numbers of `st` (of this BSDF's shape) to `sets` as their
+    /// next set, with every choice its stack makes (the walk-free form, the
+    /// control variate, the estimator of its evals) decided here.
+    pub(super) fn push_set(&self, sets: &mut ParamSets, st: &LayerStack, returns: Returns) {
+        let coat = CoatLambertian::unscattered(st, &self.settings).and_then(|c| {
+            let (with, own) = match returns {
+                Returns::Own => (self.coat.as_ref(), true),
+                Returns::SharedWith(t) => (t, false),
+            };
+            let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
+                (_, None) => true,
+                (Some(o), Some(r)) => o.same_return(r),
+                (None, Some(_)) => false,
+            };
+            (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
+        });
+        let cv = coat.clone().filter(|_| self.control_variate_for(st));
+        sets.table.push(st, cv);
+        sets.table.set_adjoint_of_last(self.adjoint());
+        sets.coat.push(coat);
+        sets.route.push(self.estimator.route(st));
     }
 
     /// Checks that `sets` were built for this BSDF, and that every query's

@@ -161,10 +161,18 @@ impl Estimator {
         wi: [f64; 3],
         wo: [f64; 3],
     ) -> bool {
-        if !self.is_bidirectional_for(stack) {
-            return false;
+        self.route(stack).bidirectional_at(wi, wo)
+    }
+
+    /// What decides the estimator of `stack`'s evals, taken once from its
+    /// numbers ([`Estimator::is_bidirectional_at`] at any directions).
+    pub(crate) fn route(self, stack: &crate::stack::LayerStack) -> EvalRoute {
+        let top = stack.interface(0);
+        EvalRoute {
+            bidirectional: self.is_bidirectional_for(stack),
+            peak: (self == Estimator::Auto && stack.len() < 3)
+                .then(|| top.alpha[0].max(top.alpha[1])),
         }
-        self != Estimator::Auto || stack.len() >= 3 || !specular_peak(stack, wi, wo)
     }
 
     /// The name `FromStr` takes: `auto`, `uni` or `bidir`.
@@ -194,12 +202,31 @@ impl std::str::FromStr for Estimator {
 /// `(wi, wo)` is a reflected pair whose half vector lies within the top
 /// interface's roughness of the normal: `tan θh ≤ α` (the larger α of an
 /// anisotropic coat).
-fn specular_peak(stack: &crate::stack::LayerStack, wi: [f64; 3], wo: [f64; 3]) -> bool {
+/// How a stack's (or a parameter set's) evals pick their estimator, decided
+/// when the stack or set is built: the walks of [`Estimator::is_bidirectional_for`],
+/// except at the specular peak where `Auto` keeps the unidirectional ones.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct EvalRoute {
+    /// The estimator is bidirectional (at some pairs).
+    bidirectional: bool,
+    /// Under `Auto` on a stack of one or two interfaces: the top's largest
+    /// alpha, within which of the normal a half vector is at the peak.
+    peak: Option<f64>,
+}
+
+impl EvalRoute {
+    /// Whether an eval from `wi` to `wo` runs the bidirectional walks.
+    pub(crate) fn bidirectional_at(&self, wi: [f64; 3], wo: [f64; 3]) -> bool {
+        self.bidirectional && !self.peak.is_some_and(|alpha| specular_peak(alpha, wi, wo))
+    }
+}
+
+/// The half vector of a reflected pair lies within `tan θh ≤ alpha` of the
+/// normal.
+fn specular_peak(alpha: f64, wi: [f64; 3], wo: [f64; 3]) -> bool {
     if wi[2] * wo[2] <= 0.0 {
         return false;
     }
     let h = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
-    let top = stack.interface(0);
-    let alpha = top.alpha[0].max(top.alpha[1]);
     (h[0] * h[0] + h[1] * h[1]).sqrt() <= alpha * h[2].abs()
 }

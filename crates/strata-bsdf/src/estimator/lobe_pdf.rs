@@ -17,39 +17,50 @@
 use super::orient;
 use super::pdf::mix_uniform;
 use super::scalar::{v3, Scalar, ScalarEngine};
-use crate::stack::InterfaceKind;
+use crate::interface::InterfaceLanes;
+use crate::stack::{InterfaceKind, LayerStack};
 
 impl<S: Scalar> ScalarEngine<S> {
     /// The lobe pdf of `wo` for `sample(wi)`: 0 where no light enters or
     /// leaves (as the walked pdf), else positive.
     pub fn lobe_pdf(&self, wi: [f64; 3], wo: [f64; 3]) -> f64 {
-        let Some(o) = orient(&self.stack, wi, Some(wo)) else {
-            return 0.0;
-        };
-        let (a, b) = (o.wi, o.apply(wo));
-        let n = self.ifaces.len();
-        let entry = if a[2] > 0.0 { 0 } else { n - 1 };
-        let own = self.ifaces[entry]
-            .pdf(v3::<S>(a), v3::<S>(b), false)
-            .lane(0);
-        if n == 1 {
-            return mix_uniform(own);
-        }
-        let desc = &self.stack.interfaces()[entry];
-        let enters = match desc.kind {
-            InterfaceKind::Dielectric => {
-                let eta = desc.n_below / desc.n_above;
-                1.0 - crate::fresnel::dielectric(a[2], eta)
-            }
-            InterfaceKind::Conductor | InterfaceKind::Diffuse => 0.0,
-        };
-        let reflected = a[2] * b[2] > 0.0;
-        let share = match (self.stack.transmissive(), reflected) {
-            (false, true) => 1.0,
-            (false, false) => 0.0,
-            (true, _) => 0.5,
-        };
-        let lobe = enters * self.body * share * b[2].abs() * std::f64::consts::FRAC_1_PI;
-        mix_uniform(if reflected { own + lobe } else { lobe })
+        lobe_pdf(&self.stack, &self.ifaces, self.body, wi, wo)
     }
+}
+
+/// [`ScalarEngine::lobe_pdf`] of `stack`'s shape and IORs with the
+/// interfaces `ifaces` and the body return `body` (a parameter set's).
+pub fn lobe_pdf<S: Scalar>(
+    stack: &LayerStack,
+    ifaces: &[InterfaceLanes<S>],
+    body: f64,
+    wi: [f64; 3],
+    wo: [f64; 3],
+) -> f64 {
+    let Some(o) = orient(stack, wi, Some(wo)) else {
+        return 0.0;
+    };
+    let (a, b) = (o.wi, o.apply(wo));
+    let n = ifaces.len();
+    let entry = if a[2] > 0.0 { 0 } else { n - 1 };
+    let own = ifaces[entry].pdf(v3::<S>(a), v3::<S>(b), false).lane(0);
+    if n == 1 {
+        return mix_uniform(own);
+    }
+    let desc = &stack.interfaces()[entry];
+    let enters = match desc.kind {
+        InterfaceKind::Dielectric => {
+            let eta = desc.n_below / desc.n_above;
+            1.0 - crate::fresnel::dielectric(a[2], eta)
+        }
+        InterfaceKind::Conductor | InterfaceKind::Diffuse => 0.0,
+    };
+    let reflected = a[2] * b[2] > 0.0;
+    let share = match (stack.transmissive(), reflected) {
+        (false, true) => 1.0,
+        (false, false) => 0.0,
+        (true, _) => 0.5,
+    };
+    let lobe = enters * body * share * b[2].abs() * std::f64::consts::FRAC_1_PI;
+    mix_uniform(if reflected { own + lobe } else { lobe })
 }

@@ -30,6 +30,9 @@ pub struct SetTable {
     /// Per set: the exact part of eval that the walks leave out, when the
     /// control variate is on for it.
     cv: Vec<Option<CoatLambertian>>,
+    /// Per set: what its stack returns of the light that enters it
+    /// ([`super::body_return::body_return`]), for the lobe pdf.
+    body: Vec<f64>,
     /// The numbers of `ifaces` as rows, which a chunk loads with two 8×8
     /// transposes ([`IFACE_ROW`]).
     iface_rows: Vec<[f32; 16]>,
@@ -93,6 +96,16 @@ impl SetTable {
         }
     }
 
+    /// Makes the last set's interfaces answer for the adjoint of a tilted
+    /// stack, or not ([`SetTable::set_adjoint`]).
+    pub fn set_adjoint_of_last(&mut self, on: bool) {
+        let n = self.n;
+        let len = self.ifaces.len();
+        for it in &mut self.ifaces[len - n..] {
+            it.adjoint = on;
+        }
+    }
+
     /// Adds `stack` (of the table's shape) as the next set; with `cv`
     /// (what [`CoatLambertian::unscattered`] gives for it, or `None`), eval
     /// walks of its queries leave out what `cv` holds.
@@ -111,6 +124,7 @@ impl SetTable {
         let rows = self.media[first.1..].iter().map(|m| m.phase.p);
         self.phase_rows.extend(rows);
         self.cv.push(cv);
+        self.body.push(super::body_return::body_return(stack));
     }
 
     /// Empties it for stacks of `n` interfaces, keeping its memory.
@@ -119,6 +133,7 @@ impl SetTable {
         self.ifaces.clear();
         self.media.clear();
         self.cv.clear();
+        self.body.clear();
         self.iface_rows.clear();
         self.medium_rows.clear();
         self.phase_rows.clear();
@@ -130,6 +145,7 @@ impl SetTable {
         self.ifaces.clone_from(&other.ifaces);
         self.media.clone_from(&other.media);
         self.cv.clone_from(&other.cv);
+        self.body.clone_from(&other.body);
         self.iface_rows.clone_from(&other.iface_rows);
         self.medium_rows.clone_from(&other.medium_rows);
         self.phase_rows.clone_from(&other.phase_rows);
@@ -153,6 +169,22 @@ impl SetTable {
     /// No sets.
     pub fn is_empty(&self) -> bool {
         self.cv.is_empty()
+    }
+
+    /// The interfaces of set `s`.
+    pub fn ifaces_of(&self, s: usize) -> &[InterfaceLanes<f32>] {
+        &self.ifaces[s * self.n..(s + 1) * self.n]
+    }
+
+    /// The layers of set `s`.
+    pub fn media_of(&self, s: usize) -> &[MediumLanes<f32>] {
+        let per = self.n - 1;
+        &self.media[s * per..(s + 1) * per]
+    }
+
+    /// What set `s`'s stack returns of the light that enters it.
+    pub fn body(&self, s: usize) -> f64 {
+        self.body[s]
     }
 
     /// Interface `i` of set `s`.

@@ -30,6 +30,7 @@ use super::coat_lambertian::CoatLambertian;
 use super::estimate::{Albedo, Estimate, WalkSample};
 use super::events::{self, ChainLink, ChainStack, Flight};
 use super::layout::{toward_exit, LayerKind, Layout, MediumLanes};
+use super::params::SetTable;
 use super::settings::Settings;
 use super::terms::{self, Terms};
 use crate::interface::InterfaceLanes;
@@ -37,6 +38,7 @@ use crate::lane::{Lane, Rgb, V3};
 use crate::rng::{query_prefix, Stream, WalkRng};
 use crate::stack::LayerStack;
 use std::borrow::Cow;
+use std::sync::Arc;
 
 /// A one-lane number: `f32` or `f64`.
 pub trait Scalar: Lane<Mask = bool> + PartialOrd {
@@ -99,7 +101,7 @@ struct Counter(u32);
 /// The layered BSDF, one walk at a time.
 #[derive(Clone, Debug)]
 pub struct ScalarEngine<S: Scalar> {
-    pub(super) stack: LayerStack,
+    pub(super) stack: Arc<LayerStack>,
     pub(super) layout: Layout,
     pub(super) ifaces: Vec<InterfaceLanes<S>>,
     pub(super) media: Vec<MediumLanes<S>>,
@@ -110,6 +112,48 @@ pub struct ScalarEngine<S: Scalar> {
     /// With the control variate: the exact part of `f` carried by paths
     /// without a medium collision, which the walks then leave out.
     pub(super) cv: Option<CoatLambertian>,
+}
+
+/// [`ScalarEngine::eval_without_walks`] on `stack`'s shape and IORs with
+/// `top` its top interface (a parameter set's).
+#[allow(clippy::too_many_arguments)]
+pub fn eval_without_walks<S: Scalar>(
+    stack: &LayerStack,
+    top: &InterfaceLanes<S>,
+    coat: &CoatLambertian,
+    wi: [f64; 3],
+    wo: [f64; 3],
+    n: u64,
+    seed: u64,
+    query: u64,
+) -> Estimate {
+    let Some(o) = super::orient(stack, wi, Some(wo)) else {
+        return MeanVar::zeros(n).estimate();
+    };
+    let (wi, wo) = (v3::<S>(o.wi), v3::<S>(o.apply(wo)));
+    let prefix = query_prefix(seed, query);
+    let terms = terms::eval_terms(top, true, Some(coat), wi, wo, n, prefix);
+    Estimate {
+        samples: n,
+        ..MeanVar::new().estimate_with(&terms)
+    }
+}
+
+impl ScalarEngine<f32> {
+    /// This engine with set `s` of `table` as its numbers (and `stack`, if
+    /// given, as its stack: a set whose IORs are its own), for the calls
+    /// that run a parameter set's query on the scalar engine.
+    pub fn for_set(&self, stack: Option<&Arc<LayerStack>>, table: &SetTable, s: usize) -> Self {
+        ScalarEngine {
+            stack: stack.map_or_else(|| Arc::clone(&self.stack), Arc::clone),
+            layout: self.layout,
+            ifaces: table.ifaces_of(s).to_vec(),
+            media: table.media_of(s).to_vec(),
+            settings: self.settings,
+            body: table.body(s),
+            cv: table.cv(s).cloned(),
+        }
+    }
 }
 
 /// What `eval` adds to a walk: the connections to the viewer (method.md §4).
@@ -137,7 +181,7 @@ impl<S: Scalar> ScalarEngine<S> {
     pub fn new(stack: &LayerStack, settings: Settings) -> Self {
         let n = stack.len();
         ScalarEngine {
-            stack: stack.clone(),
+            stack: Arc::new(stack.clone()),
             layout: Layout::new(stack),
             ifaces: (0..n).map(|i| stack.interface_lanes::<S>(i)).collect(),
             media: (0..n.saturating_sub(1))
@@ -200,16 +244,7 @@ impl<S: Scalar> ScalarEngine<S> {
         seed: u64,
         query: u64,
     ) -> Estimate {
-        let Some(o) = super::orient(&self.stack, wi, Some(wo)) else {
-            return MeanVar::zeros(n).estimate();
-        };
-        let (wi, wo) = (v3::<S>(o.wi), v3::<S>(o.apply(wo)));
-        let prefix = query_prefix(seed, query);
-        let terms = terms::eval_terms(&self.ifaces[0], true, Some(coat), wi, wo, n, prefix);
-        Estimate {
-            samples: n,
-            ..MeanVar::new().estimate_with(&terms)
-        }
+        eval_without_walks(&self.stack, &self.ifaces[0], coat, wi, wo, n, seed, query)
     }
 
     /// Makes the walks follow the adjoint of the tilted interfaces (the
@@ -229,6 +264,11 @@ impl<S: Scalar> ScalarEngine<S> {
     /// The stack.
     pub fn stack(&self) -> &LayerStack {
         &self.stack
+    }
+
+    /// Its interfaces' numbers, top first.
+    pub fn ifaces(&self) -> &[InterfaceLanes<S>] {
+        &self.ifaces
     }
 
     /// The walk settings.

@@ -216,7 +216,95 @@ fn finite_rgb(layer: Option<usize>, field: &str, v: [f64; 3]) -> Result<[f64; 3]
     Ok(v)
 }
 
-fn roughness(layer: usize, r: Roughness) -> Result<([f64; 2], bool), StackError> {
+/// Numbers in `[0, 1]` (an albedo).
+pub(super) fn unit_rgb(
+    layer: Option<usize>,
+    field: &str,
+    v: [f64; 3],
+) -> Result<[f64; 3], StackError> {
+    let v = finite_rgb(layer, field, v)?;
+    if v.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
+        return Err(StackError::new_rgb(layer, field, v, "must be in [0, 1]"));
+    }
+    Ok(v)
+}
+
+/// A conductor's `eta` (> 0) and `k` (>= 0), both at most [`MAX_CONDUCTOR`].
+pub(super) fn check_conductor(
+    layer: Option<usize>,
+    e: [f64; 3],
+    kk: [f64; 3],
+) -> Result<(), StackError> {
+    let e = finite_rgb(layer, "interface.eta", e)?;
+    let kk = finite_rgb(layer, "interface.k", kk)?;
+    if e.iter().any(|&x| x <= 0.0) {
+        return Err(StackError::new_rgb(
+            layer,
+            "interface.eta",
+            e,
+            "must be > 0",
+        ));
+    }
+    if kk.iter().any(|&x| x < 0.0) {
+        return Err(StackError::new_rgb(
+            layer,
+            "interface.k",
+            kk,
+            "must be >= 0",
+        ));
+    }
+    let too_big = format!("must be at most {MAX_CONDUCTOR}");
+    if e.iter().any(|&x| x > MAX_CONDUCTOR) {
+        return Err(StackError::new_rgb(layer, "interface.eta", e, &too_big));
+    }
+    if kk.iter().any(|&x| x > MAX_CONDUCTOR) {
+        return Err(StackError::new_rgb(layer, "interface.k", kk, &too_big));
+    }
+    Ok(())
+}
+
+/// A medium's thickness: finite and >= 0.
+pub(super) fn thickness(layer: Option<usize>, h: f64) -> Result<f64, StackError> {
+    let h = finite(layer, "medium.thickness", h)?;
+    if h < 0.0 {
+        return Err(StackError::new(
+            layer,
+            "medium.thickness",
+            h,
+            "must be >= 0",
+        ));
+    }
+    Ok(h)
+}
+
+/// A medium's extinction: finite and >= 0.
+pub(super) fn sigma_t(layer: Option<usize>, st: [f64; 3]) -> Result<[f64; 3], StackError> {
+    let st = finite_rgb(layer, "medium.sigma_t", st)?;
+    if st.iter().any(|&x| x < 0.0) {
+        return Err(StackError::new_rgb(
+            layer,
+            "medium.sigma_t",
+            st,
+            "must be >= 0",
+        ));
+    }
+    Ok(st)
+}
+
+/// A medium's optical depth `h × sigma_t`: at most [`MAX_OPTICAL_DEPTH`].
+pub(super) fn check_depth(layer: Option<usize>, h: f64, st: [f64; 3]) -> Result<(), StackError> {
+    if st.iter().any(|&x| x * h > MAX_OPTICAL_DEPTH) {
+        return Err(StackError::new_rgb(
+            layer,
+            "medium.sigma_t",
+            st,
+            &format!("gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}"),
+        ));
+    }
+    Ok(())
+}
+
+pub(super) fn roughness(layer: usize, r: Roughness) -> Result<([f64; 2], bool), StackError> {
     let a = r.alphas();
     for x in a {
         if !x.is_finite() || x < 0.0 {
@@ -357,21 +445,7 @@ impl LayerStack {
                             ))
                         }
                     };
-                    let e = finite_rgb(li, "interface.eta", e)?;
-                    let kk = finite_rgb(li, "interface.k", kk)?;
-                    if e.iter().any(|&x| x <= 0.0) {
-                        return Err(StackError::new_rgb(li, "interface.eta", e, "must be > 0"));
-                    }
-                    if kk.iter().any(|&x| x < 0.0) {
-                        return Err(StackError::new_rgb(li, "interface.k", kk, "must be >= 0"));
-                    }
-                    let too_big = format!("must be at most {MAX_CONDUCTOR}");
-                    if e.iter().any(|&x| x > MAX_CONDUCTOR) {
-                        return Err(StackError::new_rgb(li, "interface.eta", e, &too_big));
-                    }
-                    if kk.iter().any(|&x| x > MAX_CONDUCTOR) {
-                        return Err(StackError::new_rgb(li, "interface.k", kk, &too_big));
-                    }
+                    check_conductor(li, e, kk)?;
                     let (alpha, smooth) = roughness(i, *r)?;
                     Interface {
                         kind: InterfaceKind::Conductor,
@@ -395,15 +469,7 @@ impl LayerStack {
                             "a diffuse interface is opaque and must be the last layer",
                         ));
                     }
-                    let a = finite_rgb(li, "interface.albedo", albedo.rgb())?;
-                    if a.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
-                        return Err(StackError::new_rgb(
-                            li,
-                            "interface.albedo",
-                            a,
-                            "must be in [0, 1]",
-                        ));
-                    }
+                    let a = unit_rgb(li, "interface.albedo", albedo.rgb())?;
                     Interface {
                         kind: InterfaceKind::Diffuse,
                         n_above,
@@ -444,38 +510,10 @@ impl LayerStack {
 
     fn parse_medium(i: usize, m: &MediumDesc) -> Result<Medium, StackError> {
         let li = Some(i);
-        let h = finite(li, "medium.thickness", m.thickness)?;
-        if h < 0.0 {
-            return Err(StackError::new(li, "medium.thickness", h, "must be >= 0"));
-        }
-        let st = finite_rgb(li, "medium.sigma_t", m.sigma_t.rgb())?;
-        if st.iter().any(|&x| x < 0.0) {
-            return Err(StackError::new_rgb(
-                li,
-                "medium.sigma_t",
-                st,
-                "must be >= 0",
-            ));
-        }
-        if st.iter().any(|&x| x * h > MAX_OPTICAL_DEPTH) {
-            return Err(StackError::new_rgb(
-                li,
-                "medium.sigma_t",
-                st,
-                &format!(
-                    "gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}"
-                ),
-            ));
-        }
-        let al = finite_rgb(li, "medium.albedo", m.albedo.rgb())?;
-        if al.iter().any(|&x| !(0.0..=1.0).contains(&x)) {
-            return Err(StackError::new_rgb(
-                li,
-                "medium.albedo",
-                al,
-                "must be in [0, 1]",
-            ));
-        }
+        let h = thickness(li, m.thickness)?;
+        let st = sigma_t(li, m.sigma_t.rgb())?;
+        check_depth(li, h, st)?;
+        let al = unit_rgb(li, "medium.albedo", m.albedo.rgb())?;
         let phase = Phase::new(i, &m.phase)?;
         Ok(Medium {
             thickness: h,

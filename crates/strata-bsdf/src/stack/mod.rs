@@ -10,6 +10,7 @@
 
 mod description;
 mod error;
+mod in_place;
 mod json;
 mod layer_stack;
 mod phase;

@@ -33,7 +33,7 @@ use std::fmt;
 
 /// What a [`SetPath`] designates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-enum Target {
+pub(super) enum Target {
     /// `exterior_ior`.
     ExteriorIor,
     /// `layers[i].interface.<field>`.
@@ -44,7 +44,7 @@ enum Target {
 
 /// A settable field of an interface.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-enum InterfaceField {
+pub(super) enum InterfaceField {
     Ior,
     Roughness,
     Eta,
@@ -68,7 +68,7 @@ impl InterfaceField {
 
 /// A settable field of a medium.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-enum MediumField {
+pub(super) enum MediumField {
     Thickness,
     SigmaT,
     Albedo,
@@ -109,7 +109,7 @@ const MEDIUM_FIELDS: &str = "thickness, sigma_t, albedo, phase.g, phase.roughnes
 /// ```
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct SetPath {
-    target: Target,
+    pub(super) target: Target,
 }
 
 impl SetPath {

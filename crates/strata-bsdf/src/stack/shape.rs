@@ -141,26 +141,33 @@ impl LayerStack {
     /// may then vary per query).
     pub fn shape(&self) -> Shape {
         Shape {
-            interfaces: (self.interfaces.iter())
-                .map(|it| InterfaceShape {
-                    kind: it.kind,
-                    smooth: it.smooth,
-                    distribution: it.distribution,
-                    shadowing: it.shadowing,
-                    tilted: it.tilted(),
-                })
-                .collect(),
-            layers: (self.media.iter())
-                .map(|m| match m {
-                    None => LayerShape::Empty,
-                    Some(m) => LayerShape::Medium {
-                        kind: m.kind(),
-                        grey: m.grey(),
-                        phase: m.phase_kind(),
-                    },
-                })
-                .collect(),
+            interfaces: (0..self.len()).map(|i| self.interface_shape(i)).collect(),
+            layers: (0..self.media.len()).map(|l| self.layer_shape(l)).collect(),
             two_sided: self.two_sided,
+        }
+    }
+
+    /// The shape of interface `i`.
+    pub fn interface_shape(&self, i: usize) -> InterfaceShape {
+        let it = &self.interfaces[i];
+        InterfaceShape {
+            kind: it.kind,
+            smooth: it.smooth,
+            distribution: it.distribution,
+            shadowing: it.shadowing,
+            tilted: it.tilted(),
+        }
+    }
+
+    /// The shape of layer `l`.
+    pub fn layer_shape(&self, l: usize) -> LayerShape {
+        match &self.media[l] {
+            None => LayerShape::Empty,
+            Some(m) => LayerShape::Medium {
+                kind: m.kind(),
+                grey: m.grey(),
+                phase: m.phase_kind(),
+            },
         }
     }
 }

@@ -1,0 +1,123 @@
+//! Per-query numbers written into a built stack in place: the rows of a
+//! material table.
+//!
+//! A renderer's textures change a few numbers of one material per query.
+//! [`LayerStack::with_set`] answers such a query exactly as a material file
+//! would, at the cost of a description rebuilt, parsed and validated whole.
+//! The fields below need only their own checks, the same functions
+//! [`LayerStack::new`] runs on them, so a row can be written over a copy of
+//! the built stack: its thickness, extinction and single-scattering albedo,
+//! an interface's roughness and albedo, a conductor's `eta` and `k`. IORs
+//! (which move two interfaces and the conductor constants relative to
+//! them), shading normals and phase parameters are not written in place.
+
+use super::error::StackError;
+use super::layer_stack::{
+    check_conductor, check_depth, roughness, sigma_t, thickness, unit_rgb, LayerStack,
+};
+use super::set::{InterfaceField, MediumField, SetPath, Target};
+use super::Roughness;
+
+impl SetPath {
+    /// Whether [`LayerStack::write`] takes this path.
+    pub fn in_place(&self) -> bool {
+        matches!(
+            self.target,
+            Target::Medium(
+                _,
+                MediumField::Thickness | MediumField::SigmaT | MediumField::Albedo
+            ) | Target::Interface(
+                _,
+                InterfaceField::Roughness
+                    | InterfaceField::Albedo
+                    | InterfaceField::Eta
+                    | InterfaceField::K
+            )
+        )
+    }
+}
+
+impl LayerStack {
+    /// Writes `v` (one number, or three for a colour) at `path`, a path of
+    /// this stack that [`SetPath::in_place`] takes, checking it as
+    /// [`LayerStack::new`] checks the field. The stack's description is not
+    /// updated: a written stack is a row's numbers, not a material to hand
+    /// out. The optical depth, which spans two fields, is checked by
+    /// [`LayerStack::check_depths`] once the row is written.
+    ///
+    /// # Panics
+    /// If `path` is not in place or not in this stack (the caller checks
+    /// its columns first).
+    pub fn write(&mut self, path: &SetPath, v: &[f64]) -> Result<(), StackError> {
+        let rgb = match *v {
+            [x] => [x; 3],
+            [r, g, b] => [r, g, b],
+            _ => panic!("a value is 1 or 3 numbers"),
+        };
+        match path.target {
+            Target::Medium(l, f) => {
+                let li = Some(l);
+                let m = self.media[l].as_mut().expect("a checked path");
+                match f {
+                    MediumField::Thickness => m.thickness = thickness(li, v[0])?,
+                    MediumField::SigmaT => m.sigma_t = sigma_t(li, rgb)?,
+                    MediumField::Albedo => m.albedo = unit_rgb(li, "medium.albedo", rgb)?,
+                    _ => panic!("not in place: {path}"),
+                }
+            }
+            Target::Interface(i, f) => {
+                let li = Some(i);
+                let it = &mut self.interfaces[i];
+                match f {
+                    InterfaceField::Roughness => {
+                        let (alpha, smooth) = roughness(i, Roughness::Isotropic(v[0]))?;
+                        // An index-matched dielectric stays invisible.
+                        let matched =
+                            it.n_below == it.n_above && it.kind == super::InterfaceKind::Dielectric;
+                        if !matched {
+                            it.alpha = alpha;
+                            it.smooth = smooth;
+                        }
+                    }
+                    InterfaceField::Albedo => it.albedo = unit_rgb(li, "interface.albedo", rgb)?,
+                    InterfaceField::Eta | InterfaceField::K => {
+                        // Stored relative to the region above; the other of the two is only checked.
+                        let n = it.n_above;
+                        let (e, k) = match f {
+                            InterfaceField::Eta => (rgb, it.k.map(|x| x * n)),
+                            _ => (it.eta.map(|x| x * n), rgb),
+                        };
+                        check_conductor(li, e, k)?;
+                        match f {
+                            InterfaceField::Eta => it.eta = rgb.map(|x| x / n),
+                            _ => it.k = rgb.map(|x| x / n),
+                        }
+                    }
+                    _ => panic!("not in place: {path}"),
+                }
+            }
+            Target::ExteriorIor => panic!("not in place: {path}"),
+        }
+        Ok(())
+    }
+
+    /// Checks what [`LayerStack::write`] leaves: every medium's optical
+    /// depth within [`super::MAX_OPTICAL_DEPTH`].
+    pub fn check_depths(&self) -> Result<(), StackError> {
+        for (l, m) in self.media.iter().enumerate() {
+            if let Some(m) = m {
+                check_depth(Some(l), m.thickness, m.sigma_t)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether this stack has `other`'s shape: compared part by part,
+    /// without building either [`super::Shape`].
+    pub fn same_shape(&self, other: &LayerStack) -> bool {
+        self.two_sided == other.two_sided
+            && self.len() == other.len()
+            && (0..self.len()).all(|i| self.interface_shape(i) == other.interface_shape(i))
+            && (0..self.media.len()).all(|l| self.layer_shape(l) == other.layer_shape(l))
+    }
+}
