@@ -96,12 +96,12 @@ pub fn report(vertices: u64, batch: usize, rounds: u32, json: bool) -> Result<St
     );
     let _ = writeln!(
         o,
-        "{:<34} {:>4} {:<12} {:>9} {:>17} {:>9} {:>10} {:>10} {:>11} {:>7} {:>8}",
+        "{:<34} {:>4} {:<12} {:>9} {:>22} {:>9} {:>10} {:>10} {:>11} {:>7} {:>8}",
         "configuration",
         "view",
         "setting",
         "ns/vertex",
-        "sample/eval/pdf",
+        "[table+]sample/eval/pdf",
         "pbrt ns",
         "variance",
         "pbrt var",
@@ -113,15 +113,15 @@ pub fn report(vertices: u64, batch: usize, rounds: u32, json: bool) -> Result<St
         let z = (r.run.mean - r.pbrt.mean) / r.run.stderr().hypot(r.pbrt.stderr);
         let _ = writeln!(
             o,
-            "{:<34} {:>4} {:<12} {:>9.0} {:>17} {:>9.0} {:>10.4} {:>10.4} {:>11.5} {:>7.1} {:>7.2}x",
+            "{:<34} {:>4} {:<12} {:>9.0} {:>22} {:>9.0} {:>10.4} {:>10.4} {:>11.5} {:>7.1} {:>7.2}x",
             r.config,
             r.view,
             r.setting,
             r.run.ns_per_vertex,
-            format!(
-                "{:.0}/{:.0}/{:.0}",
-                r.run.ns_per_call[0], r.run.ns_per_call[1], r.run.ns_per_call[2]
-            ),
+            match r.run.ns_per_call {
+                [0.0, s, e, p] => format!("{s:.0}/{e:.0}/{p:.0}"),
+                [t, s, e, p] => format!("{t:.0}+{s:.0}/{e:.0}/{p:.0}"),
+            },
             r.pbrt.ns_per_vertex,
             r.run.variance,
             r.pbrt.variance,
@@ -204,6 +204,6 @@ fn pool(runs: &[VertexRun]) -> VertexRun {
         mean,
         variance: ss / (n - 1.0),
         ns_per_vertex: ns,
-        ns_per_call: [per_call(0), per_call(1), per_call(2)],
+        ns_per_call: [per_call(0), per_call(1), per_call(2), per_call(3)],
     }
 }

@@ -15,6 +15,7 @@ use crate::common::{load_material, print_out};
 use rayon::ThreadPoolBuilder;
 use std::fmt::Write as _;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use strata_bsdf::estimator::params::SetTable;
 use strata_bsdf::estimator::scalar::ScalarEngine;
@@ -229,7 +230,7 @@ fn varied(stack: &LayerStack, k: u64) -> LayerStack {
 /// The wavefront measurement where every query has its own parameters
 /// ([`varied`]), on a pool of `threads`.
 fn wave_varying<'a>(
-    table: &'a SetTable,
+    table: &'a Arc<SetTable>,
     set: &'a [u32],
     stack: &LayerStack,
     pairs: &'a [([f64; 3], [f64; 3])],
@@ -267,6 +268,7 @@ fn bench_stack(
     for k in 0..pairs.len() as u64 {
         table.push(&varied(stack, k), None);
     }
+    let table = Arc::new(table);
     let set: Vec<u32> = (0..pairs.len() as u32).collect();
     let mut ms = vec![
         Measurement::new("scalar", 1, || {

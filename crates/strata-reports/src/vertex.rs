@@ -128,8 +128,9 @@ pub struct VertexRun {
     pub variance: f64,
     /// Thread-CPU nanoseconds per vertex of the library's calls.
     pub ns_per_vertex: f64,
-    /// Of which: the sample call's, the eval call's and the pdf call's.
-    pub ns_per_call: [f64; 3],
+    /// Of which: building the table of per-vertex values (textured; 0
+    /// otherwise), the sample call's, the eval call's and the pdf call's.
+    pub ns_per_call: [f64; 4],
 }
 
 impl VertexRun {
@@ -245,19 +246,18 @@ impl Batch {
 
     /// The three calls of a batch of vertices: sample, and eval and pdf of
     /// the light samples, on the BSDF's own parameters or, with a texture,
-    /// on per-vertex columns (each call taking them, as the C ABI's and
-    /// Python's per-query calls do); their CPU times are added to `ns`.
+    /// on per-vertex columns, whose table the three calls share (a
+    /// renderer looks its textures up once per vertex); their CPU times,
+    /// the table's first, are added to `ns`.
     fn run(
         &mut self,
         bsdf: &LayeredBsdf,
         texture: Option<&Texture>,
-        ns: &mut [f64; 3],
+        ns: &mut [f64; 4],
     ) -> Result<(), String> {
         let e = |e: strata_bsdf::BatchError| e.to_string();
         let n = self.keys.len();
         let columns = texture.map(Texture::columns).unwrap_or_default();
-        let per = || PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string());
-        // `$on` is evaluated at each call: the BSDF, or fresh columns.
         macro_rules! calls {
             ($on:expr) => {{
                 let t0 = thread_cpu_ns();
@@ -282,10 +282,15 @@ impl Batch {
                 [t1 - t0, t2 - t1, thread_cpu_ns() - t2]
             }};
         }
-        let dt = match texture {
-            None => calls!(bsdf),
-            Some(_) => calls!(per()?),
+        let (table, [s, f, p]) = match texture {
+            None => (0.0, calls!(bsdf)),
+            Some(_) => {
+                let t0 = thread_cpu_ns();
+                let per = PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string())?;
+                (thread_cpu_ns() - t0, calls!(per))
+            }
         };
+        let dt = [table, s, f, p];
         for (n, d) in ns.iter_mut().zip(dt) {
             *n += d;
         }
@@ -355,7 +360,7 @@ pub fn run(
     let p_l = 1.0 / sun_solid_angle();
     let mut b = Batch::new(batch, view(deg));
     let mut rng = seed ^ 0x5eed_0f7e_27e5;
-    let (mut sum, mut sum2, mut ns) = (0.0f64, 0.0f64, [0.0f64; 3]);
+    let (mut sum, mut sum2, mut ns) = (0.0f64, 0.0f64, [0.0f64; 4]);
     for _ in 0..batches {
         for k in 0..batch {
             b.keys[k] = splitmix(&mut rng);

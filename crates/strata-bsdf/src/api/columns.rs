@@ -12,6 +12,7 @@
 use super::bsdf::LayeredBsdf;
 use super::error::{BatchError, QueryError};
 use super::materials::Materials;
+use super::param_sets::{ParamSets, Per, Returns};
 use crate::stack::{LayerStack, SetError, SetPath};
 use serde_json::Value;
 use std::collections::HashMap;
@@ -290,6 +291,105 @@ pub struct PerQuery<'a> {
     /// A batch of one chunk: its materials and each query's among them,
     /// built once by the check in [`PerQuery::new`] and used by every call.
     one_chunk: Option<(Materials, Vec<u32>)>,
+    /// Every column is written into the template's stack in place and no
+    /// row changes its shape: the rows are parameter sets of the template
+    /// (see [`InPlace`]), not materials.
+    in_place: Option<InPlace>,
+}
+
+/// The rows of a [`PerQuery`] batch as parameter sets of its template: each
+/// query's values written into a copy of the template's built stack
+/// ([`LayerStack::write`], checked as a material file's fields are), its
+/// numbers put in the lanes and every choice its stack makes (walk-free
+/// form, control variate, estimator) taken, with no material built. A
+/// chunk holds one set per query.
+#[derive(Clone, Debug)]
+struct InPlace {
+    /// The BSDF of the rows' shape, where it is not the template's (a
+    /// grey extinction given per query as RGB): the template's
+    /// configuration over the first row.
+    shape: Option<Box<LayeredBsdf>>,
+    /// `0, 1, …`: query `k` of a chunk has set `k`.
+    identity: Vec<u32>,
+    /// A batch of one chunk: its sets, built by [`PerQuery::new`].
+    sets: Option<ParamSets>,
+}
+
+impl Drop for InPlace {
+    fn drop(&mut self) {
+        if let Some(sets) = self.sets.take() {
+            keep_spare(sets);
+        }
+    }
+}
+
+thread_local! {
+    /// The parameter sets of this thread's last per-query table, whose
+    /// memory the next one takes over (a renderer builds one per batch).
+    static SPARE: std::cell::RefCell<Option<ParamSets>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Empty parameter sets of `bsdf`, in the memory of the thread's spare
+/// ones if it has some.
+fn spare_sets(bsdf: &LayeredBsdf) -> ParamSets {
+    match SPARE.try_with(|s| s.borrow_mut().take()).ok().flatten() {
+        Some(sets) => bsdf.reuse_sets(sets),
+        None => bsdf.empty_sets(),
+    }
+}
+
+/// Keeps `sets` as the thread's spare ones.
+fn keep_spare(sets: ParamSets) {
+    let _ = SPARE.try_with(|s| *s.borrow_mut() = Some(sets));
+}
+
+/// Why rows cannot be written in place.
+enum Refused {
+    /// A query's values are invalid: the error a material file with them
+    /// gives.
+    Query(ColumnsError),
+    /// A row changes the stack's shape (or a check in place and the
+    /// material's own disagree at the margin): the batch runs as materials.
+    Materials,
+}
+
+/// Writes rows `range` of `columns` into a copy of `template`'s stack one
+/// by one, checking each against the stack's own checks and against
+/// `bsdf`'s shape, and adding it to `sets` (of `bsdf`) if given.
+fn write_rows(
+    template: &LayeredBsdf,
+    bsdf: &LayeredBsdf,
+    columns: &[Column],
+    range: Range<usize>,
+    mut sets: Option<&mut ParamSets>,
+) -> Result<(), Refused> {
+    let own = template.stack();
+    let mut row = own.clone();
+    let mut v = [0.0f64; 3];
+    for k in range {
+        let written = columns.iter().try_for_each(|c| {
+            let x = &c.values[k * c.width..(k + 1) * c.width];
+            for (v, &x) in v.iter_mut().zip(x) {
+                *v = f64::from(x);
+            }
+            row.write(c.path, &v[..c.width])
+        });
+        if written.and_then(|()| row.check_depths()).is_err() {
+            // The material's own check names the query, the path and the
+            // value as the caller wrote it.
+            return Err(match query_stack(own, columns, k) {
+                Err(e) => Refused::Query(e),
+                Ok(_) => Refused::Materials,
+            });
+        }
+        if !row.same_shape(bsdf.stack()) {
+            return Err(Refused::Materials);
+        }
+        if let Some(sets) = sets.as_deref_mut() {
+            bsdf.push_set(sets, &row, Returns::Own);
+        }
+    }
+    Ok(())
 }
 
 impl<'a> PerQuery<'a> {
@@ -313,7 +413,18 @@ impl<'a> PerQuery<'a> {
             columns: columns.to_vec(),
             rows: (CHUNK_LAYERS / layers).clamp(1, CHUNK_ROWS),
             one_chunk: None,
+            in_place: None,
         };
+        if columns.iter().all(|c| c.path.in_place()) {
+            match q.write_in_place() {
+                Ok(p) => {
+                    q.in_place = Some(p);
+                    return Ok(q);
+                }
+                Err(Refused::Query(e)) => return Err(e),
+                Err(Refused::Materials) => {}
+            }
+        }
         let mut rows = Rows::new(&q).map_err(|bytes| ColumnsError::OutOfMemory { bytes })?;
         // The first chunk's materials are kept when it is the whole batch
         // (a renderer's batch), so that its calls do not build them again.
@@ -328,11 +439,100 @@ impl<'a> PerQuery<'a> {
         Ok(q)
     }
 
+    /// Checks every row in place, keeping the sets of a batch of one chunk.
+    /// The rows share one shape: the template's, or the first row's.
+    fn write_in_place(&self) -> Result<InPlace, Refused> {
+        let n = self.queries;
+        let mut shape = None;
+        if n > 0 {
+            let mut first = self.template.stack().clone();
+            for c in &self.columns {
+                let v: Vec<f64> = c.values[..c.width].iter().map(|&x| x.into()).collect();
+                if first.write(c.path, &v).is_err() {
+                    // Found by the rows below, as any invalid row.
+                    break;
+                }
+            }
+            if !first.same_shape(self.template.stack()) {
+                shape = Some(Box::new(self.template.with_stack(first)));
+            }
+        }
+        let bsdf = shape.as_deref().unwrap_or(self.template);
+        let mut sets = (n <= self.rows).then(|| spare_sets(bsdf));
+        for start in (0..n).step_by(self.rows) {
+            let end = n.min(start + self.rows);
+            write_rows(
+                self.template,
+                bsdf,
+                &self.columns,
+                start..end,
+                sets.as_mut(),
+            )?;
+        }
+        Ok(InPlace {
+            identity: Materials::identity(self.rows.min(n)),
+            sets,
+            shape,
+        })
+    }
+
+    /// The BSDF that answers rows written in place.
+    pub(super) fn rows_bsdf(&self) -> &LayeredBsdf {
+        match self.in_place.as_ref().and_then(|p| p.shape.as_deref()) {
+            Some(b) => b,
+            None => self.template,
+        }
+    }
+
+    /// Runs `run` on every chunk of a batch whose rows are written in place
+    /// ([`InPlace`]), in order: the queries' sets and their range. Errors
+    /// name the query's index in the whole batch; `call` names the call in
+    /// an out-of-memory error. `None` if the rows are materials.
+    pub(super) fn in_place_chunks(
+        &self,
+        call: &'static str,
+        mut run: impl FnMut(Per, Range<usize>) -> Result<(), BatchError>,
+    ) -> Option<Result<(), BatchError>> {
+        let p = self.in_place.as_ref()?;
+        if let Some(sets) = &p.sets {
+            return Some(run(Per(Some((sets, &p.identity))), 0..self.queries));
+        }
+        let bsdf = self.rows_bsdf();
+        let mut sets = spare_sets(bsdf);
+        for start in (0..self.queries).step_by(self.rows) {
+            let end = self.queries.min(start + self.rows);
+            sets.clear();
+            if let Err(bytes) = sets.try_reserve(end - start) {
+                let error = QueryError::OutOfMemory { call, bytes };
+                return Some(Err(BatchError::call(error)));
+            }
+            let rows = start..end;
+            if write_rows(self.template, bsdf, &self.columns, rows, Some(&mut sets)).is_err() {
+                // `new` wrote every row with the same function.
+                unreachable!("rows are checked by PerQuery::new");
+            }
+            let per = Per(Some((&sets, &p.identity[..end - start])));
+            if let Err(e) = run(per, start..end) {
+                let index = e.index.map(|i| i + start);
+                keep_spare(sets);
+                return Some(Err(BatchError { index, ..e }));
+            }
+        }
+        keep_spare(sets);
+        Some(Ok(()))
+    }
+
     /// The same, with at most `rows` (at least 1) distinct rows a chunk:
     /// fewer to hold less memory, more for fewer, larger parallel batches.
     #[must_use]
     pub fn with_chunk_rows(mut self, rows: usize) -> Self {
         self.rows = rows.max(1);
+        if let Some(p) = &mut self.in_place {
+            if self.queries > self.rows {
+                p.sets = None;
+            }
+            p.identity = Materials::identity(self.rows.min(self.queries));
+        }
         if self
             .one_chunk
             .as_ref()
@@ -341,6 +541,14 @@ impl<'a> PerQuery<'a> {
             self.one_chunk = None;
         }
         self
+    }
+
+    /// Whether its rows are parameter sets of the template, written in
+    /// place (every column is a field [`SetPath::in_place`] takes, and no
+    /// row changes the stack's shape), rather than a material per distinct
+    /// row.
+    pub fn rows_in_place(&self) -> bool {
+        self.in_place.is_some()
     }
 
     /// The most distinct rows a chunk holds.

@@ -26,8 +26,9 @@ pub struct ParamSets {
     /// stack beyond its numbers (its IORs, its sidedness): theirs is the
     /// BSDF's.
     pub(super) stacks: Vec<Arc<LayerStack>>,
-    /// The sets' numbers in the wavefront's one-lane form.
-    pub(super) table: SetTable,
+    /// The sets' numbers in the wavefront's one-lane form (shared with the
+    /// calls that run them).
+    pub(super) table: Arc<SetTable>,
     /// Per set, what is known of it without walks (where the shape is a
     /// coat over a layer over a Lambertian base, and the set's integral is
     /// available: see [`LayeredBsdf::param_sets`]).
@@ -45,6 +46,33 @@ impl ParamSets {
     /// No sets.
     pub fn is_empty(&self) -> bool {
         self.coat.is_empty()
+    }
+
+    /// Empties it, keeping its memory.
+    pub(super) fn clear(&mut self) {
+        self.stacks.clear();
+        let n = self.shape.interfaces.len();
+        self.table_mut().clear(n);
+        self.coat.clear();
+        self.route.clear();
+    }
+
+    /// Reserves room for `n` more sets, or says how many bytes (about) the
+    /// allocator refused.
+    pub(super) fn try_reserve(&mut self, n: usize) -> Result<(), usize> {
+        let bytes = n.saturating_mul(std::mem::size_of::<Option<CoatLambertian>>() + 64);
+        self.coat.try_reserve(n).map_err(|_| bytes)?;
+        self.route.try_reserve(n).map_err(|_| bytes)?;
+        self.table_mut().try_reserve(n).map_err(|_| bytes)
+    }
+
+    /// The table, to change: a call that ran on it may still hold it, and
+    /// then it is replaced by an empty one rather than copied.
+    pub(super) fn table_mut(&mut self) -> &mut SetTable {
+        if Arc::get_mut(&mut self.table).is_none() {
+            self.table = Arc::new(SetTable::new(self.shape.interfaces.len()));
+        }
+        Arc::get_mut(&mut self.table).expect("unique")
     }
 
     /// Set `s`'s stack.

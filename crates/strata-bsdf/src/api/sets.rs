@@ -58,6 +58,16 @@ impl LayeredBsdf {
         Ok(sets)
     }
 
+    /// `sets` emptied and made this BSDF's, keeping their memory.
+    pub(super) fn reuse_sets(&self, mut sets: ParamSets) -> ParamSets {
+        sets.shape.clone_from(&self.shape);
+        sets.settings = self.settings;
+        sets.estimator = self.estimator;
+        sets.adjoint = self.adjoint();
+        sets.clear();
+        sets
+    }
+
     /// No parameter sets yet, for this BSDF.
     pub(super) fn empty_sets(&self) -> ParamSets {
         ParamSets {
@@ -66,7 +76,7 @@ impl LayeredBsdf {
             estimator: self.estimator,
             adjoint: self.adjoint(),
             stacks: Vec::new(),
-            table: SetTable::new(self.shape.interfaces.len()),
+            table: Arc::new(SetTable::new(self.shape.interfaces.len())),
             coat: Vec::new(),
             route: Vec::new(),
         }
@@ -89,8 +99,9 @@ impl LayeredBsdf {
             (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
         });
         let cv = coat.clone().filter(|_| self.control_variate_for(st));
-        sets.table.push(st, cv);
-        sets.table.set_adjoint_of_last(self.adjoint());
+        let table = sets.table_mut();
+        table.push(st, cv);
+        table.set_adjoint_of_last(self.adjoint());
         sets.coat.push(coat);
         sets.route.push(self.estimator.route(st));
     }

@@ -28,6 +28,7 @@ use crate::estimator::pdf::{PdfEstimate, PdfKind};
 use crate::estimator::wavefront::{with_kept, Sets, PDF_CHUNK};
 use crate::estimator::Estimate;
 use glam::Vec3;
+use std::ops::Range;
 
 /// The 3-vectors of a batch (directions), in either layout.
 #[derive(Clone, Copy, Debug)]
@@ -50,6 +51,14 @@ impl<'a> Vectors<'a> {
         match self {
             Vectors::Aos(v) => v.len(),
             Vectors::Soa(c) => c[0].len(),
+        }
+    }
+
+    /// Vectors `r` of a checked batch.
+    fn range(&self, r: Range<usize>) -> Vectors<'a> {
+        match self {
+            Vectors::Aos(v) => Vectors::Aos(&v[r]),
+            Vectors::Soa(c) => Vectors::Soa(c.clone().map(|s| &s[r.clone()])),
         }
     }
 
@@ -327,7 +336,7 @@ impl LayeredBsdf {
         if let Some(s) = &stderr {
             s.check("stderr", n)?;
         }
-        self.evals(&wi, &wo, keys, |k, e| {
+        self.evals(Per::OWN, &wi, &wo, keys, |k, e| {
             f.set(k, f32x3(e.value));
             if let Some(s) = &mut stderr {
                 s.set(k, f32x3(e.stderr));
@@ -345,7 +354,7 @@ impl LayeredBsdf {
     ) -> Result<u64, BatchError> {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("out", out.len(), n)?;
-        self.evals(&wi, &wo, keys, |k, e| {
+        self.evals(Per::OWN, &wi, &wo, keys, |k, e| {
             out[k] = EvalRecord {
                 f: f32x3(e.value),
                 stderr: f32x3(e.stderr),
@@ -369,7 +378,7 @@ impl LayeredBsdf {
         weight.check("weight", n)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("flags", flags.len(), n)?;
-        self.samples_of(&wi, keys, |k, s| {
+        self.samples_of(Per::OWN, &wi, keys, 0, |k, s| {
             let r = SampleRecord::of(s);
             wo.set(k, r.wo);
             weight.set(k, r.weight);
@@ -387,7 +396,7 @@ impl LayeredBsdf {
     ) -> Result<(), BatchError> {
         let n = wi.count("wi")?;
         one_each("out", out.len(), n)?;
-        self.samples_of(&wi, keys, |k, s| out[k] = SampleRecord::of(s))
+        self.samples_of(Per::OWN, &wi, keys, 0, |k, s| out[k] = SampleRecord::of(s))
     }
 
     /// The approximate pdf of every pair, written to `pdf` (keyed by the
@@ -396,18 +405,30 @@ impl LayeredBsdf {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         check_pairs(&wi, &wo)?;
+        self.pdfs(Per::OWN, &wi, &wo, pdf);
+        Ok(())
+    }
+
+    /// The approximate pdf of every checked pair, written to `pdf`.
+    fn pdfs(&self, per: Per, wi: &Vectors, wo: &Vectors, pdf: &mut [f32]) {
+        let n = pdf.len();
+        if !per.is_own() {
+            let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
+            pdf.copy_from_slice(&self.pdf_validated(per, &pairs));
+            return;
+        }
         if self.pdf_by_query(n) {
             for (k, p) in pdf.iter_mut().enumerate() {
-                let (a, b) = pair_at(&wi, &wo, k);
+                let (a, b) = pair_at(wi, wo, k);
                 *p = self.pdf_one(Per::OWN, k, a, b);
             }
-            return Ok(());
+            return;
         }
         if self.serial() || n <= PDF_CHUNK {
             // On this thread, from the buffers it keeps: allocates nothing
             // once warm (the numbers of `pdf_validated`, lane for lane).
             let keyed = |k: usize| {
-                let (a, b) = pair_at(&wi, &wo, k);
+                let (a, b) = pair_at(wi, wo, k);
                 ((a, b), pdf_key(a, b))
             };
             let (walks, kind) = (self.pdf_walks, PdfKind::Approximate);
@@ -415,11 +436,10 @@ impl LayeredBsdf {
             let own = Sets::Own;
             self.wave
                 .pdf_each(own, n, keyed, walks, self.seed, kind, put);
-            return Ok(());
+            return;
         }
-        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
+        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
         pdf.copy_from_slice(&self.pdf_validated(Per::OWN, &pairs));
-        Ok(())
     }
 
     /// The unbiased pdf of every pair from `samples` density walks each,
@@ -439,9 +459,23 @@ impl LayeredBsdf {
         one_each("stderr", stderr.len(), n)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
         check_pairs(&wi, &wo)?;
-        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(&wi, &wo, k)).collect();
-        let est = self.pdf_unbiased_validated(Per::OWN, &pairs, samples);
-        Ok(put_pdfs(&est, pdf, stderr))
+        Ok(self.pdfs_unbiased(Per::OWN, &wi, &wo, samples, pdf, stderr))
+    }
+
+    /// The unbiased pdfs of checked pairs into `pdf` and `stderr`; the
+    /// walks the limit ended.
+    fn pdfs_unbiased(
+        &self,
+        per: Per,
+        wi: &Vectors,
+        wo: &Vectors,
+        samples: u64,
+        pdf: &mut [f32],
+        stderr: &mut [f32],
+    ) -> u64 {
+        let pairs: Vec<Pair> = (0..pdf.len()).map(|k| pair_at(wi, wo, k)).collect();
+        let est = self.pdf_unbiased_validated(per, &pairs, samples);
+        put_pdfs(&est, pdf, stderr)
     }
 
     /// The directional albedo of every incident direction, `n` walks each,
@@ -462,16 +496,29 @@ impl LayeredBsdf {
         if let Some(k) = keys {
             one_each("keys", k.len(), m)?;
         }
+        Ok(self.albedos(Per::OWN, &wi, n, keys, out))
+    }
+
+    /// The albedos of checked directions into `out`; the walks the limit
+    /// ended.
+    fn albedos(
+        &self,
+        per: Per,
+        wi: &Vectors,
+        n: u64,
+        keys: Option<&[u64]>,
+        out: &mut [AlbedoRecord],
+    ) -> u64 {
         let query = |k: usize| {
             let key = keys.map_or_else(|| direction_key(wi.get(k), wi.get(k)), |x| x[k]);
-            (dir_at(&wi, k), key)
+            (dir_at(wi, k), key)
         };
         let mut cut = 0;
-        self.albedo_each(Per::OWN, m, n, query, |k, a| {
+        self.albedo_each(per, out.len(), n, query, |k, a| {
             cut += a.reflected.truncated;
             out[k] = AlbedoRecord::of(&a);
         });
-        Ok(cut)
+        cut
     }
 
     /// The number of `(wi, wo)` queries, checking that the two agree.
@@ -487,6 +534,7 @@ impl LayeredBsdf {
     /// wavefront batches on a warm thread; parallel ones allocate in rayon.
     fn evals(
         &self,
+        per: Per,
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
@@ -512,7 +560,7 @@ impl LayeredBsdf {
             let queries = &queries[..];
             let mut cut = 0;
             self.eval_each(
-                Per::OWN,
+                per,
                 n,
                 self.samples,
                 |k| queries[k],
@@ -531,8 +579,10 @@ impl LayeredBsdf {
     /// nor serially on a warm thread.
     fn samples_of(
         &self,
+        per: Per,
         wi: &Vectors,
         keys: Option<&[u64]>,
+        first: usize,
         mut out: impl FnMut(usize, Option<&Sample>),
     ) -> Result<(), BatchError> {
         let n = wi.len();
@@ -544,13 +594,13 @@ impl LayeredBsdf {
         }
         let stream = |k: usize| match keys {
             Some(x) => (x[k], 0),
-            None => (direction_key(wi.get(k), wi.get(k)), k as u64),
+            None => (direction_key(wi.get(k), wi.get(k)), (first + k) as u64),
         };
         let query = |k: usize| {
             let (key, index) = stream(k);
             (dir_at(wi, k), key, index)
         };
-        self.sample_each(Per::OWN, n, query, |k, s| out(k, s.as_ref()));
+        self.sample_each(per, n, query, |k, s| out(k, s.as_ref()));
         Ok(())
     }
 }
@@ -720,7 +770,22 @@ impl PerQuery<'_> {
             s.check("stderr", n)?;
         }
         check_walks("samples", self.template.samples).map_err(BatchError::call)?;
-        let (mut pairs, mut cut) = (self.buffer("eval")?, 0);
+        let mut cut = 0;
+        let in_place = self.in_place_chunks("eval", |per, r| {
+            let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
+            let keys = keys.map(|x| &x[r.clone()]);
+            cut += self.rows_bsdf().evals(per, &a, &b, keys, |k, e| {
+                f.set(r.start + k, f32x3(e.value));
+                if let Some(s) = &mut stderr {
+                    s.set(r.start + k, f32x3(e.stderr));
+                }
+            })?;
+            Ok(())
+        });
+        if let Some(done) = in_place {
+            return done.map(|()| cut);
+        }
+        let mut pairs = self.buffer("eval")?;
         self.chunks("eval", |m, ids, r| {
             pairs.clear();
             pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
@@ -774,6 +839,14 @@ impl PerQuery<'_> {
     pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
         let n = self.pairs_checked(&wi, &wo, None)?;
         one_each("pdf", pdf.len(), n)?;
+        let in_place = self.in_place_chunks("pdf", |per, r| {
+            let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
+            self.rows_bsdf().pdfs(per, &a, &b, &mut pdf[r]);
+            Ok(())
+        });
+        if let Some(done) = in_place {
+            return done;
+        }
         let mut pairs = self.buffer("pdf")?;
         self.chunks("pdf", |m, ids, r| {
             pairs.clear();
@@ -796,7 +869,17 @@ impl PerQuery<'_> {
         one_each("pdf", pdf.len(), n)?;
         one_each("stderr", stderr.len(), n)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
-        let (mut pairs, mut cut) = (self.buffer("pdf_unbiased")?, 0);
+        let mut cut = 0;
+        let in_place = self.in_place_chunks("pdf_unbiased", |per, r| {
+            let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
+            let (p, e) = (&mut pdf[r.clone()], &mut stderr[r]);
+            cut += self.rows_bsdf().pdfs_unbiased(per, &a, &b, samples, p, e);
+            Ok(())
+        });
+        if let Some(done) = in_place {
+            return done.map(|()| cut);
+        }
+        let mut pairs = self.buffer("pdf_unbiased")?;
         self.chunks("pdf_unbiased", |m, ids, r| {
             pairs.clear();
             pairs.extend(r.clone().map(|k| (wi.get(k), wo.get(k))));
@@ -818,8 +901,17 @@ impl PerQuery<'_> {
         let m = self.directions_checked(&wi, keys)?;
         one_each("out", out.len(), m)?;
         check_walks("n", n).map_err(BatchError::call)?;
-        let (mut wis, mut own) = (self.buffer("albedo")?, self.buffer("albedo")?);
         let mut cut = 0;
+        let in_place = self.in_place_chunks("albedo", |per, r| {
+            let keys = keys.map(|x| &x[r.clone()]);
+            let a = wi.range(r.clone());
+            cut += self.rows_bsdf().albedos(per, &a, n, keys, &mut out[r]);
+            Ok(())
+        });
+        if let Some(done) = in_place {
+            return done.map(|()| cut);
+        }
+        let (mut wis, mut own) = (self.buffer("albedo")?, self.buffer("albedo")?);
         self.chunks("albedo", |mats, ids, r| {
             wis.clear();
             wis.extend(r.clone().map(|k| wi.get(k)));
@@ -847,6 +939,15 @@ impl PerQuery<'_> {
         keys: Option<&[u64]>,
         mut out: impl FnMut(usize, Option<&Sample>),
     ) -> Result<(), BatchError> {
+        let in_place = self.in_place_chunks("sample", |per, r| {
+            let keys = keys.map(|x| &x[r.clone()]);
+            let a = wi.range(r.clone());
+            let start = r.start;
+            (self.rows_bsdf()).samples_of(per, &a, keys, start, |k, s| out(start + k, s))
+        });
+        if let Some(done) = in_place {
+            return done;
+        }
         let (mut wis, mut index) = (self.buffer("sample")?, self.buffer("sample")?);
         self.chunks("sample", |m, ids, r| {
             wis.clear();

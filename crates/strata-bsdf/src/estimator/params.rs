@@ -139,6 +139,18 @@ impl SetTable {
         self.phase_rows.clear();
     }
 
+    /// Reserves room for `sets` more sets.
+    pub fn try_reserve(&mut self, sets: usize) -> Result<(), std::collections::TryReserveError> {
+        let (n, m) = (self.n * sets, self.n.saturating_sub(1) * sets);
+        self.ifaces.try_reserve(n)?;
+        self.iface_rows.try_reserve(n)?;
+        self.media.try_reserve(m)?;
+        self.medium_rows.try_reserve(m)?;
+        self.phase_rows.try_reserve(m)?;
+        self.cv.try_reserve(sets)?;
+        self.body.try_reserve(sets)
+    }
+
     /// Makes it a copy of `other`, reusing its memory.
     pub fn copy_from(&mut self, other: &SetTable) {
         self.n = other.n;

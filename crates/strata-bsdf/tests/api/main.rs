@@ -17,4 +17,5 @@ mod param_sets;
 mod per_query_chunks;
 mod proptest_api;
 mod readme_example;
+mod rows_in_place;
 mod threads;

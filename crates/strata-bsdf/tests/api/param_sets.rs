@@ -135,6 +135,7 @@ fn a_set_walks_as_its_own_stack_walk_by_walk() {
                 .flatten();
             table.push(st, cv);
         }
+        let table = std::sync::Arc::new(table);
         let (pairs, set) = queries(17);
         let dirs = unit_dirs(&pairs);
         let keys: Vec<u64> = (0..dirs.len() as u64).collect();

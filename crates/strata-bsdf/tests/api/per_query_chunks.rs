@@ -1,6 +1,7 @@
 //! Per-query columns run a chunk at a time ([`PerQuery`]) answer what the
-//! unchunked path ([`Materials::per_query`] and [`Materials`]' slice calls)
-//! answers, bit for bit: eval, sample, pdf, unbiased pdf and albedo, keyed
+//! unchunked path answers (one table of the rows written in place, or, for
+//! columns that are not, [`Materials::per_query`] and [`Materials`]' slice
+//! calls), bit for bit: eval, sample, pdf, unbiased pdf and albedo, keyed
 //! and unkeyed, on both engines (and `Auto`), over batches that span
 //! several chunks (the default chunk of 4096 distinct rows, and chunks of
 //! 7 rows with repeated rows inside and across them).
@@ -117,32 +118,42 @@ fn chunked_per_query_calls_answer_the_unchunked_numbers() {
     let n = 2 * CHUNK_ROWS + 1500;
     let thickness: Vec<f32> = (0..n).map(|k| 0.05 + k as f32 * 1e-4).collect();
     let roughness: Vec<f32> = (0..n).map(|k| 0.05 + (k % 5) as f32 * 0.05).collect();
+    // An IOR is not written in place: its rows are materials.
+    let ior: Vec<f32> = (0..n).map(|k| 1.4 + (k % 9) as f32 * 0.02).collect();
     let t_path = "layers[0].medium.thickness".parse().unwrap();
     let r_path = "layers[0].interface.roughness".parse().unwrap();
+    let i_path = "layers[0].interface.ior".parse().unwrap();
     let (wi, wo, keys) = directions(n);
+    let col = |path, values| {
+        [Column {
+            path,
+            width: 1,
+            values,
+        }]
+    };
     for engine in [Engine::Scalar, Engine::Wavefront, Engine::Auto] {
         let template = LayeredBsdf::new(stack.clone())
             .engine(engine)
             .samples(1)
             .seed(3);
-        let distinct = [Column {
-            path: &t_path,
-            width: 1,
-            values: &thickness,
-        }];
-        let repeated = [Column {
-            path: &r_path,
-            width: 1,
-            values: &roughness,
-        }];
+        let (distinct, repeated) = (col(&t_path, &thickness), col(&r_path, &roughness));
+        let materials = col(&i_path, &ior);
         for (columns, rows) in [
             (&distinct, None),
             (&repeated, Some(7)),
             (&distinct, Some(7)),
+            (&materials, None),
+            (&materials, Some(7)),
         ] {
-            let m = Materials::per_query(&template, n, columns).unwrap();
-            let ids = Materials::identity(n);
-            let whole = answers!(m, n, &wi, &wo, &keys, &ids);
+            // The whole batch in one chunk: rows in place as one table, or
+            // the materials of `Materials::per_query`.
+            let whole = if columns[0].path.in_place() {
+                let q = PerQuery::new(&template, n, columns).unwrap();
+                answers!(q.with_chunk_rows(n), n, &wi, &wo, &keys)
+            } else {
+                let m = Materials::per_query(&template, n, columns).unwrap();
+                answers!(m, n, &wi, &wo, &keys, &Materials::identity(n))
+            };
             let mut q = PerQuery::new(&template, n, columns).unwrap();
             assert_eq!(q.chunk_rows(), CHUNK_ROWS, "two layers: the default chunk");
             if let Some(r) = rows {

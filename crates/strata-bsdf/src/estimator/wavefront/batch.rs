@@ -2,7 +2,7 @@
 //! into tasks of whole blocks over threads, reduced per query in the
 //! canonical block order.
 
-use super::buffers::{with_kept, with_wave, CALLS, TASKS};
+use super::buffers::{with_calls, with_kept, with_wave, TASKS};
 use super::engine::{zero_sum, Mode, Pair, Queries, Sets, Stats, Unit, WalkOut, Wavefront};
 use super::stages::PdfScratch;
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
@@ -257,7 +257,7 @@ impl<W: Wide> Wavefront<W> {
         serial: bool,
         mut out: impl FnMut(usize, Estimate),
     ) -> Stats {
-        with_kept(&CALLS, |c| {
+        with_calls(|c| {
             self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)
@@ -295,7 +295,7 @@ impl<W: Wide> Wavefront<W> {
             false => (&self.table[e_in], self.cv.as_ref()),
             true => {
                 let s = queries.set[q] as usize;
-                (queries.table.iface(s, e_in), queries.table.cv(s))
+                (queries.table().iface(s, e_in), queries.table().cv(s))
             }
         };
         let cv = exact.filter(|_| cv);
@@ -406,7 +406,7 @@ impl<W: Wide> Wavefront<W> {
         serial: bool,
         mut out: impl FnMut(usize, Albedo),
     ) -> Stats {
-        with_kept(&CALLS, |c| {
+        with_calls(|c| {
             self.prepare_into(&mut c.queries, Mode::Sample, seed, sets, m, |k| {
                 let (wi, key) = query(k);
                 (wi, None, key)
@@ -463,7 +463,7 @@ impl<W: Wide> Wavefront<W> {
         serial: bool,
         mut out: impl FnMut(usize, Option<WalkSample>),
     ) -> Stats {
-        with_kept(&CALLS, |c| {
+        with_calls(|c| {
             c.index.clear();
             let index = &mut c.index;
             self.prepare_into(&mut c.queries, Mode::Sample, seed, sets, m, |k| {
@@ -527,7 +527,7 @@ impl<W: Wide> Wavefront<W> {
         out: impl FnMut(usize, PdfEstimate),
     ) {
         let walks = walks.into();
-        with_kept(&CALLS, |c| {
+        with_calls(|c| {
             self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)

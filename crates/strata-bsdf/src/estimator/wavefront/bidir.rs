@@ -9,7 +9,7 @@
 //! reduced in sample order and merged in block order: the scalar engine's
 //! reduction, whatever the threads.
 
-use super::buffers::{with_kept, CALLS};
+use super::buffers::with_calls;
 use super::engine::{zero_sum, Mode, Pair, Queries, Sets, Unit, Wavefront};
 use crate::estimator::accumulate::{BlockReducer, MeanVar, BLOCK};
 use crate::estimator::bidir::{with_kept_by_type, BidirWalk, Buffers, Tracing, Vertex};
@@ -246,7 +246,7 @@ impl<W: Wide> Wavefront<W> {
         serial: bool,
         mut out: impl FnMut(usize, Estimate),
     ) {
-        with_kept(&CALLS, |c| {
+        with_calls(|c| {
             self.prepare_into(&mut c.queries, Mode::Eval, seed, sets, m, |k| {
                 let ((wi, wo), key) = query(k);
                 (wi, Some(wo), key)

@@ -56,6 +56,17 @@ pub(crate) fn with_kept<T: Default + 'static, R>(
     r
 }
 
+/// Runs `f` on this thread's call buffers ([`with_kept`] of [`CALLS`]),
+/// letting go of the call's parameter sets when it ends so that their
+/// owner can reuse their memory.
+pub(super) fn with_calls<R>(f: impl FnOnce(&mut CallBuffers) -> R) -> R {
+    with_kept(&CALLS, |c| {
+        let r = f(c);
+        c.queries.release();
+        r
+    })
+}
+
 /// Runs `f` on a wave of `slots` slots, reusing one this thread kept: the
 /// smallest that holds `slots` without growing, else the largest (which
 /// grows), so that a warm thread serves any batch up to its largest so far

@@ -13,6 +13,7 @@ use crate::interface::InterfaceLanes;
 use crate::lane::{DefaultWide, LaneMask, Wide, V3};
 use crate::stack::LayerStack;
 use std::borrow::Cow;
+use std::sync::Arc;
 
 /// Walk slots per wave, per lane of width.
 const SLOTS_PER_LANE: usize = 64;
@@ -96,8 +97,10 @@ pub(crate) struct Queries {
     pub link0: Vec<[f32; 16]>,
     /// The queries have parameter sets of their own (else the engine's).
     pub varying: bool,
-    /// Where `varying`: the call's parameter sets...
-    pub table: SetTable,
+    /// Where `varying`: the call's parameter sets (held for the call,
+    /// released by [`Queries::release`] so that their owner can reuse
+    /// them)...
+    pub table: Option<Arc<SetTable>>,
     /// ...and each query's.
     pub set: Vec<u32>,
 }
@@ -137,6 +140,19 @@ impl Queries {
         refill(&mut self.link0, m, [0.0; 16]);
         refill(&mut self.set, m, 0);
         self.varying = false;
+        self.table = None;
+    }
+
+    /// The call's parameter sets (`varying` calls only).
+    pub(crate) fn table(&self) -> &SetTable {
+        self.table
+            .as_deref()
+            .expect("a varying call holds its sets")
+    }
+
+    /// Lets go of the call's parameter sets.
+    pub(crate) fn release(&mut self) {
+        self.table = None;
     }
 
     /// The sets of the lanes whose queries are `lq` (`None`: every query
@@ -148,8 +164,8 @@ impl Queries {
         lanes: usize,
         lq: impl Fn(usize) -> u32,
     ) -> Option<LaneSets<'_>> {
-        self.varying
-            .then(|| LaneSets::new(&self.table, lanes, |j| self.set[lq(j) as usize]))
+        let table = self.table.as_deref().filter(|_| self.varying)?;
+        Some(LaneSets::new(table, lanes, |j| self.set[lq(j) as usize]))
     }
 }
 
@@ -163,7 +179,7 @@ pub enum Sets<'a> {
     #[default]
     Own,
     /// Query `k` has set `set[k]` of the table (of the engine's shape).
-    Table(&'a SetTable, &'a [u32]),
+    Table(&'a Arc<SetTable>, &'a [u32]),
 }
 
 /// A validated `(wi, wo)` pair.
@@ -407,7 +423,7 @@ impl<W: Wide> Wavefront<W> {
         if let Sets::Table(table, set) = sets {
             assert_eq!(set.len(), m, "one set per query");
             q.varying = true;
-            q.table.copy_from(table);
+            q.table = Some(Arc::clone(table));
             q.set.copy_from_slice(set);
         }
         for k in 0..m {
@@ -434,7 +450,7 @@ impl<W: Wide> Wavefront<W> {
                     q.fixed[k] = true;
                     q.link0[k] = match q.varying {
                         false => self.fixed_link(e, b),
-                        true => fixed_link_of(&q.table, q.set[k] as usize, e, b),
+                        true => fixed_link_of(q.table(), q.set[k] as usize, e, b),
                     };
                 }
             }

@@ -1,0 +1,203 @@
+//! Per-query columns written into the template's stack in place answer
+//! what a material file with the row's values answers, bit for bit, where
+//! the values are the file's numbers exactly (multiples of 1/64: a float
+//! enters as itself, a file's decimal as its nearest double). On a rough
+//! and a smooth coat over an absorber over a Lambertian base (answered
+//! without walks, with the row's own `R̄`), a coat over copper and a
+//! varnish over a scattering layer (walked; the control variate decided
+//! per row), on both engines: eval, sample (with its pdf) and pdf, keyed.
+//! A row that changes the stack's shape runs as a material and answers the
+//! same; an invalid row is the error its material file gives.
+
+use crate::common::{COATED_COPPER, VARNISH_OVER_SCATTERING};
+use serde_json::Value;
+use strata_bsdf::stack::SetPath;
+use strata_bsdf::{
+    Column, Engine, LayerStack, LayeredBsdf, PerQuery, SampleRecord, Vectors, VectorsMut,
+};
+
+const ROUGH_COAT_ABSORBER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.25 }
+medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.75 }
+"#;
+
+const SMOOTH_COAT_ABSORBER: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5 }
+medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 2.0], albedo = 0.0 }
+[[layers]]
+interface = { kind = "diffuse", albedo = 0.75 }
+"#;
+
+/// The columns of a stack: `(path, width, value of query k)`.
+type Columns = Vec<(&'static str, usize, fn(usize, usize) -> f32)>;
+
+fn sixty_fourths(k: usize, c: usize, lo: usize) -> f32 {
+    (lo + (7 * k + 3 * c) % 16) as f32 / 64.0
+}
+
+fn columns_of(toml: &str) -> Columns {
+    let mut c: Columns = vec![("layers[0].medium.thickness", 1, |k, c| {
+        sixty_fourths(k, c, 8)
+    })];
+    // A grey extinction stays grey (a chromatic one would be another
+    // shape).
+    match toml.contains("sigma_t = [") {
+        true => c.push(("layers[0].medium.sigma_t", 3, |k, c| {
+            sixty_fourths(k, c, 16)
+        })),
+        false => c.push(("layers[0].medium.sigma_t", 1, |k, _| {
+            sixty_fourths(k, 0, 16)
+        })),
+    }
+    if toml.contains("roughness") {
+        c.push(("layers[0].interface.roughness", 1, |k, c| {
+            sixty_fourths(k, c, 4)
+        }));
+    }
+    if toml.contains("diffuse") {
+        c.push(("layers[1].interface.albedo", 3, |k, c| {
+            sixty_fourths(k, c, 40)
+        }));
+    }
+    c
+}
+
+#[test]
+fn rows_in_place_answer_their_material_files() {
+    let n = 24;
+    let wi: Vec<[f32; 3]> = (0..n)
+        .map(|k| {
+            let t = k as f32 * 0.7;
+            let z = 0.2 + 0.75 * (t * 1.3).sin().abs();
+            let r = (1.0 - z * z).sqrt();
+            [r * t.cos(), r * t.sin(), z]
+        })
+        .collect();
+    let wo: Vec<[f32; 3]> = (0..n).map(|k| wi[(k + 5) % n]).collect();
+    let keys: Vec<u64> = (0..n as u64).map(|k| 77 + k).collect();
+    for toml in [
+        ROUGH_COAT_ABSORBER,
+        SMOOTH_COAT_ABSORBER,
+        COATED_COPPER,
+        VARNISH_OVER_SCATTERING,
+    ] {
+        let columns = columns_of(toml);
+        let paths: Vec<SetPath> = columns.iter().map(|c| c.0.parse().unwrap()).collect();
+        let values: Vec<Vec<f32>> = (columns.iter())
+            .map(|&(_, w, f)| (0..n * w).map(|i| f(i / w, i % w)).collect())
+            .collect();
+        let cols: Vec<Column> = (paths.iter().zip(&columns).zip(&values))
+            .map(|((path, c), values)| Column {
+                path,
+                width: c.1,
+                values,
+            })
+            .collect();
+        assert!(cols.iter().all(|c| c.path.in_place()));
+        let stack = LayerStack::from_toml_str(toml).unwrap();
+        for engine in [Engine::Scalar, Engine::Wavefront] {
+            let make = |s: LayerStack| LayeredBsdf::new(s).engine(engine).samples(4).seed(5);
+            let template = make(stack.clone());
+            let q = PerQuery::new(&template, n, &cols).unwrap();
+            assert!(q.rows_in_place(), "{toml}");
+            let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+            let mut f = vec![[0f32; 3]; n];
+            q.eval_into(a, b, Some(&keys), VectorsMut::Aos(&mut f), None)
+                .unwrap();
+            let mut s = vec![SampleRecord::default(); n];
+            q.sample_records(a, Some(&keys), &mut s).unwrap();
+            let mut p = vec![0f32; n];
+            q.pdf_into(a, b, &mut p).unwrap();
+            for k in 0..n {
+                let set: Vec<(SetPath, Value)> = (paths.iter().zip(&values))
+                    .zip(&columns)
+                    .map(|((path, v), c)| {
+                        let row: Vec<f64> = v[k * c.1..(k + 1) * c.1]
+                            .iter()
+                            .map(|&x| f64::from(x))
+                            .collect();
+                        let value = match row[..] {
+                            [x] => Value::from(x),
+                            _ => Value::from(row),
+                        };
+                        (path.clone(), value)
+                    })
+                    .collect();
+                let own = make(stack.with_set(&set).unwrap());
+                fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
+                    Vectors::Aos(&v[k..k + 1])
+                }
+                let mut want = [[0f32; 3]];
+                own.eval_into(
+                    one(&wi, k),
+                    one(&wo, k),
+                    Some(&keys[k..k + 1]),
+                    VectorsMut::Aos(&mut want),
+                    None,
+                )
+                .unwrap();
+                let what = format!("{engine:?} query {k} of\n{toml}");
+                assert_eq!(
+                    f[k].map(f32::to_bits),
+                    want[0].map(f32::to_bits),
+                    "eval, {what}"
+                );
+                let mut ws = [SampleRecord::default()];
+                own.sample_records(one(&wi, k), Some(&keys[k..k + 1]), &mut ws)
+                    .unwrap();
+                assert_eq!(s[k], ws[0], "sample, {what}");
+                let mut wp = [0f32];
+                own.pdf_into(one(&wi, k), one(&wo, k), &mut wp).unwrap();
+                assert_eq!(p[k].to_bits(), wp[0].to_bits(), "pdf, {what}");
+            }
+        }
+    }
+}
+
+/// A row whose values change the stack's shape (a roughness of 0 makes the
+/// coat smooth) runs as a material and answers what its file answers; an
+/// invalid row is the error its file gives, naming the query.
+#[test]
+fn rows_that_leave_the_shape_or_are_invalid() {
+    let stack = LayerStack::from_toml_str(ROUGH_COAT_ABSORBER).unwrap();
+    let template = LayeredBsdf::new(stack.clone()).samples(4).seed(5);
+    let path: SetPath = "layers[0].interface.roughness".parse().unwrap();
+    let rough = [0.25f32, 0.0, 0.5];
+    let cols = [Column {
+        path: &path,
+        width: 1,
+        values: &rough,
+    }];
+    let q = PerQuery::new(&template, 3, &cols).unwrap();
+    assert!(!q.rows_in_place());
+    let wi = [[0.0f32, 0.6, 0.8]; 3];
+    let mut f = [[0f32; 3]; 3];
+    let dirs = Vectors::Aos(&wi);
+    q.eval_into(dirs, dirs, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+        .unwrap();
+    let smooth = LayerStack::from_toml_str(&ROUGH_COAT_ABSORBER.replace("0.25", "0.0")).unwrap();
+    let own = LayeredBsdf::new(smooth).samples(4).seed(5);
+    let mut want = [[0f32; 3]];
+    let one = Vectors::Aos(&wi[..1]);
+    own.eval_into(one, one, Some(&[2]), VectorsMut::Aos(&mut want), None)
+        .unwrap();
+    assert_eq!(f[1], want[0]);
+    assert_ne!(f[0], f[1], "the smooth row is not the rough one");
+
+    let t: SetPath = "layers[0].medium.thickness".parse().unwrap();
+    for (bad, says) in [(-0.5f32, "must be >= 0"), (f32::NAN, "not a finite number")] {
+        let v = [0.5f32, 0.25, bad, 0.5];
+        let cols = [Column {
+            path: &t,
+            width: 1,
+            values: &v,
+        }];
+        let e = PerQuery::new(&template, 4, &cols).unwrap_err().to_string();
+        assert!(e.starts_with("query 2: ") && e.contains(says), "{e}");
+        assert!(e.contains("medium.thickness"), "{e}");
+    }
+}
