@@ -20,9 +20,12 @@ use std::fmt;
 use std::ops::Range;
 
 /// One parameter's values, `width` floats per query (1 for a number, 3 for
-/// an RGB triple or a normal), query after query. A value sets the number
-/// of its shortest correctly rounded decimal: `0.1f32` is a material file's
-/// 0.1 (the first of C's `%.1g` … `%.9g` that reads back as the float).
+/// an RGB triple or a normal), query after query. Where [`PerQuery`] writes
+/// its rows in place ([`PerQuery::rows_in_place`]) a value enters as the
+/// float it is (`0.1f32` is a material file's 0.100000001490116); where its
+/// rows are materials, and in [`Materials::per_query`], it sets the number
+/// of its shortest correctly rounded decimal (`0.1f32` is a file's 0.1: the
+/// first of C's `%.1g` … `%.9g` that reads back as the float).
 #[derive(Clone, Copy, Debug)]
 pub struct Column<'a> {
     /// The parameter, e.g. `layers[0].medium.thickness`.
@@ -239,6 +242,19 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// Per-query columns answered a chunk at a time, with memory bounded by
 /// the chunk, not by the batch's rows.
 ///
+/// Where every column is a field a built stack takes in place
+/// ([`SetPath::in_place`]: thicknesses, extinctions, albedos, roughnesses,
+/// a conductor's `eta` and `k`) and the rows share one shape, the rows are
+/// a table of the template's numbers: each row is written into a copy of
+/// the template's stack and checked as a material file's fields are, its
+/// numbers go to the lanes, and what its stack decides (a walk-free form and
+/// its constants, the control variate, the estimator) is decided once, with
+/// no material built; a query answers bit for bit what a material file with
+/// its floats answers (`tests/api/rows_in_place.rs`). Build it once for the
+/// calls of a batch of vertices (sample, then eval and pdf of the light
+/// samples): it holds the table of a batch of one chunk. Other columns make
+/// a material per distinct row, as described below.
+///
 /// [`Materials::per_query`] holds one material per distinct row; a
 /// renderer's textures can make every row of a million-query batch
 /// distinct, and a material is a few KB on a two-layer stack, 1.7 MB on a
@@ -347,7 +363,7 @@ fn keep_spare(sets: ParamSets) {
 enum Refused {
     /// A query's values are invalid: the error a material file with them
     /// gives.
-    Query(ColumnsError),
+    Query(Box<ColumnsError>),
     /// A row changes the stack's shape (or a check in place and the
     /// material's own disagree at the margin): the batch runs as materials.
     Materials,
@@ -378,7 +394,7 @@ fn write_rows(
             // The material's own check names the query, the path and the
             // value as the caller wrote it.
             return Err(match query_stack(own, columns, k) {
-                Err(e) => Refused::Query(e),
+                Err(e) => Refused::Query(Box::new(e)),
                 Ok(_) => Refused::Materials,
             });
         }
@@ -421,7 +437,7 @@ impl<'a> PerQuery<'a> {
                     q.in_place = Some(p);
                     return Ok(q);
                 }
-                Err(Refused::Query(e)) => return Err(e),
+                Err(Refused::Query(e)) => return Err(*e),
                 Err(Refused::Materials) => {}
             }
         }

@@ -58,7 +58,7 @@ impl<'a> Vectors<'a> {
     fn range(&self, r: Range<usize>) -> Vectors<'a> {
         match self {
             Vectors::Aos(v) => Vectors::Aos(&v[r]),
-            Vectors::Soa(c) => Vectors::Soa(c.clone().map(|s| &s[r.clone()])),
+            Vectors::Soa(c) => Vectors::Soa(c.map(|s| &s[r.clone()])),
         }
     }
 

@@ -19,9 +19,16 @@ fn material(thickness: f32, sigma_t: [f32; 3], eta: [f32; 3], roughness: f32) ->
     material_text(thickness, &v(sigma_t), eta, roughness)
 }
 
-/// A value as TOML, the number a column's `x` sets: the first of its
-/// correctly rounded decimals of 1 to 9 digits that reads back as `x`.
+/// A value as TOML, the number a column's `x` sets where its rows are
+/// written in place: the float itself (its shortest decimal as a double).
 fn n(x: f32) -> String {
+    format!("{:e}", f64::from(x))
+}
+
+/// A value as TOML, the number a column's `x` sets where its rows are
+/// materials (an IOR): the first of its correctly rounded decimals of 1 to 9
+/// digits that reads back as `x`.
+fn d(x: f32) -> String {
     (1..=9)
         .map(|p| format!("{:.*e}", p - 1, f64::from(x)))
         .find(|s| s.parse::<f32>() == Ok(x))
@@ -319,7 +326,7 @@ fn the_bsdfs_transport_mode_holds_for_every_query() {
     let glass = |ior: f32| {
         format!(
             "[[layers]]\ninterface = {{ kind = \"dielectric\", ior = {}, roughness = 0.3 }}\n",
-            n(ior)
+            d(ior)
         )
     };
     let importance = |text: &str| {
