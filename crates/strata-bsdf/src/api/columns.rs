@@ -327,36 +327,91 @@ struct InPlace {
     shape: Option<Box<LayeredBsdf>>,
     /// `0, 1, …`: query `k` of a chunk has set `k`.
     identity: Vec<u32>,
-    /// A batch of one chunk: its sets, built by [`PerQuery::new`].
+    /// A batch of one chunk: its sets, built by [`PerQuery::new`]...
     sets: Option<ParamSets>,
+    /// ...from this.
+    key: Key,
 }
 
 impl Drop for InPlace {
     fn drop(&mut self) {
         if let Some(sets) = self.sets.take() {
-            keep_spare(sets);
+            keep_spare(std::mem::take(&mut self.key), sets);
+        }
+    }
+}
+
+/// What a table of rows was built from: the template's stack and the
+/// columns (paths, widths and values, as bits). Equal keys build equal
+/// tables, so the sample, eval and pdf calls of one batch of vertices, each
+/// given the same columns (a C or Python caller's), build one table.
+#[derive(Clone, Debug, Default)]
+struct Key {
+    stack: Option<LayerStack>,
+    columns: Vec<(SetPath, usize)>,
+    bits: Vec<u32>,
+}
+
+impl Key {
+    /// Whether it is the key of `template`'s stack with `columns`.
+    fn is(&self, template: &LayeredBsdf, columns: &[Column]) -> bool {
+        let mut at = 0;
+        self.stack.as_ref() == Some(template.stack())
+            && self.columns.len() == columns.len()
+            && (self.columns.iter().zip(columns)).all(|((p, w), c)| p == c.path && *w == c.width)
+            && columns.iter().all(|c| {
+                let n = c.values.len();
+                let same = self
+                    .bits
+                    .get(at..at + n)
+                    .is_some_and(|b| b.iter().zip(c.values).all(|(&b, x)| b == x.to_bits()));
+                at += n;
+                same
+            })
+            && at == self.bits.len()
+    }
+
+    /// Makes it the key of `template`'s stack with `columns`, reusing its
+    /// memory.
+    fn set(&mut self, template: &LayeredBsdf, columns: &[Column]) {
+        if self.stack.as_ref() != Some(template.stack()) {
+            self.stack = Some(template.stack().clone());
+        }
+        self.columns.clear();
+        self.columns
+            .extend(columns.iter().map(|c| (c.path.clone(), c.width)));
+        self.bits.clear();
+        for c in columns {
+            self.bits.extend(c.values.iter().map(|x| x.to_bits()));
         }
     }
 }
 
 thread_local! {
-    /// The parameter sets of this thread's last per-query table, whose
-    /// memory the next one takes over (a renderer builds one per batch).
-    static SPARE: std::cell::RefCell<Option<ParamSets>> = const { std::cell::RefCell::new(None) };
+    /// This thread's last table of rows and its key: the next one reuses
+    /// it if built from the same (a renderer's three calls at a batch of
+    /// vertices), or its memory.
+    static SPARE: std::cell::RefCell<Option<(Key, ParamSets)>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// The thread's spare table and its key, if it has one.
+fn take_spare() -> Option<(Key, ParamSets)> {
+    SPARE.try_with(|s| s.borrow_mut().take()).ok().flatten()
 }
 
 /// Empty parameter sets of `bsdf`, in the memory of the thread's spare
 /// ones if it has some.
 fn spare_sets(bsdf: &LayeredBsdf) -> ParamSets {
-    match SPARE.try_with(|s| s.borrow_mut().take()).ok().flatten() {
-        Some(sets) => bsdf.reuse_sets(sets),
+    match take_spare() {
+        Some((_, sets)) => bsdf.reuse_sets(sets),
         None => bsdf.empty_sets(),
     }
 }
 
-/// Keeps `sets` as the thread's spare ones.
-fn keep_spare(sets: ParamSets) {
-    let _ = SPARE.try_with(|s| *s.borrow_mut() = Some(sets));
+/// Keeps `sets`, built from `key`, as the thread's spare table.
+fn keep_spare(key: Key, sets: ParamSets) {
+    let _ = SPARE.try_with(|s| *s.borrow_mut() = Some((key, sets)));
 }
 
 /// Why rows cannot be written in place.
@@ -474,6 +529,24 @@ impl<'a> PerQuery<'a> {
             }
         }
         let bsdf = shape.as_deref().unwrap_or(self.template);
+        let mut key = Key::default();
+        if n <= self.rows {
+            // The thread's last table, if these columns built it.
+            if let Some((k, sets)) = take_spare() {
+                if k.is(self.template, &self.columns) && bsdf.built(&sets) {
+                    let identity = Materials::identity(n);
+                    return Ok(InPlace {
+                        shape,
+                        identity,
+                        sets: Some(sets),
+                        key: k,
+                    });
+                }
+                key = k;
+                keep_spare(Key::default(), sets);
+            }
+            key.set(self.template, &self.columns);
+        }
         let mut sets = (n <= self.rows).then(|| spare_sets(bsdf));
         for start in (0..n).step_by(self.rows) {
             let end = n.min(start + self.rows);
@@ -489,6 +562,7 @@ impl<'a> PerQuery<'a> {
             identity: Materials::identity(self.rows.min(n)),
             sets,
             shape,
+            key,
         })
     }
 
@@ -530,11 +604,11 @@ impl<'a> PerQuery<'a> {
             let per = Per(Some((&sets, &p.identity[..end - start])));
             if let Err(e) = run(per, start..end) {
                 let index = e.index.map(|i| i + start);
-                keep_spare(sets);
+                keep_spare(Key::default(), sets);
                 return Some(Err(BatchError { index, ..e }));
             }
         }
-        keep_spare(sets);
+        keep_spare(Key::default(), sets);
         Some(Ok(()))
     }
 

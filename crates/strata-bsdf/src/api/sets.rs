@@ -58,6 +58,15 @@ impl LayeredBsdf {
         Ok(sets)
     }
 
+    /// Whether this BSDF built `sets` (or one of its shape, settings,
+    /// estimator and transport mode, which build the same).
+    pub(super) fn built(&self, sets: &ParamSets) -> bool {
+        sets.shape == self.shape
+            && sets.settings == self.settings
+            && sets.estimator == self.estimator
+            && sets.adjoint == self.adjoint()
+    }
+
     /// `sets` emptied and made this BSDF's, keeping their memory.
     pub(super) fn reuse_sets(&self, mut sets: ParamSets) -> ParamSets {
         sets.shape.clone_from(&self.shape);
@@ -114,11 +123,7 @@ impl LayeredBsdf {
         set: &'a [u32],
         queries: usize,
     ) -> Result<Per<'a>, BatchError> {
-        if sets.shape != self.shape
-            || sets.settings != self.settings
-            || sets.estimator != self.estimator
-            || sets.adjoint != self.adjoint()
-        {
+        if !self.built(sets) {
             return Err(BatchError::call(QueryError::ForeignSets));
         }
         one_each("set", set.len(), queries)?;

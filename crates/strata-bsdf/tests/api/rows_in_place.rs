@@ -201,3 +201,46 @@ fn rows_that_leave_the_shape_or_are_invalid() {
         assert!(e.contains("medium.thickness"), "{e}");
     }
 }
+
+/// A thread keeps its last table and reuses it for the same template and
+/// columns (a renderer's three calls at a batch of vertices): the answers
+/// are those of a table built afresh, for the same columns and for any
+/// others (other values, another template, another estimator) in any order.
+#[test]
+fn a_kept_table_answers_only_for_its_own_columns() {
+    let path: SetPath = "layers[0].medium.thickness".parse().unwrap();
+    let (a, b) = ([0.25f32, 0.5, 1.0], [0.25f32, 0.5, 1.5]);
+    let wi = [[0.0f32, 0.6, 0.8]; 3];
+    let eval = |bsdf: &LayeredBsdf, v: &[f32]| {
+        let cols = [Column {
+            path: &path,
+            width: 1,
+            values: v,
+        }];
+        let q = PerQuery::new(bsdf, 3, &cols).unwrap();
+        assert!(q.rows_in_place());
+        let mut f = [[0f32; 3]; 3];
+        let d = Vectors::Aos(&wi);
+        q.eval_into(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+            .unwrap();
+        f
+    };
+    let coat = LayeredBsdf::new(LayerStack::from_toml_str(COATED_COPPER).unwrap()).seed(9);
+    let other = LayeredBsdf::new(LayerStack::from_toml_str(ROUGH_COAT_ABSORBER).unwrap()).seed(9);
+    let uni = coat
+        .clone()
+        .estimator(strata_bsdf::Estimator::Unidirectional);
+    let first = eval(&coat, &a);
+    let (with_b, on_other, with_uni) = (eval(&coat, &b), eval(&other, &a), eval(&uni, &a));
+    assert_eq!(first[..2], with_b[..2], "rows 0 and 1 are the same");
+    assert_ne!(first[2], with_b[2], "row 2 is not");
+    assert_ne!(first, on_other);
+    assert_eq!(eval(&coat, &a), first);
+    // Fresh threads build every table anew: the same numbers.
+    let fresh = |bsdf: LayeredBsdf, v: [f32; 3]| {
+        std::thread::scope(|s| s.spawn(|| eval(&bsdf, &v)).join().unwrap())
+    };
+    assert_eq!(fresh(coat.clone(), b), with_b);
+    assert_eq!(fresh(other.clone(), a), on_other);
+    assert_eq!(fresh(uni.clone(), a), with_uni);
+}
