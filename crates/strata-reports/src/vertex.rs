@@ -128,7 +128,7 @@ pub struct VertexRun {
     pub variance: f64,
     /// Thread-CPU nanoseconds per vertex of the library's calls.
     pub ns_per_vertex: f64,
-    /// Of which: building the table of per-vertex values (textured; 0
+    /// Of which: the per-vertex tables of the three calls (textured; 0
     /// otherwise), the sample call's, the eval call's and the pdf call's.
     pub ns_per_call: [f64; 4],
 }
@@ -246,9 +246,10 @@ impl Batch {
 
     /// The three calls of a batch of vertices: sample, and eval and pdf of
     /// the light samples, on the BSDF's own parameters or, with a texture,
-    /// on per-vertex columns, whose table the three calls share (a
-    /// renderer looks its textures up once per vertex); their CPU times,
-    /// the table's first, are added to `ns`.
+    /// on per-vertex columns, which each call takes (as the C ABI's and
+    /// Python's per-query calls do: the thread's kept table serves the
+    /// second and third); their CPU times, the tables' first, are added to
+    /// `ns`.
     fn run(
         &mut self,
         bsdf: &LayeredBsdf,
@@ -258,40 +259,50 @@ impl Batch {
         let e = |e: strata_bsdf::BatchError| e.to_string();
         let n = self.keys.len();
         let columns = texture.map(Texture::columns).unwrap_or_default();
-        macro_rules! calls {
-            ($on:expr) => {{
-                let t0 = thread_cpu_ns();
-                let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
-                let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
-                $on.sample_into(
-                    wi(),
-                    Some(&self.keys),
-                    flat_mut(&mut self.wo),
-                    flat_mut(&mut self.weight),
-                    &mut self.pdf,
-                    &mut self.flags,
-                )
-                .map_err(e)?;
-                let t1 = thread_cpu_ns();
-                let f = flat_mut(&mut self.f);
-                $on.eval_into(wi(), light(), Some(&self.light_keys), f, None)
-                    .map_err(e)?;
-                let t2 = thread_cpu_ns();
-                $on.pdf_into(wi(), light(), &mut self.light_pdf)
-                    .map_err(e)?;
-                [t1 - t0, t2 - t1, thread_cpu_ns() - t2]
-            }};
-        }
-        let (table, [s, f, p]) = match texture {
-            None => (0.0, calls!(bsdf)),
-            Some(_) => {
-                let t0 = thread_cpu_ns();
-                let per = PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string())?;
-                (thread_cpu_ns() - t0, calls!(per))
+        let mut table = 0.0;
+        // The BSDF, or its per-query table for `columns` (timed apart).
+        let mut on = || -> Result<Option<PerQuery>, String> {
+            if texture.is_none() {
+                return Ok(None);
             }
+            let t0 = thread_cpu_ns();
+            let per = PerQuery::new(bsdf, n, &columns).map_err(|e| e.to_string())?;
+            table += thread_cpu_ns() - t0;
+            Ok(Some(per))
         };
-        let dt = [table, s, f, p];
-        for (n, d) in ns.iter_mut().zip(dt) {
+        let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
+        let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
+        let per = on()?;
+        let t0 = thread_cpu_ns();
+        let (wo, weight) = (flat_mut(&mut self.wo), flat_mut(&mut self.weight));
+        let (pdf, flags) = (&mut self.pdf, &mut self.flags);
+        match &per {
+            None => bsdf.sample_into(wi(), Some(&self.keys), wo, weight, pdf, flags),
+            Some(p) => p.sample_into(wi(), Some(&self.keys), wo, weight, pdf, flags),
+        }
+        .map_err(e)?;
+        let sample = thread_cpu_ns() - t0;
+        drop(per);
+        let per = on()?;
+        let t0 = thread_cpu_ns();
+        let (f, keys) = (flat_mut(&mut self.f), Some(&self.light_keys[..]));
+        match &per {
+            None => bsdf.eval_into(wi(), light(), keys, f, None),
+            Some(p) => p.eval_into(wi(), light(), keys, f, None),
+        }
+        .map_err(e)?;
+        let eval = thread_cpu_ns() - t0;
+        drop(per);
+        let per = on()?;
+        let t0 = thread_cpu_ns();
+        match &per {
+            None => bsdf.pdf_into(wi(), light(), &mut self.light_pdf),
+            Some(p) => p.pdf_into(wi(), light(), &mut self.light_pdf),
+        }
+        .map_err(e)?;
+        let pdf = thread_cpu_ns() - t0;
+        drop(per);
+        for (n, d) in ns.iter_mut().zip([table, sample, eval, pdf]) {
             *n += d;
         }
         Ok(())
