@@ -49,31 +49,33 @@ pub fn smooth(eta: f64, tau: f64) -> f64 {
 /// quadrature: the Fresnel term of a node is shared, each channel's sum is
 /// [`smooth`]'s, bit for bit.
 pub fn smooth_channels<const C: usize>(eta: f64, tau: [f64; C]) -> [f64; C] {
+    let mut sum = [0.0; C];
+    smooth_nodes(eta, &mut |mu, w| {
+        for k in 0..C {
+            sum[k] += w * attenuation(2.0 * tau[k], mu);
+        }
+    });
+    sum
+}
+
+/// The nodes of [`smooth`]'s quadrature without the layer: calls
+/// `f(μ, w)` for each, `w` the node's weight times `2 F_in(μ) μ`, so that
+/// `R̄(τ) = Σ w e^(−2τ/μ)` for every depth at once.
+fn smooth_nodes(eta: f64, f: &mut impl FnMut(f64, f64)) {
     // From inside, the cosine is negative in `fresnel`'s convention.
-    let f = |mu: f64| -> [f64; C] {
+    let mut node = |mu: f64, w: f64| {
         let r = fresnel::dielectric_rt(-mu, eta).0;
-        tau.map(|tau| {
-            let att = if tau > 0.0 {
-                (-2.0 * tau / mu).exp()
-            } else {
-                1.0
-            };
-            2.0 * r * att * mu
-        })
+        f(mu, w * 2.0 * r * mu)
     };
     let critical = if eta > 1.0 {
         (1.0 - 1.0 / (eta * eta)).sqrt()
     } else {
         0.0
     };
-    let below = gauss_legendre(&f, 0.0, critical, 64);
-    let above = gauss_legendre(
-        &|t: f64| f(critical + t * t).map(|v| v * 2.0 * t),
-        0.0,
-        (1.0 - critical).sqrt(),
-        64,
-    );
-    std::array::from_fn(|k| below[k] + above[k])
+    gauss_legendre_nodes(0.0, critical, 64, &mut node);
+    gauss_legendre_nodes(0.0, (1.0 - critical).sqrt(), 64, &mut |t, w| {
+        node(critical + t * t, w * 2.0 * t)
+    });
 }
 
 /// `R̄` per channel of a rough, isotropic coat with microfacets `mf` (one
@@ -132,32 +134,53 @@ pub fn rough_with<const C: usize>(
     tau: &[f64; C],
     panels: Panels,
 ) -> [f64; C] {
+    let mut sum = [0.0; C];
+    rough_nodes(mf, eta, panels, &mut |az, bz, w| {
+        for k in 0..C {
+            sum[k] += w * attenuation(tau[k], az) * attenuation(tau[k], bz);
+        }
+    });
+    sum
+}
+
+/// The nodes of [`rough_with`]'s quadrature without the layer: calls
+/// `leaf(a.z, b.z, w)` for each pair of directions, `w` its weight (the
+/// integrand but for the transmittances `e^(−τ/a.z) e^(−τ/b.z)`, times
+/// the quadrature's weights), so that `R̄(τ) = Σ w e^(−τ/a.z) e^(−τ/b.z)`
+/// for every depth at once.
+fn rough_nodes(
+    mf: &Microfacet<f64>,
+    eta: f64,
+    panels: Panels,
+    leaf: &mut impl FnMut(f64, f64, f64),
+) {
     debug_assert_eq!(mf.alpha_x, mf.alpha_y, "an isotropic coat");
     let alpha = mf.alpha_x;
     // Inside the coat, total reflection beyond ψc, the angle between the
     // light and the microfacet normal (none in a coat less dense than the
     // exterior).
     let psi_c = (eta > 1.0).then(|| (1.0 / eta).asin());
-    let at = |radius: f64| {
+    slopes(mf.beckmann, alpha, psi_c, panels.outer, &mut |radius, w| {
         let m = V3::new(-alpha * radius, 0.0, 1.0).normalize_or_z();
-        microfacet_term(mf, m, eta, tau, psi_c, panels)
-    };
-    slopes(mf.beckmann, alpha, psi_c, panels.outer, at).map(|x| x / PI)
+        microfacet_nodes(mf, m, eta, psi_c, panels, &mut |az, bz, v| {
+            leaf(az, bz, w * v / PI)
+        });
+    });
 }
 
 /// `E[g(T)]` over the magnitude `T` of standard GGX (or Beckmann) slopes
-/// scaled by `1/α`: density `2T / (1 + T²)²` (or `2T e^(−T²)`). `T < 1` by the
-/// distribution function `v` (uniform density); `T ≥ 1` in `x = ln T`, in
-/// pieces of `ln 3`, split where the microfacet's tilt is `π/2 − ψc` (its
-/// slope is `α T`), to the `T` beyond which less than 1e-12 of the
-/// distribution lies.
-fn slopes<const C: usize>(
+/// scaled by `1/α`, density `2T / (1 + T²)²` (or `2T e^(−T²)`), as nodes:
+/// calls `g(T, w)` for each. `T < 1` by the distribution function `v`
+/// (uniform density); `T ≥ 1` in `x = ln T`, in pieces of `ln 3`, split
+/// where the microfacet's tilt is `π/2 − ψc` (its slope is `α T`), to the
+/// `T` beyond which less than 1e-12 of the distribution lies.
+fn slopes(
     beckmann: bool,
     alpha: f64,
     psi_c: Option<f64>,
     panels: usize,
-    g: impl Fn(f64) -> [f64; C],
-) -> [f64; C] {
+    g: &mut impl FnMut(f64, f64),
+) {
     let (v1, x_max) = if beckmann {
         (1.0 - (-1.0f64).exp(), 0.5 * 28.0f64.ln())
     } else {
@@ -170,7 +193,7 @@ fn slopes<const C: usize>(
             (v / (1.0 - v)).sqrt()
         }
     };
-    let mut sum = gauss_legendre(&|v| g(radius(v)), 0.0, v1, panels);
+    gauss_legendre_nodes(0.0, v1, panels, &mut |v, w| g(radius(v), w));
     let density = |t: f64| {
         let t2 = t * t;
         if beckmann {
@@ -179,9 +202,9 @@ fn slopes<const C: usize>(
             2.0 * t2 / ((1.0 + t2) * (1.0 + t2))
         }
     };
-    let g_x = |x: f64| {
+    let mut g_x = |x: f64, w: f64| {
         let t = x.exp();
-        g(t).map(|v| v * density(t))
+        g(t, w * density(t))
     };
     let split = psi_c
         .map(|c| (1.0 / c.tan() / alpha).ln())
@@ -190,30 +213,29 @@ fn slopes<const C: usize>(
     let mut lo = 0.0;
     while lo < x_max {
         let hi = (lo + step).min(x_max);
-        let piece = match split.filter(|&x| x > lo && x < hi) {
+        match split.filter(|&x| x > lo && x < hi) {
             Some(x) => {
-                let (p, q) = (ends(&g_x, lo, x, panels), ends(&g_x, x, hi, panels));
-                std::array::from_fn(|k| p[k] + q[k])
+                ends(lo, x, panels, &mut g_x);
+                ends(x, hi, panels, &mut g_x);
             }
-            None => gauss_legendre(&g_x, lo, hi, panels),
-        };
-        add(&mut sum, piece, 1.0);
+            None => gauss_legendre_nodes(lo, hi, panels, &mut g_x),
+        }
         lo = hi;
     }
-    sum
 }
 
-/// The inner integral over the directions `a` the light arrives from, for
-/// the microfacet normal `m`, divided by `cos θm` (the outer measure is the
-/// projected distribution `D cos θm`), per optical depth of `tau`.
-fn microfacet_term<const C: usize>(
+/// The nodes of the inner integral over the directions `a` the light
+/// arrives from, for the microfacet normal `m`, divided by `cos θm` (the
+/// outer measure is the projected distribution `D cos θm`): calls
+/// `leaf(a.z, b.z, w)` as [`rough_nodes`] does.
+fn microfacet_nodes(
     mf: &Microfacet<f64>,
     m: V3<f64>,
     eta: f64,
-    tau: &[f64; C],
     psi_c: Option<f64>,
     panels: Panels,
-) -> [f64; C] {
+    leaf: &mut impl FnMut(f64, f64, f64),
+) {
     let cm = m.z;
     let sm = (1.0 - cm * cm).max(0.0).sqrt();
     // An orthonormal frame about m: t1 in the plane of m and z (t1.z = sin θm).
@@ -223,35 +245,34 @@ fn microfacet_term<const C: usize>(
     } else {
         (V3::new(1.0, 0.0, 0.0), V3::new(0.0, 1.0, 0.0))
     };
-    // At one ψ (its sine and cosine), the value of one azimuth χ without the
-    // factors that depend on ψ alone.
-    let at = |s: f64, c: f64, chi: f64| -> [f64; C] {
-        let (sc, cc) = chi.sin_cos();
-        let a = m * c + (t1 * cc + t2 * sc) * s;
-        let b = m * (2.0 * c) - a;
-        if a.z <= 0.0 || b.z <= 0.0 {
-            return [0.0; C];
-        }
-        let g = mf.g(a, b);
-        tau.map(|t| g * attenuation(t, a.z) * attenuation(t, b.z))
-    };
     // Over χ at one ψ: the whole circle while cot ψ cot θm ≥ 1, else the
     // two arcs |cos χ| < cot ψ cot θm, between which a or its mirror b is
     // below the horizon. The integrand is even in χ (m lies in the xz
     // plane, the coat is isotropic): half the circle, or one arc, doubled.
     // Where the circle is whole, b and a come nearest the horizon at χ = 0
     // and π, the ends of the half, where the nodes crowd.
-    let around = |psi: f64| -> [f64; C] {
+    let mut around = |psi: f64, w: f64| {
         let (s, c) = psi.sin_cos();
         let f = fresnel::dielectric_rt(-c, eta).0;
+        // The factors that depend on ψ alone.
+        let w = w * 2.0 * f * c * s / cm;
+        if w == 0.0 {
+            return;
+        }
         let limit = if sm > 1e-12 {
             c / s * cm / sm
         } else {
             f64::INFINITY
         };
         let c0 = if limit >= 1.0 { 0.0 } else { limit.acos() };
-        let v = ends(&|chi| at(s, c, chi), c0, PI - c0, panels.chi);
-        v.map(|x| 2.0 * x * f * c * s)
+        ends(c0, PI - c0, panels.chi, &mut |chi, v| {
+            let (sc, cc) = chi.sin_cos();
+            let a = m * c + (t1 * cc + t2 * sc) * s;
+            let b = m * (2.0 * c) - a;
+            if a.z > 0.0 && b.z > 0.0 {
+                leaf(a.z, b.z, w * v * mf.g(a, b));
+            }
+        });
     };
     let mut cuts = vec![0.0, PI / 2.0];
     cuts.extend(psi_c);
@@ -260,17 +281,8 @@ fn microfacet_term<const C: usize>(
         cuts.push(full_circle_ends);
     }
     cuts.sort_by(f64::total_cmp);
-    let mut sum = [0.0; C];
     for w in cuts.windows(2) {
-        add(&mut sum, ends(&around, w[0], w[1], panels.psi), 1.0 / cm);
-    }
-    sum
-}
-
-/// `sum += x · w`, per depth.
-fn add<const C: usize>(sum: &mut [f64; C], x: [f64; C], w: f64) {
-    for k in 0..C {
-        sum[k] += x[k] * w;
+        ends(w[0], w[1], panels.psi, &mut around);
     }
 }
 
@@ -291,51 +303,46 @@ fn attenuation(tau: f64, mu: f64) -> f64 {
     }
 }
 
-/// `∫ₐᵇ f` with a square-root substitution toward each end (`x = a + t²`
-/// on the first half, `x = b − t²` on the second): fast convergence for
-/// integrands that behave like `√(x − a)` or `√(b − x)` at the ends.
-fn ends<const C: usize>(f: &impl Fn(f64) -> [f64; C], a: f64, b: f64, panels: usize) -> [f64; C] {
+/// The nodes of `∫ₐᵇ f` with a square-root substitution toward each end
+/// (`x = a + t²` on the first half, `x = b − t²` on the second), for
+/// integrands that behave like `√(x − a)` or `√(b − x)` at the ends: calls
+/// `f(x, w)` for each node `x` of weight `w`.
+fn ends(a: f64, b: f64, panels: usize, f: &mut impl FnMut(f64, f64)) {
     if b <= a {
-        return [0.0; C];
+        return;
     }
     let l = (0.5 * (b - a)).sqrt();
-    let p = gauss_legendre(&|t| f(a + t * t).map(|v| v * 2.0 * t), 0.0, l, panels);
-    let q = gauss_legendre(&|t| f(b - t * t).map(|v| v * 2.0 * t), 0.0, l, panels);
-    std::array::from_fn(|k| p[k] + q[k])
+    gauss_legendre_nodes(0.0, l, panels, &mut |t, w| f(a + t * t, w * 2.0 * t));
+    gauss_legendre_nodes(0.0, l, panels, &mut |t, w| f(b - t * t, w * 2.0 * t));
 }
 
-/// `∫ₐᵇ f` by 8-point Gauss–Legendre on `panels` equal panels, per component.
-pub(super) fn gauss_legendre<const C: usize>(
-    f: &impl Fn(f64) -> [f64; C],
-    a: f64,
-    b: f64,
-    panels: usize,
-) -> [f64; C] {
-    const X: [f64; 4] = [
-        0.183_434_642_495_649_8,
-        0.525_532_409_916_329,
-        0.796_666_477_413_626_7,
-        0.960_289_856_497_536_3,
-    ];
-    const W: [f64; 4] = [
-        0.362_683_783_378_362,
-        0.313_706_645_877_887_3,
-        0.222_381_034_453_374_5,
-        0.101_228_536_290_376_3,
-    ];
+/// The nodes of 8-point Gauss–Legendre on `panels` equal panels of `[a, b]`:
+/// calls `f(x, w)` for each node `x` of weight `w`.
+fn gauss_legendre_nodes(a: f64, b: f64, panels: usize, f: &mut impl FnMut(f64, f64)) {
     let h = (b - a) / panels as f64;
-    let mut sum = [0.0; C];
     for p in 0..panels {
         let (m, r) = (a + (p as f64 + 0.5) * h, 0.5 * h);
-        for (&x, w) in X.iter().zip(W) {
-            let (lo, hi) = (f(m - r * x), f(m + r * x));
-            for k in 0..C {
-                sum[k] += w * r * (lo[k] + hi[k]);
-            }
+        for (&x, w) in GL_X.iter().zip(GL_W) {
+            f(m - r * x, w * r);
+            f(m + r * x, w * r);
         }
     }
-    sum
 }
+
+/// The positive nodes of 8-point Gauss–Legendre on `[−1, 1]`, and their
+/// weights.
+const GL_X: [f64; 4] = [
+    0.183_434_642_495_649_8,
+    0.525_532_409_916_329,
+    0.796_666_477_413_626_7,
+    0.960_289_856_497_536_3,
+];
+const GL_W: [f64; 4] = [
+    0.362_683_783_378_362,
+    0.313_706_645_877_887_3,
+    0.222_381_034_453_374_5,
+    0.101_228_536_290_376_3,
+];
 
 #[cfg(test)]
 mod tests {
@@ -361,7 +368,9 @@ mod tests {
     fn smooth_quadrature_is_exact_where_it_can_be_checked() {
         // ∫₀¹ 2μ dμ = 1, and a smooth integrand converges: against the
         // midpoint rule on a fine grid.
-        assert!((gauss_legendre(&|m| [2.0 * m], 0.0, 1.0, 4)[0] - 1.0).abs() < 1e-15);
+        let mut sum = 0.0;
+        gauss_legendre_nodes(0.0, 1.0, 4, &mut |m, w| sum += w * 2.0 * m);
+        assert!((sum - 1.0).abs() < 1e-15);
         let n = 2_000_000;
         for (eta, tau) in [(1.5, 0.0), (1.5, 0.3), (2.2, 0.01), (1.0 / 1.3, 0.5)] {
             let mid: f64 = (0..n)
