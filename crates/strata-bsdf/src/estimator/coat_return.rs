@@ -280,12 +280,21 @@ fn microfacet_nodes(
             f64::INFINITY
         };
         let c0 = if limit >= 1.0 { 0.0 } else { limit.acos() };
-        ends(c0, PI - c0, panels.chi, &mut |chi, v| {
-            let (sc, cc) = chi.sin_cos();
-            let a = m * c + (t1 * cc + t2 * sc) * s;
-            let b = m * (2.0 * c) - a;
-            if a.z > 0.0 && b.z > 0.0 {
-                leaf(a.z, b.z, w * v * mf.g(a, b));
+        // `ends` over [c0, π − c0]: its halves' nodes c0 + t² and
+        // π − c0 − t² share a sine and have opposite cosines.
+        if c0 >= PI / 2.0 {
+            return;
+        }
+        let l = (PI / 2.0 - c0).sqrt();
+        gauss_legendre_nodes(0.0, l, panels.chi, &mut |t, v| {
+            let (sc, cc) = (c0 + t * t).sin_cos();
+            let v = v * 2.0 * t;
+            for cc in [cc, -cc] {
+                let a = m * c + (t1 * cc + t2 * sc) * s;
+                let b = m * (2.0 * c) - a;
+                if a.z > 0.0 && b.z > 0.0 {
+                    leaf(a.z, b.z, w * v * mf.g(a, b));
+                }
             }
         });
     };
