@@ -278,14 +278,16 @@ impl RoughCoatLambertian {
     }
 }
 
-/// Where the factorization answers: roughness and relative IOR (`n_below /
-/// n_above`) of the coat, the ranges over which its integral `R̄` is checked
-/// (`coat_return::tests::rough_return_converges`, corners included).
+/// Where the factorization answers: roughness (the range of `R̄`'s table,
+/// [`coat_return::ROUGHNESS`]) and relative IOR (`n_below / n_above`) of
+/// the coat, the ranges over which its integral `R̄` and the table of it are
+/// checked (`coat_return::tests::rough_return_converges` and
+/// `rough_table_is_the_quadrature_*`, corners included).
 /// Outside them (a coat nearly a mirror, or so dense that almost no light
 /// escapes and `1 − ρ R̄` would rest on the quadrature's last digits) the
 /// walks answer.
 pub const DOMAIN: Domain = Domain {
-    alpha: (0.001, 1.5),
+    alpha: coat_return::ROUGHNESS,
     eta: (0.5, 3.0),
 };
 
