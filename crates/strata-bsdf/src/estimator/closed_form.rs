@@ -16,9 +16,11 @@
 //! `F_in` the coat's reflectance seen from inside (1 beyond the critical
 //! angle). The first factor is radiance leaving the denser coat; `R̄` is the
 //! fraction of the base's diffuse exitance that the layer and the coat send
-//! back to it. The unidirectional estimator converges to this value (tested
-//! against it, and against the test suite's own formula), so
-//! [`crate::Estimator::Auto`] answers such stacks' `eval` with it.
+//! back to it (from a table of its quadrature per IOR,
+//! [`coat_return::SmoothReturn`]). The unidirectional estimator converges
+//! to this value (tested against it, and against the test suite's own
+//! formula), so [`crate::Estimator::Auto`] answers such stacks' `eval` with
+//! it.
 //!
 //! Knowing `f`, `Auto` also samples these stacks without a walk
 //! ([`SmoothCoatLambertian::sample`]): the coat's mirror reflection, or a
@@ -82,11 +84,9 @@ impl SmoothCoatLambertian {
         }
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
-        let r_bar = if tau[0] == tau[1] && tau[1] == tau[2] {
-            [coat_return::smooth(eta, tau[0]); 3]
-        } else {
-            coat_return::smooth_channels(eta, tau)
-        };
+        // From the coat's table (within 1e-7 of the quadrature), as a
+        // query that carries its own depths gets it.
+        let r_bar = coat_return::SmoothReturn::for_eta(eta).r_bar(tau);
         Some(SmoothCoatLambertian {
             eta,
             tau,
@@ -208,8 +208,31 @@ pub struct ExactSample {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
     use crate::{materials, LayeredBsdf};
     use glam::Vec3;
+
+    /// A stack's closed form takes `R̄` from the coat's table, the number a
+    /// query with the same IOR and depths gets, within 1e-7 of the
+    /// quadrature.
+    #[test]
+    fn the_closed_form_takes_r_bar_from_the_table() {
+        let toml = "[[layers]]\n\
+                    interface = { kind = \"dielectric\", ior = 1.5 }\n\
+                    medium = { thickness = 2.0, sigma_t = [0.0, 0.05, 1.0], albedo = 0.0 }\n\
+                    [[layers]]\n\
+                    interface = { kind = \"diffuse\", albedo = 0.8 }\n";
+        let stack = LayerStack::from_toml_str(toml).expect("a stack");
+        let form = SmoothCoatLambertian::of(&stack, &Settings::default()).expect("a closed form");
+        assert_eq!(form.eta, 1.5);
+        assert_eq!(form.tau, [0.0, 0.1, 2.0]);
+        let table = coat_return::SmoothReturn::for_eta(1.5).r_bar(form.tau);
+        assert_eq!(form.r_bar.map(f64::to_bits), table.map(f64::to_bits));
+        let quadrature = coat_return::smooth_channels(1.5, form.tau);
+        for (r, q) in form.r_bar.iter().zip(quadrature) {
+            assert!((r - q).abs() < 1e-7, "{r} against {q}");
+        }
+    }
 
     /// A grazing mirror sample of a walk-free stack carries a positive pdf,
     /// the one `pdf` gives for its direction, down to the most grazing

@@ -1094,6 +1094,26 @@ mod tests {
         rough_table_against_quadrature(true, 23, 1.5e-6);
     }
 
+    /// A stack's factorization takes `R̄` from the coat's table, the number
+    /// a query with the same coat, roughness and depths gets.
+    #[test]
+    fn a_rough_coat_takes_r_bar_from_the_table() {
+        let toml = "[[layers]]\n\
+                    interface = { kind = \"dielectric\", ior = 1.6, roughness = 0.3, \
+                    distribution = \"beckmann\" }\n\
+                    medium = { thickness = 1.0, sigma_t = [0.1, 0.5, 2.0], albedo = 0.0 }\n\
+                    [[layers]]\n\
+                    interface = { kind = \"diffuse\", albedo = 0.8 }\n";
+        let stack = LayerStack::from_toml_str(toml).expect("a stack");
+        let coat = super::super::rough_coat::RoughCoatLambertian::of(&stack, &Default::default())
+            .expect("a factorization");
+        let it = stack.interface_lanes::<f32>(0);
+        let (alpha, eta) = (it.mf.alpha_x as f64, (it.n_below / it.n_above) as f64);
+        let tau = [0.1f32, 0.5, 2.0].map(f64::from);
+        let table = RoughReturn::for_coat(eta, true, false).r_bar(alpha, tau);
+        assert_eq!(coat.r_bar().map(f64::to_bits), table.map(f64::to_bits));
+    }
+
     /// The cache builds a table once per key and keeps the last
     /// [`CACHE_SIZE`] keys (on a cache of its own, so that other tests'
     /// tables do not interfere).

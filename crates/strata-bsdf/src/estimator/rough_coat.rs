@@ -15,7 +15,8 @@
 //! exactly too), `A(w)` the fraction of light from `w` that reaches the base
 //! (the smooth closed form's `T(θ) e^(−τ/μ′)`), `R̄` the fraction of the
 //! base's exitance that the layer and the coat send back to it
-//! ([`super::coat_return::rough`], by quadrature, once per coat and layer),
+//! ([`super::coat_return::rough`]'s quadrature, from its table per coat,
+//! [`super::coat_return::RoughReturn`], once per coat and layer),
 //! `n0` and `n1` the IORs of the exterior and of the coat. The estimator
 //! draws `A(wi)` and `A(wo)` by the coat's own transmission sampler, the one
 //! a walk enters by (visible normals, weight `(1 − F) G/G1`, times the
@@ -61,7 +62,7 @@ pub struct RoughCoatLambertian {
     tau: [f64; 3],
     /// The base's albedo.
     rho: [f64; 3],
-    /// `R̄` per channel, integrated on first use and shared by clones (and
+    /// `R̄` per channel, looked up on first use and shared by clones (and
     /// by the parameter sets that have this coat and layer).
     r_bar: Arc<OnceLock<[f64; 3]>>,
 }
@@ -137,11 +138,15 @@ impl RoughCoatLambertian {
             && (DOMAIN.eta.0..=DOMAIN.eta.1).contains(&eta)
     }
 
-    /// `R̄` per channel ([`coat_return::rough`]; integrated the first time).
+    /// `R̄` per channel, from the coat's table ([`coat_return::RoughReturn`],
+    /// within 1e-6 of [`coat_return::rough`], 1.5e-6 for Beckmann; built
+    /// the first time any stack or query needs this coat), as a query that
+    /// carries its own roughness and depths gets it.
     pub fn r_bar(&self) -> [f64; 3] {
-        *self
-            .r_bar
-            .get_or_init(|| coat_return::rough(&self.mf, self.eta, self.tau))
+        *self.r_bar.get_or_init(|| {
+            coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable)
+                .r_bar(self.mf.alpha_x, self.tau)
+        })
     }
 
     /// Whether `other` has the same coat and layer, so that it can share this
