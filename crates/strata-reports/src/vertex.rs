@@ -369,6 +369,10 @@ pub fn run(
     mut texture: Option<&mut Texture>,
 ) -> Result<VertexRun, String> {
     let p_l = 1.0 / sun_solid_angle();
+    // What the BSDF builds on first use (a rough coat's table of `R̄`, once
+    // per process) is not the vertex's cost.
+    let v = glam::Vec3::from(view(deg).map(|x| x as f32));
+    let _ = bsdf.eval(v, v);
     let mut b = Batch::new(batch, view(deg));
     let mut rng = seed ^ 0x5eed_0f7e_27e5;
     let (mut sum, mut sum2, mut ns) = (0.0f64, 0.0f64, [0.0f64; 4]);
