@@ -250,7 +250,9 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// numbers go to the lanes, and what its stack decides (a walk-free form and
 /// its constants, the control variate, the estimator) is decided once, with
 /// no material built; a query answers bit for bit what a material file with
-/// its floats answers (`tests/api/rows_in_place.rs`). Build it once for the
+/// its floats answers, or over a Lambertian base to within its `R̄`, which a
+/// row takes from the coat's table (`estimator::coat_return`, within 1e-6)
+/// where a material integrates it (`tests/api/rows_in_place.rs`). Build it once for the
 /// calls of a batch of vertices (sample, then eval and pdf of the light
 /// samples): it holds the table of a batch of one chunk. Other columns make
 /// a material per distinct row, as described below.
@@ -457,7 +459,7 @@ fn write_rows(
             return Err(Refused::Materials);
         }
         if let Some(sets) = sets.as_deref_mut() {
-            bsdf.push_set(sets, &row, Returns::Own);
+            bsdf.push_set(sets, &row, Returns::Tabulated);
         }
     }
     Ok(())

@@ -131,6 +131,11 @@ pub(crate) enum Returns<'a> {
     /// the query's own values against the template's, so an answer does not
     /// depend on the batch.
     SharedWith(Option<&'a CoatLambertian>),
+    /// Every set, from the coat's table (`coat_return::SmoothReturn`,
+    /// `RoughReturn`: within 1e-7 and 1e-6 of the quadrature): the rows of
+    /// per-query columns written in place, where a quadrature per row
+    /// would cost far more than its queries.
+    Tabulated,
 }
 
 /// Which parameters each query of a call has: the BSDF's own, or a set

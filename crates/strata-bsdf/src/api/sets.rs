@@ -95,10 +95,12 @@ impl LayeredBsdf {
     /// next set, with every choice its stack makes (the walk-free form, the
     /// control variate, the estimator of its evals) decided here.
     pub(super) fn push_set(&self, sets: &mut ParamSets, st: &LayerStack, returns: Returns) {
-        let coat = CoatLambertian::unscattered(st, &self.settings).and_then(|c| {
+        let tabulated = matches!(returns, Returns::Tabulated);
+        let coat = CoatLambertian::unscattered_with(st, &self.settings, tabulated).and_then(|c| {
             let (with, own) = match returns {
                 Returns::Own => (self.coat.as_ref(), true),
                 Returns::SharedWith(t) => (t, false),
+                Returns::Tabulated => return Some(c),
             };
             let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
                 (_, None) => true,

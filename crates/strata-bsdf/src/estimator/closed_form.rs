@@ -78,15 +78,31 @@ impl SmoothCoatLambertian {
     /// does not scatter it is the whole BSDF. `None` for other stacks, and
     /// under a depth cap (which truncates these paths too).
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        Self::unscattered_with(stack, settings, false)
+    }
+
+    /// [`SmoothCoatLambertian::unscattered`], with `R̄` from the coat's
+    /// table ([`coat_return::SmoothReturn`], within 1e-7 of the quadrature)
+    /// where `tabulated`: what a per-query row takes, where a quadrature
+    /// per row would cost more than its queries.
+    pub fn unscattered_with(
+        stack: &LayerStack,
+        settings: &Settings,
+        tabulated: bool,
+    ) -> Option<Self> {
         let (coat, base) = coat_and_base(stack, settings)?;
         if !coat.smooth {
             return None;
         }
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
-        // From the coat's table (within 1e-7 of the quadrature), as a
-        // query that carries its own depths gets it.
-        let r_bar = coat_return::SmoothReturn::for_eta(eta).r_bar(tau);
+        let r_bar = if tabulated {
+            coat_return::SmoothReturn::for_eta(eta).r_bar(tau)
+        } else if tau[0] == tau[1] && tau[1] == tau[2] {
+            [coat_return::smooth(eta, tau[0]); 3]
+        } else {
+            coat_return::smooth_channels(eta, tau)
+        };
         Some(SmoothCoatLambertian {
             eta,
             tau,
@@ -212,25 +228,26 @@ mod tests {
     use crate::{materials, LayeredBsdf};
     use glam::Vec3;
 
-    /// A stack's closed form takes `R̄` from the coat's table, the number a
-    /// query with the same IOR and depths gets, within 1e-7 of the
-    /// quadrature.
+    /// A per-query row's closed form takes `R̄` from the coat's table,
+    /// within 1e-7 of the quadrature a material's own takes.
     #[test]
-    fn the_closed_form_takes_r_bar_from_the_table() {
+    fn a_rows_closed_form_takes_r_bar_from_the_table() {
         let toml = "[[layers]]\n\
                     interface = { kind = \"dielectric\", ior = 1.5 }\n\
                     medium = { thickness = 2.0, sigma_t = [0.0, 0.05, 1.0], albedo = 0.0 }\n\
                     [[layers]]\n\
                     interface = { kind = \"diffuse\", albedo = 0.8 }\n";
         let stack = LayerStack::from_toml_str(toml).expect("a stack");
-        let form = SmoothCoatLambertian::of(&stack, &Settings::default()).expect("a closed form");
-        assert_eq!(form.eta, 1.5);
-        assert_eq!(form.tau, [0.0, 0.1, 2.0]);
-        let table = coat_return::SmoothReturn::for_eta(1.5).r_bar(form.tau);
-        assert_eq!(form.r_bar.map(f64::to_bits), table.map(f64::to_bits));
-        let quadrature = coat_return::smooth_channels(1.5, form.tau);
-        for (r, q) in form.r_bar.iter().zip(quadrature) {
-            assert!((r - q).abs() < 1e-7, "{r} against {q}");
+        let settings = Settings::default();
+        let own = SmoothCoatLambertian::of(&stack, &settings).expect("a closed form");
+        let row = SmoothCoatLambertian::unscattered_with(&stack, &settings, true).expect("one");
+        assert_eq!(row.tau, [0.0, 0.1, 2.0]);
+        let table = coat_return::SmoothReturn::for_eta(1.5).r_bar(row.tau);
+        assert_eq!(row.r_bar.map(f64::to_bits), table.map(f64::to_bits));
+        let quadrature = coat_return::smooth_channels(1.5, row.tau);
+        assert_eq!(own.r_bar, quadrature);
+        for (r, q) in row.r_bar.iter().zip(quadrature) {
+            assert!((r - q).abs() < 1e-7, "{r} vs {q}");
         }
     }
 

@@ -57,10 +57,24 @@ impl CoatLambertian {
     /// The part of `stack`'s BSDF carried by the paths without a collision
     /// in its layer (any layer), where `settings` allow it.
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
-        SmoothCoatLambertian::unscattered(stack, settings)
+        Self::unscattered_with(stack, settings, false)
+    }
+
+    /// [`CoatLambertian::unscattered`], with `R̄` from the coat's table
+    /// where `tabulated` (a per-query row: see
+    /// [`SmoothCoatLambertian::unscattered_with`] and
+    /// [`RoughCoatLambertian::tabulated`]).
+    pub fn unscattered_with(
+        stack: &LayerStack,
+        settings: &Settings,
+        tabulated: bool,
+    ) -> Option<Self> {
+        SmoothCoatLambertian::unscattered_with(stack, settings, tabulated)
             .map(CoatLambertian::Smooth)
             .or_else(|| {
-                RoughCoatLambertian::unscattered(stack, settings).map(|r| Self::Rough(Arc::new(r)))
+                let r = RoughCoatLambertian::unscattered(stack, settings)?;
+                let r = if tabulated { r.tabulated() } else { r };
+                Some(Self::Rough(Arc::new(r)))
             })
     }
 

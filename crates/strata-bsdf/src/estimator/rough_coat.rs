@@ -65,6 +65,9 @@ pub struct RoughCoatLambertian {
     /// `R̄` per channel, looked up on first use and shared by clones (and
     /// by the parameter sets that have this coat and layer).
     r_bar: Arc<OnceLock<[f64; 3]>>,
+    /// `R̄` comes from the coat's table (a per-query row), not from the
+    /// quadrature.
+    tabulated: bool,
 }
 
 impl RoughCoatLambertian {
@@ -124,6 +127,7 @@ impl RoughCoatLambertian {
             tau: f64s(medium.sigma_t).map(|t| t * medium.thickness as f64),
             rho: f64s(stack.interface_lanes::<f32>(1).albedo),
             r_bar: Arc::default(),
+            tabulated: false,
         })
     }
 
@@ -138,14 +142,26 @@ impl RoughCoatLambertian {
             && (DOMAIN.eta.0..=DOMAIN.eta.1).contains(&eta)
     }
 
-    /// `R̄` per channel, from the coat's table ([`coat_return::RoughReturn`],
-    /// within 1e-6 of [`coat_return::rough`], 1.5e-6 for Beckmann; built
-    /// the first time any stack or query needs this coat), as a query that
-    /// carries its own roughness and depths gets it.
+    /// This factorization with `R̄` from the coat's table
+    /// ([`coat_return::RoughReturn`], within 1e-6 of [`coat_return::rough`],
+    /// 1.5e-6 for Beckmann, built once per coat and process): what a
+    /// per-query row takes, where a quadrature per row would cost far more
+    /// than its queries.
+    pub fn tabulated(mut self) -> Self {
+        self.tabulated = true;
+        self.r_bar = Arc::default();
+        self
+    }
+
+    /// `R̄` per channel: by quadrature ([`coat_return::rough`]), or from the
+    /// coat's table ([`RoughCoatLambertian::tabulated`]); the first time.
     pub fn r_bar(&self) -> [f64; 3] {
-        *self.r_bar.get_or_init(|| {
-            coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable)
-                .r_bar(self.mf.alpha_x, self.tau)
+        *self.r_bar.get_or_init(|| match self.tabulated {
+            true => {
+                coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable)
+                    .r_bar(self.mf.alpha_x, self.tau)
+            }
+            false => coat_return::rough(&self.mf, self.eta, self.tau),
         })
     }
 
@@ -153,7 +169,10 @@ impl RoughCoatLambertian {
     /// one's `R̄` (the base's albedo may differ).
     pub fn same_return(&self, other: &RoughCoatLambertian) -> bool {
         let mf = |m: &Microfacet<f64>| (m.alpha_x, m.alpha_y, m.beckmann, m.separable);
-        mf(&self.mf) == mf(&other.mf) && self.eta == other.eta && self.tau == other.tau
+        mf(&self.mf) == mf(&other.mf)
+            && self.eta == other.eta
+            && self.tau == other.tau
+            && self.tabulated == other.tabulated
     }
 
     /// `other` with this one's `R̄` (computed or not), where they have the

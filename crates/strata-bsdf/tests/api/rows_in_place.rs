@@ -1,11 +1,13 @@
 //! Per-query columns written into the template's stack in place answer
 //! what a material file with the row's values answers, bit for bit, where
 //! the values are the file's numbers exactly (multiples of 1/64: a float
-//! enters as itself, a file's decimal as its nearest double). On a rough
-//! and a smooth coat over an absorber over a Lambertian base (answered
-//! without walks, with the row's own `R̄`), a coat over copper and a
-//! varnish over a scattering layer (walked; the control variate decided
-//! per row), on both engines: eval, sample (with its pdf) and pdf, keyed.
+//! enters as itself, a file's decimal as its nearest double): on a coat
+//! over copper, on both engines: eval, sample (with its pdf) and pdf,
+//! keyed. Over a Lambertian base (a rough and a smooth coat over
+//! an absorber, answered without walks; the varnish, whose control variate
+//! knows the paths without a collision) a row takes its own `R̄` from the
+//! coat's table, within 1e-6 of the quadrature a material takes, so there
+//! the answers agree to 1e-5 relative.
 //! A row that changes the stack's shape runs as a material and answers the
 //! same; an invalid row is the error its material file gives.
 
@@ -141,18 +143,30 @@ fn rows_in_place_answer_their_material_files() {
                 )
                 .unwrap();
                 let what = format!("{engine:?} query {k} of\n{toml}");
-                assert_eq!(
-                    f[k].map(f32::to_bits),
-                    want[0].map(f32::to_bits),
-                    "eval, {what}"
-                );
+                // A coat over a Lambertian base: `R̄` from the table (see
+                // the module), for the walk-free form or the control variate.
+                let tabulated = toml.contains("diffuse");
+                let same = |a: &[f32], b: &[f32], what: String| {
+                    for (&x, &y) in a.iter().zip(b) {
+                        let ok = match tabulated {
+                            false => x.to_bits() == y.to_bits(),
+                            true => (x - y).abs() <= 1e-5 * x.abs().max(y.abs()),
+                        };
+                        assert!(ok, "{x} vs {y}: {what}");
+                    }
+                };
+                same(&f[k], &want[0], format!("eval, {what}"));
                 let mut ws = [SampleRecord::default()];
                 own.sample_records(one(&wi, k), Some(&keys[k..k + 1]), &mut ws)
                     .unwrap();
-                assert_eq!(s[k], ws[0], "sample, {what}");
+                let (g, w) = (&s[k], &ws[0]);
+                same(&g.wo, &w.wo, format!("sample, {what}"));
+                same(&g.weight, &w.weight, format!("sample weight, {what}"));
+                same(&[g.pdf], &[w.pdf], format!("sample pdf, {what}"));
+                assert_eq!(g.flags, w.flags, "sample flags, {what}");
                 let mut wp = [0f32];
                 own.pdf_into(one(&wi, k), one(&wo, k), &mut wp).unwrap();
-                assert_eq!(p[k].to_bits(), wp[0].to_bits(), "pdf, {what}");
+                same(&p[k..k + 1], &wp, format!("pdf, {what}"));
             }
         }
     }
