@@ -1094,10 +1094,10 @@ mod tests {
         rough_table_against_quadrature(true, 23, 1.5e-6);
     }
 
-    /// A stack's factorization takes `R̄` from the coat's table, the number
-    /// a query with the same coat, roughness and depths gets.
+    /// A per-query row's factorization takes `R̄` from the coat's table; a
+    /// material's own takes the quadrature.
     #[test]
-    fn a_rough_coat_takes_r_bar_from_the_table() {
+    fn a_rough_row_takes_r_bar_from_the_table() {
         let toml = "[[layers]]\n\
                     interface = { kind = \"dielectric\", ior = 1.6, roughness = 0.3, \
                     distribution = \"beckmann\" }\n\
@@ -1105,13 +1105,21 @@ mod tests {
                     [[layers]]\n\
                     interface = { kind = \"diffuse\", albedo = 0.8 }\n";
         let stack = LayerStack::from_toml_str(toml).expect("a stack");
-        let coat = super::super::rough_coat::RoughCoatLambertian::of(&stack, &Default::default())
+        let own = super::super::rough_coat::RoughCoatLambertian::of(&stack, &Default::default())
             .expect("a factorization");
+        let coat = own.clone().tabulated();
         let it = stack.interface_lanes::<f32>(0);
         let (alpha, eta) = (it.mf.alpha_x as f64, (it.n_below / it.n_above) as f64);
         let tau = [0.1f32, 0.5, 2.0].map(f64::from);
         let table = RoughReturn::for_coat(eta, true, false).r_bar(alpha, tau);
         assert_eq!(coat.r_bar().map(f64::to_bits), table.map(f64::to_bits));
+        let mf = Microfacet {
+            alpha_x: alpha,
+            alpha_y: alpha,
+            beckmann: true,
+            separable: false,
+        };
+        assert_eq!(own.r_bar(), rough(&mf, eta, tau));
     }
 
     /// The cache builds a table once per key and keeps the last
