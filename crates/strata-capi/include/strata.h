@@ -191,9 +191,13 @@ typedef struct StrataVectors {
  * all three channels (an anisotropic roughness, two numbers, cannot be a
  * column). Query `k` then answers bit for bit what a BSDF made from a
  * material file with row `k`'s values answers (same seed and key), with the
- * BSDF's walk count, seed, transport mode and threads. A float sets the
- * first of its `%.1g` … `%.9g` decimals that reads back as it: a column's
- * `0.1f` is a material file's `0.1` (examples/c/textured.c prints it so).
+ * BSDF's walk count, seed, transport mode and threads. Where every column
+ * is a thickness, `sigma_t`, an albedo, a roughness, `eta` or `k` and the
+ * rows keep one shape (the usual texture), the rows are written into the
+ * BSDF's numbers in place, with no material built per query, and a float
+ * enters as itself (`0.1f` is the material file's `0.100000001490116`);
+ * otherwise (an IOR, a normal, a phase parameter) it sets the first of its
+ * `%.1g` … `%.9g` decimals that reads back as it (`0.1f` is `0.1`).
  *
  * Errors: every column and every row is checked before anything runs, and a
  * failed call writes nothing to its outputs. A bad column is named by its
@@ -208,13 +212,13 @@ typedef struct StrataVectors {
  * `layers[0].medium.sigma_t` = NaN: not a finite number``). A renderer clamps
  * its textures, or drops the query and calls again for the rest.
  *
- * Memory: a call with columns builds the materials of a bounded chunk of
- * queries at a time (at most 65536 queries and `min(4096, max(1, 65536 /
- * layers))` distinct rows), answers them and drops them, so its working
- * memory is at most that many materials (a few KB each on a two-layer
- * stack, about 1.7 KB per layer on a deep one) plus a few hundred bytes per
- * query of a chunk, whatever `n` and however many rows differ: about 20 MB
- * on a two-layer stack (`strata::PerQuery` in the Rust docs). Every row is
+ * Memory: a call with columns answers a bounded chunk of queries at a time
+ * (at most 65536 queries and `min(4096, max(1, 65536 / layers))` distinct
+ * rows), so its working memory is at most that many rows' numbers (or
+ * materials, a few KB each on a two-layer stack, about 1.7 KB per layer on
+ * a deep one) plus a few hundred bytes per query of a chunk, whatever `n`
+ * and however many rows differ: about 20 MB on a two-layer stack
+ * (`strata::PerQuery` in the Rust docs). Every row is
  * checked (a chunk at a time) before the first chunk runs. If the working
  * memory cannot be allocated the status is `STRATA_ERR_OUT_OF_MEMORY` and
  * `strata_last_error()` names the call and the bytes.
