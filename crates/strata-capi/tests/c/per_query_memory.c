@@ -31,6 +31,8 @@ static const char *COATED_COPPER =
     "interface = { kind = \"conductor\", preset = \"Cu\", roughness = 0.2 }\n";
 
 #define N 1000000
+#define THICKNESS "layers[0].medium.thickness"
+#define IOR "layers[0].interface.ior"
 #define MAX_RSS_KB (600L * 1024L)
 
 static float *wi, *wo, *f, *thickness;
@@ -41,8 +43,8 @@ static double now(void) {
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-static int eval_columns(const struct StrataBsdf *b, size_t n) {
-    struct StrataColumn col = {"layers[0].medium.thickness", 1, thickness};
+static int eval_columns(const struct StrataBsdf *b, size_t n, const char *path) {
+    struct StrataColumn col = {path, 1, thickness};
     StrataBatch batch = {
         .n = n,
         .wi = {.xyz = wi},
@@ -66,7 +68,9 @@ static long mapped_bytes(void) {
 
 /* In a child: a warm call (threads and buffers exist), then the address
  * space limited to what is mapped, then the 10^6-row call: it must fail
- * with STRATA_ERR_OUT_OF_MEMORY, not abort. */
+ * with STRATA_ERR_OUT_OF_MEMORY, not abort. The column is the coat's IOR,
+ * whose rows are materials (a thickness is written into the BSDF's numbers
+ * in place, in a chunk's memory that the warm call already holds). */
 static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
     fflush(stdout);
     pid_t pid = fork();
@@ -75,7 +79,7 @@ static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
         return 1;
     }
     if (pid == 0) {
-        if (eval_columns(b, 64) != STRATA_OK) {
+        if (eval_columns(b, 64, IOR) != STRATA_OK) {
             fprintf(stderr, "warm call: %s\n", strata_last_error());
             _exit(2);
         }
@@ -86,7 +90,7 @@ static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
             perror("setrlimit");
             _exit(4);
         }
-        int status = eval_columns(b, N);
+        int status = eval_columns(b, N, IOR);
         const char *msg = strata_last_error();
         if (status != STRATA_ERR_OUT_OF_MEMORY) {
             fprintf(stderr, "limited call: status %d (%s)\n", status, msg);
@@ -146,7 +150,7 @@ int main(void) {
     if (out_of_memory_is_a_status(b)) return 1;
 
     double t0 = now();
-    int status = eval_columns(b, N);
+    int status = eval_columns(b, N, THICKNESS);
     double dt = now() - t0;
     if (status != STRATA_OK) {
         fprintf(stderr, "10^6 distinct rows: status %d: %s\n", status, strata_last_error());
