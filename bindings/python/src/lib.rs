@@ -410,10 +410,10 @@ fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Par
 
 /// What answers a batch: the BSDF's own material, or one material per
 /// query (its own with query `k`'s `params` row, [`PerQuery`]: built a
-/// bounded chunk at a time).
+/// bounded chunk at a time; boxed, as it carries its table's state).
 enum Answerer<'a> {
     Own(&'a LayeredBsdf),
-    PerQuery(PerQuery<'a>),
+    PerQuery(Box<PerQuery<'a>>),
 }
 
 /// Why a call with `params` did not run.
@@ -585,7 +585,7 @@ impl Bsdf {
                 // of a chunk share one): memory bounded whatever `n`.
                 let q = PerQuery::new(bsdf, n, &columns)
                     .map_err(|e| CallError::Columns(Box::new(e)))?;
-                Answerer::PerQuery(q)
+                Answerer::PerQuery(Box::new(q))
             };
             Ok(call(&answerer)?)
         })
