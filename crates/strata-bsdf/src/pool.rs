@@ -80,6 +80,44 @@ fn calling_only() -> bool {
     CALLING_ONLY.with(Cell::get)
 }
 
+thread_local! {
+    /// The threads of the call running on this thread ([`with_budget`]; 0:
+    /// none set).
+    static BUDGET: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Runs `f` as part of a call allowed `threads` threads: what
+/// [`build_threads`] says on this thread outside a pool. Nests; the setting
+/// ends with `f`, also when it unwinds.
+pub(crate) fn with_budget<R>(threads: usize, f: impl FnOnce() -> R) -> R {
+    struct Restore(usize);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            BUDGET.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(BUDGET.with(|c| c.replace(threads)));
+    f()
+}
+
+/// How many threads a one-off build started here (a table that later
+/// calls share) may run on, its own threads rather than a pool's: 1 inside
+/// [`on_calling_thread`], a pool's size on its worker, the call's budget
+/// ([`with_budget`]) on the thread that made it, else rayon's current
+/// pool's size.
+pub(crate) fn build_threads() -> usize {
+    if calling_only() {
+        return 1;
+    }
+    if rayon::current_thread_index().is_some() {
+        return rayon::current_num_threads();
+    }
+    match BUDGET.with(Cell::get) {
+        0 => current_threads(),
+        n => n,
+    }
+}
+
 /// The number of threads a parallel section started here runs on: 1 inside
 /// [`on_calling_thread`], else rayon's current pool's (for a forked child
 /// whose global pool is its parent's, the size of the pool [`par_map`]

@@ -474,6 +474,17 @@ impl LayeredBsdf {
         }
     }
 
+    /// Runs `f`, a call's work on the calling thread, within this BSDF's
+    /// thread setting: what it builds on first use and shares (a coat's
+    /// table of `R̄`) is built on as many threads as the setting allows.
+    pub(super) fn on_own_threads<R>(&self, f: impl FnOnce() -> R) -> R {
+        match &self.threads {
+            Threads::Calling => crate::pool::on_calling_thread(f),
+            Threads::Pool(p) => crate::pool::with_budget(p.threads(), f),
+            Threads::Current => f(),
+        }
+    }
+
     /// Whether the wavefront's batches run serially on the calling thread
     /// (`threads(1)`, or a pool of one thread), where they allocate nothing
     /// once the thread is warm.
@@ -703,6 +714,18 @@ impl LayeredBsdf {
         n: usize,
         samples: u64,
         query: impl Fn(usize) -> (Pair, u64) + Sync,
+        out: impl FnMut(usize, Estimate) + Send,
+    ) {
+        self.on_own_threads(|| self.eval_each_here(per, n, samples, query, out))
+    }
+
+    /// [`LayeredBsdf::eval_each`] within the thread setting.
+    fn eval_each_here(
+        &self,
+        per: Per,
+        n: usize,
+        samples: u64,
+        query: impl Fn(usize) -> (Pair, u64) + Sync,
         mut out: impl FnMut(usize, Estimate) + Send,
     ) {
         // Each query's estimator is its own stack's (parameter sets answer
@@ -900,6 +923,17 @@ impl LayeredBsdf {
     /// direction, handed to `out` in query order. Allocates nothing on the
     /// scalar engine, or serially on a warm thread.
     pub(super) fn sample_each(
+        &self,
+        per: Per,
+        n: usize,
+        query: impl Fn(usize) -> (Pt, u64, u64) + Sync,
+        out: impl FnMut(usize, Option<Sample>),
+    ) {
+        self.on_own_threads(|| self.sample_each_here(per, n, query, out))
+    }
+
+    /// [`LayeredBsdf::sample_each`] within the thread setting.
+    fn sample_each_here(
         &self,
         per: Per,
         n: usize,

@@ -550,16 +550,15 @@ impl<'a> PerQuery<'a> {
             key.set(self.template, &self.columns);
         }
         let mut sets = (n <= self.rows).then(|| spare_sets(bsdf));
-        for start in (0..n).step_by(self.rows) {
-            let end = n.min(start + self.rows);
-            write_rows(
-                self.template,
-                bsdf,
-                &self.columns,
-                start..end,
-                sets.as_mut(),
-            )?;
-        }
+        // What a row's choices compute (a coat's table of `R̄`) honours the
+        // thread setting.
+        bsdf.on_own_threads(|| {
+            (0..n).step_by(self.rows).try_for_each(|start| {
+                let end = n.min(start + self.rows);
+                let rows = start..end;
+                write_rows(self.template, bsdf, &self.columns, rows, sets.as_mut())
+            })
+        })?;
         Ok(InPlace {
             identity: Materials::identity(self.rows.min(n)),
             sets,

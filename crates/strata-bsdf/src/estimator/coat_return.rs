@@ -462,14 +462,16 @@ pub struct RoughReturn {
     u0: f64,
     rows_per_u: f64,
     rows: DepthRows,
+    /// The threads that built it.
+    built_on: usize,
 }
 
 impl RoughReturn {
     /// The table of a coat of relative IOR `eta` (`n_below / n_above`;
     /// checked over [`rough_coat::DOMAIN`]'s), Beckmann or GGX, with
-    /// separable or height-correlated shadowing, built on first request (in
-    /// parallel threads) and shared by every later one (the cache holds the
-    /// last [`CACHE_SIZE`] coats; a handle outlives its eviction).
+    /// separable or height-correlated shadowing, built on first request
+    /// ([`RoughReturn::new`]) and shared by every later one (the cache holds
+    /// the last [`CACHE_SIZE`] coats; a handle outlives its eviction).
     ///
     /// [`rough_coat::DOMAIN`]: super::rough_coat::DOMAIN
     pub fn for_coat(eta: f64, beckmann: bool, separable: bool) -> Arc<RoughReturn> {
@@ -479,11 +481,13 @@ impl RoughReturn {
         })
     }
 
-    /// The table of that coat, built now (in parallel threads) and not
-    /// cached.
+    /// The table of that coat, built now and not cached, on as many threads
+    /// as the call that needs it may use ([`crate::pool::build_threads`]:
+    /// the calling thread alone in a one-thread call). They are threads of
+    /// their own, not a pool's: a pool's workers may be waiting for this
+    /// very table, and the calling thread builds alone if none can start.
     pub fn new(eta: f64, beckmann: bool, separable: bool) -> RoughReturn {
-        let threads = std::thread::available_parallelism().map_or(1, usize::from);
-        RoughReturn::built(eta, beckmann, separable, threads)
+        RoughReturn::built(eta, beckmann, separable, crate::pool::build_threads())
     }
 
     /// [`RoughReturn::new`] on at most `threads` threads.
@@ -507,6 +511,7 @@ impl RoughReturn {
         let mut coarse = vec![0.0; coarse_rows * stride];
         let next = std::sync::atomic::AtomicUsize::new(0);
         let threads = threads.clamp(1, coarse_rows);
+        let mut built_on = 1;
         let rows: Vec<Vec<(usize, Vec<f64>)>> = std::thread::scope(|scope| {
             let work = || {
                 let mut done = Vec::new();
@@ -532,7 +537,10 @@ impl RoughReturn {
                     done.push((k, row));
                 }
             };
-            let handles: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
+            let handles: Vec<_> = (1..threads)
+                .map_while(|_| std::thread::Builder::new().spawn_scoped(scope, work).ok())
+                .collect();
+            built_on = 1 + handles.len();
             let mut all = vec![work()];
             all.extend(handles.into_iter().map(|h| h.join().expect("a row")));
             all
@@ -569,7 +577,14 @@ impl RoughReturn {
             u0,
             rows_per_u: (ROUGH_REFINE as f64) / du,
             rows: DepthRows::from_nodes(ROUGH_DEPTHS, fine_rows, &fine),
+            built_on,
         }
+    }
+
+    /// How many threads built it (the caller's included): what a test of
+    /// the thread setting reads.
+    pub fn built_on(&self) -> usize {
+        self.built_on
     }
 
     /// The coat the table is for: its relative IOR, whether Beckmann (else

@@ -28,6 +28,7 @@
 use crate::common::threads::{in_own_process, watch, Watched};
 use crate::common::{stack, COATED_COPPER, VARNISH_OVER_SCATTERING};
 use glam::Vec3;
+use strata_bsdf::estimator::coat_return::RoughReturn;
 use strata_bsdf::{
     AlbedoRecord, Column, Estimator, EvalRecord, LayerStack, LayeredBsdf, Materials, ParamSets,
     PerQuery, SampleRecord, SetPath, Vectors, VectorsMut,
@@ -576,4 +577,64 @@ fn small_batches_run_on_the_calling_thread_whatever_the_setting() {
         }
         none(failures);
     });
+}
+
+/// A rough coat's table of `R̄` (what per-query coat depths and roughnesses
+/// read, built on a process's first such call, on threads of its own) is
+/// built on as many threads as the call runs on: the calling thread alone
+/// with `threads(1)`, three with a pool of three. Each setting and verb in
+/// a process of its own, so that the verb's call builds the table (eval
+/// and sample read it; a pdf does not).
+fn rough_table_built_on(test: &str, threads: usize) {
+    in_own_process(test, || {
+        let bsdf = LayeredBsdf::new(stack(ROUGH_COAT_ABSORBER_LAMBERTIAN))
+            .samples(1)
+            .threads(threads)
+            .unwrap();
+        let inputs = Inputs::new(LARGE, |k| 0.1 + 0.01 * k as f32);
+        let path = SetPath::parse("layers[0].medium.thickness").unwrap();
+        let column = Column {
+            path: &path,
+            width: 1,
+            values: &inputs.column,
+        };
+        let rows = PerQuery::new(&bsdf, LARGE, std::slice::from_ref(&column)).unwrap();
+        assert!(rows.rows_in_place());
+        let (wi, wo) = (Vectors::Aos(&inputs.wi), Vectors::Aos(&inputs.wo));
+        let verb = test.rsplit('_').next().unwrap();
+        match verb {
+            "eval" => {
+                let mut f = vec![[0.0; 3]; LARGE];
+                let f = VectorsMut::Aos(&mut f);
+                rows.eval_into(wi, wo, Some(&inputs.keys), f, None).unwrap();
+            }
+            "sample" => {
+                let mut r = vec![SampleRecord::default(); LARGE];
+                rows.sample_records(wi, Some(&inputs.keys), &mut r).unwrap();
+            }
+            _ => panic!("no verb {verb}"),
+        }
+        // The coat: IOR 1.5 over vacuum, GGX, height-correlated (the
+        // defaults); the call above built its table.
+        let table = RoughReturn::for_coat(1.5, false, false);
+        assert_eq!(table.built_on(), threads, "threads({threads}), {verb}");
+    });
+}
+
+#[test]
+fn one_thread_builds_a_rough_table_on_the_calling_thread_in_eval() {
+    let test = "threads::one_thread_builds_a_rough_table_on_the_calling_thread_in_eval";
+    rough_table_built_on(test, 1);
+}
+
+#[test]
+fn one_thread_builds_a_rough_table_on_the_calling_thread_in_sample() {
+    let test = "threads::one_thread_builds_a_rough_table_on_the_calling_thread_in_sample";
+    rough_table_built_on(test, 1);
+}
+
+#[test]
+fn a_pool_of_three_builds_a_rough_table_on_three_threads_in_eval() {
+    let test = "threads::a_pool_of_three_builds_a_rough_table_on_three_threads_in_eval";
+    rough_table_built_on(test, 3);
 }
