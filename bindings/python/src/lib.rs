@@ -556,16 +556,27 @@ fn counted<'py>(
     }
 }
 
+/// Walks a call may run with the GIL held: releasing and retaking it costs
+/// more than such a call when other Python threads want it (Mitsuba's
+/// scalar variants call one query at a time from each render thread).
+const KEEP_GIL_WALKS: u64 = 64;
+
+/// Walks a pdf query may run (its density walks, at most this many under
+/// every rule): what [`Bsdf::run`] counts for it.
+const PDF_WALKS_AT_MOST: u64 = 64;
+
 impl Bsdf {
-    /// Runs `call` with the GIL released on the answerer `params` makes
-    /// for `n` queries: the BSDF itself without params, else one material
-    /// per query ([`PerQuery`], every row checked first). The
-    /// one path of every batch method.
+    /// Runs `call` on the answerer `params` makes for `n` queries of
+    /// `walks` walks each: the BSDF itself without params, else one material
+    /// per query ([`PerQuery`], every row checked first), with the GIL
+    /// released unless the call is small ([`KEEP_GIL_WALKS`]). The one path
+    /// of every batch method.
     fn run<R: Send>(
         &self,
         py: Python<'_>,
         params: &[Param<'_>],
         n: usize,
+        walks: u64,
         call: impl FnOnce(&Answerer<'_>) -> Result<R, BatchError> + Send,
     ) -> PyResult<R> {
         let columns: Vec<Column<'_>> = params
@@ -577,7 +588,7 @@ impl Bsdf {
             })
             .collect();
         let bsdf = &self.inner;
-        py.detach(|| {
+        let work = || {
             let answerer = if columns.is_empty() {
                 Answerer::Own(bsdf)
             } else {
@@ -588,8 +599,10 @@ impl Bsdf {
                 Answerer::PerQuery(Box::new(q))
             };
             Ok(call(&answerer)?)
-        })
-        .map_err(|e: CallError| e.into_py(py, &columns))
+        };
+        let small = (n as u64).saturating_mul(walks) <= KEEP_GIL_WALKS;
+        let result: Result<R, CallError> = if small { work() } else { py.detach(work) };
+        result.map_err(|e| e.into_py(py, &columns))
     }
 }
 
@@ -1025,7 +1038,9 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (fm, sm) = (f.as_mut(), se.as_mut());
-            self.run(py, &params, n, |a| a.eval(wiv, wov, k, fm, sm))?
+            self.run(py, &params, n, self.inner.samples_per_eval(), |a| {
+                a.eval(wiv, wov, k, fm, sm)
+            })?
         };
         let result = (f.into_py(py)?, se.into_py(py)?);
         counted(py, result, return_truncated.then_some(cut))
@@ -1068,7 +1083,9 @@ impl Bsdf {
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (wom, wm) = (wo.as_mut(), weight.as_mut());
             let (p, fl) = (&mut pdf[..], &mut flags[..]);
-            self.run(py, &params, n, |a| a.sample(wiv, k, wom, wm, p, fl))?;
+            self.run(py, &params, n, PDF_WALKS_AT_MOST, |a| {
+                a.sample(wiv, k, wom, wm, p, fl)
+            })?;
         }
         Ok((
             wo.into_py(py)?,
@@ -1097,7 +1114,7 @@ impl Bsdf {
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
-            self.run(py, &params, n, |a| a.pdf(wiv, wov, p))?;
+            self.run(py, &params, n, PDF_WALKS_AT_MOST, |a| a.pdf(wiv, wov, p))?;
         }
         Ok(pdf.into_pyarray(py))
     }
@@ -1126,7 +1143,9 @@ impl Bsdf {
         let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
-            self.run(py, &params, n, |a| a.pdf_unbiased(wiv, wov, samples, p, s))?
+            self.run(py, &params, n, samples, |a| {
+                a.pdf_unbiased(wiv, wov, samples, p, s)
+            })?
         };
         let result = (pdf.into_pyarray(py), stderr.into_pyarray(py));
         counted(py, result, return_truncated.then_some(cut))
@@ -1159,7 +1178,7 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let out = &mut rec[..];
-            self.run(py, &params, m, |a| a.albedo(wiv, n, k, out))?
+            self.run(py, &params, m, n, |a| a.albedo(wiv, n, k, out))?
         };
         let layout = wi.layout();
         let mut outs = [
