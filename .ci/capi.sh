@@ -42,8 +42,11 @@ if ! diff -u "$header" "$tmp/strata.h"; then
   exit 1
 fi
 
-echo "== cargo build --release -p strata-capi"
-cargo build --release -p strata-capi
+# The workspace's default members, as `cargo test` builds them: the C library
+# is then the one the suite built (`-p strata-capi` alone would resolve other
+# features and build the Rust library again).
+echo "== cargo build --release (the workspace; the C library among it)"
+cargo build --release
 target_dir=$(cargo metadata --format-version 1 --no-deps | sed -n 's/.*"target_directory":"\([^"]*\)".*/\1/p')
 lib="$target_dir/release/libstrata_capi.a"
 test -f "$lib"

@@ -61,6 +61,41 @@ pub struct InterfaceLanes<L: Lane> {
 }
 
 /// The result of sampling an interface.
+impl InterfaceLanes<f64> {
+    /// This interface on every lane of `L`: the lanes
+    /// `LayerStack::interface_lanes::<L>` makes of it, bit for bit (both
+    /// splat the same numbers).
+    pub fn splat<L: Lane>(&self) -> InterfaceLanes<L> {
+        let rgb = |c: &Rgb<f64>| Rgb::new(L::splat(c.r), L::splat(c.g), L::splat(c.b));
+        let m = L::Mask::splat;
+        InterfaceLanes {
+            n_above: L::splat(self.n_above),
+            n_below: L::splat(self.n_below),
+            mf: Microfacet {
+                alpha_x: L::splat(self.mf.alpha_x),
+                alpha_y: L::splat(self.mf.alpha_y),
+                beckmann: m(self.mf.beckmann),
+                separable: m(self.mf.separable),
+            },
+            smooth: m(self.smooth),
+            dielectric: m(self.dielectric),
+            conductor: m(self.conductor),
+            diffuse: m(self.diffuse),
+            eta: rgb(&self.eta),
+            k: rgb(&self.k),
+            albedo: rgb(&self.albedo),
+            normal: V3::new(
+                L::splat(self.normal.x),
+                L::splat(self.normal.y),
+                L::splat(self.normal.z),
+            ),
+            tilted: self.tilted,
+            adjoint: self.adjoint,
+            run_all: self.run_all,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample<L: Lane> {
     /// The outgoing direction (pointing away from the interface).

@@ -109,7 +109,10 @@ impl LayeredBsdf {
             };
             (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
         });
-        let cv = coat.clone().filter(|_| self.control_variate_for(st));
+        let cv = coat
+            .as_ref()
+            .filter(|_| self.control_variate_for(st))
+            .cloned();
         let table = sets.table_mut();
         table.push(st, cv);
         table.set_adjoint_of_last(self.adjoint());

@@ -72,8 +72,7 @@ impl CoatLambertian {
         SmoothCoatLambertian::unscattered_with(stack, settings, tabulated)
             .map(CoatLambertian::Smooth)
             .or_else(|| {
-                let r = RoughCoatLambertian::unscattered(stack, settings)?;
-                let r = if tabulated { r.tabulated() } else { r };
+                let r = RoughCoatLambertian::unscattered_with(stack, settings, tabulated)?;
                 Some(Self::Rough(Arc::new(r)))
             })
     }

@@ -34,8 +34,10 @@
 use crate::fresnel;
 use crate::lane::V3;
 use crate::microfacet::Microfacet;
+use std::cell::RefCell;
 use std::f64::consts::PI;
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::thread::LocalKey;
 
 /// `R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ` of a smooth coat of relative IOR
 /// `eta` (`n_below / n_above`) over a layer of optical depth `tau`, by
@@ -395,7 +397,13 @@ impl SmoothReturn {
     /// [`CACHE_SIZE`] IORs; a handle outlives its eviction).
     pub fn for_eta(eta: f64) -> Arc<SmoothReturn> {
         static CACHE: Cache<u64, SmoothReturn> = Mutex::new(Vec::new());
-        cached(&CACHE, eta.to_bits(), || SmoothReturn::new(eta))
+        thread_local! {
+            static LAST: Last<u64, SmoothReturn> = const { RefCell::new(None) };
+        }
+        let key = eta.to_bits();
+        last_or(&LAST, key, || {
+            cached(&CACHE, key, || SmoothReturn::new(eta))
+        })
     }
 
     /// The table of relative IOR `eta`, built now and not cached.
@@ -476,8 +484,12 @@ impl RoughReturn {
     /// [`rough_coat::DOMAIN`]: super::rough_coat::DOMAIN
     pub fn for_coat(eta: f64, beckmann: bool, separable: bool) -> Arc<RoughReturn> {
         static CACHE: Cache<(u64, bool, bool), RoughReturn> = Mutex::new(Vec::new());
-        cached(&CACHE, (eta.to_bits(), beckmann, separable), || {
-            RoughReturn::new(eta, beckmann, separable)
+        thread_local! {
+            static LAST: Last<(u64, bool, bool), RoughReturn> = const { RefCell::new(None) };
+        }
+        let key = (eta.to_bits(), beckmann, separable);
+        last_or(&LAST, key, || {
+            cached(&CACHE, key, || RoughReturn::new(eta, beckmann, separable))
         })
     }
 
@@ -666,6 +678,29 @@ const TAU_SCALE: f64 = 4.0;
 /// Tables by key, each built once (concurrent requests for one key wait for
 /// its build; other keys build meanwhile).
 type Cache<K, T> = Mutex<Vec<(K, Arc<OnceLock<Arc<T>>>)>>;
+
+/// A thread's last table and its key: the rows of one per-query table ask
+/// for the same coat's, one after another.
+type Last<K, T> = RefCell<Option<(K, Arc<T>)>>;
+
+/// The thread's last table if it is `key`'s, else `get()`'s, kept as the
+/// last.
+fn last_or<K: PartialEq + Copy + 'static, T: 'static>(
+    last: &'static LocalKey<Last<K, T>>,
+    key: K,
+    get: impl FnOnce() -> Arc<T>,
+) -> Arc<T> {
+    if let Some(t) = last.with_borrow(|l| {
+        l.as_ref()
+            .filter(|(k, _)| *k == key)
+            .map(|(_, t)| Arc::clone(t))
+    }) {
+        return t;
+    }
+    let t = get();
+    last.set(Some((key, Arc::clone(&t))));
+    t
+}
 
 fn cached<K: PartialEq, T>(cache: &Cache<K, T>, key: K, build: impl FnOnce() -> T) -> Arc<T> {
     let slot = {

@@ -31,6 +31,23 @@ pub struct MediumLanes<L: Lane> {
     pub grey: bool,
 }
 
+impl MediumLanes<f64> {
+    /// This layer on every lane of `L` (the lanes [`MediumLanes::new`]
+    /// makes of it, bit for bit).
+    pub fn splat<L: Lane>(&self) -> MediumLanes<L> {
+        let rgb = |c: &Rgb<f64>| Rgb::new(L::splat(c.r), L::splat(c.g), L::splat(c.b));
+        MediumLanes {
+            kind: self.kind,
+            thickness: L::splat(self.thickness),
+            sigma_t: rgb(&self.sigma_t),
+            albedo: rgb(&self.albedo),
+            phase: self.phase.splat(),
+            directional: self.directional,
+            grey: self.grey,
+        }
+    }
+}
+
 impl<L: Lane> MediumLanes<L> {
     /// The medium of layer `l` of `stack` (a clear layer if it has none).
     pub fn new(stack: &LayerStack, l: usize) -> Self {

@@ -48,11 +48,9 @@ use std::sync::{Arc, OnceLock};
 /// The factorized BSDF of a rough coat over a layer over a Lambertian base.
 #[derive(Clone, Debug)]
 pub struct RoughCoatLambertian {
-    /// The coat, on every lane (the sampler's lanes).
-    coat: InterfaceLanes<DefaultWide>,
-    /// The layer, as an absorber of its extinction.
-    layer: MediumLanes<DefaultWide>,
-    /// The same two on one lane, for single samples and densities.
+    /// The coat, and the layer as an absorber of its extinction, on one
+    /// lane (splat onto the sampler's lanes where it samples: a per-query
+    /// row stays small).
     coat_one: InterfaceLanes<f64>,
     layer_one: MediumLanes<f64>,
     /// The coat's microfacets and `n_below / n_above`, for `R̄`.
@@ -62,12 +60,19 @@ pub struct RoughCoatLambertian {
     tau: [f64; 3],
     /// The base's albedo.
     rho: [f64; 3],
-    /// `R̄` per channel, looked up on first use and shared by clones (and
-    /// by the parameter sets that have this coat and layer).
-    r_bar: Arc<OnceLock<[f64; 3]>>,
-    /// `R̄` comes from the coat's table (a per-query row), not from the
-    /// quadrature.
-    tabulated: bool,
+    /// `R̄` per channel.
+    r_bar: ReturnOf,
+}
+
+/// Where a [`RoughCoatLambertian`]'s `R̄` comes from.
+#[derive(Clone, Debug)]
+enum ReturnOf {
+    /// Its quadrature ([`coat_return::rough`]), on first use, shared by
+    /// clones (and by the parameter sets that have this coat and layer).
+    Quadrature(Arc<OnceLock<[f64; 3]>>),
+    /// The coat's table ([`coat_return::RoughReturn`]), looked up when the
+    /// factorization was made (a per-query row: no allocation).
+    Table([f64; 3]),
 }
 
 impl RoughCoatLambertian {
@@ -92,15 +97,23 @@ impl RoughCoatLambertian {
     /// anisotropic coat's `R̄` is not built; outside [`DOMAIN`] `R̄` is not
     /// checked.)
     pub fn unscattered(stack: &LayerStack, settings: &Settings) -> Option<Self> {
+        Self::unscattered_with(stack, settings, false)
+    }
+
+    /// [`RoughCoatLambertian::unscattered`], with `R̄` from the coat's
+    /// table where `tabulated` ([`RoughCoatLambertian::tabulated`]).
+    pub fn unscattered_with(
+        stack: &LayerStack,
+        settings: &Settings,
+        tabulated: bool,
+    ) -> Option<Self> {
         let (coat, _) = coat_and_base(stack, settings)?;
         if !Self::in_domain(coat) {
             return None;
         }
-        let mut layer = MediumLanes::<DefaultWide>::new(stack, 0);
         let mut layer_one = MediumLanes::<f64>::new(stack, 0);
-        if layer.thickness.lane(0) > 0.0 {
+        if layer_one.thickness > 0.0 {
             // The uncollided paths see only the extinction.
-            layer.kind = super::layout::LayerKind::Absorbing;
             layer_one.kind = super::layout::LayerKind::Absorbing;
         }
         // The integral takes the numbers the walks take, in single precision,
@@ -118,16 +131,20 @@ impl RoughCoatLambertian {
             separable: it.mf.separable,
         };
         Some(RoughCoatLambertian {
-            coat: stack.interface_lanes(0),
-            layer,
             coat_one: stack.interface_lanes(0),
             layer_one,
             mf,
             eta: (it.n_below / it.n_above) as f64,
             tau: f64s(medium.sigma_t).map(|t| t * medium.thickness as f64),
             rho: f64s(stack.interface_lanes::<f32>(1).albedo),
-            r_bar: Arc::default(),
-            tabulated: false,
+            r_bar: ReturnOf::Table([0.0; 3]),
+        })
+        .map(|r| match tabulated {
+            true => r.tabulated(),
+            false => RoughCoatLambertian {
+                r_bar: ReturnOf::Quadrature(Arc::default()),
+                ..r
+            },
         })
     }
 
@@ -148,21 +165,26 @@ impl RoughCoatLambertian {
     /// per-query row takes, where a quadrature per row would cost far more
     /// than its queries.
     pub fn tabulated(mut self) -> Self {
-        self.tabulated = true;
-        self.r_bar = Arc::default();
+        let table =
+            coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable);
+        self.r_bar = ReturnOf::Table(table.r_bar(self.mf.alpha_x, self.tau));
         self
     }
 
-    /// `R̄` per channel: by quadrature ([`coat_return::rough`]), or from the
-    /// coat's table ([`RoughCoatLambertian::tabulated`]); the first time.
+    /// `R̄` per channel: by quadrature ([`coat_return::rough`]) the first
+    /// time, or from the coat's table ([`RoughCoatLambertian::tabulated`]).
     pub fn r_bar(&self) -> [f64; 3] {
-        *self.r_bar.get_or_init(|| match self.tabulated {
-            true => {
-                coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable)
-                    .r_bar(self.mf.alpha_x, self.tau)
+        match &self.r_bar {
+            ReturnOf::Quadrature(r) => {
+                *r.get_or_init(|| coat_return::rough(&self.mf, self.eta, self.tau))
             }
-            false => coat_return::rough(&self.mf, self.eta, self.tau),
-        })
+            ReturnOf::Table(r) => *r,
+        }
+    }
+
+    /// Whether `R̄` comes from the coat's table.
+    fn is_tabulated(&self) -> bool {
+        matches!(self.r_bar, ReturnOf::Table(_))
     }
 
     /// Whether `other` has the same coat and layer, so that it can share this
@@ -172,14 +194,14 @@ impl RoughCoatLambertian {
         mf(&self.mf) == mf(&other.mf)
             && self.eta == other.eta
             && self.tau == other.tau
-            && self.tabulated == other.tabulated
+            && self.is_tabulated() == other.is_tabulated()
     }
 
     /// `other` with this one's `R̄` (computed or not), where they have the
     /// same coat and layer ([`RoughCoatLambertian::same_return`]).
     pub fn sharing_return(&self, mut other: RoughCoatLambertian) -> RoughCoatLambertian {
         if self.same_return(&other) {
-            other.r_bar = Arc::clone(&self.r_bar);
+            other.r_bar = self.r_bar.clone();
         }
         other
     }
@@ -200,10 +222,11 @@ impl RoughCoatLambertian {
             LaneRng::<W>::from_states(|j| seed_state_from(prefix, j as u64, Stream::Coat));
         let all = <W as Lane>::Mask::splat(true);
         let mut sum = BlockReducer::new();
+        let (coat, layer) = (self.coat_one.splat::<W>(), self.layer_one.splat::<W>());
         let mut k = 0;
         while k < n {
             let u = [(); 4].map(|_| rng.uniform(all));
-            let a = entrance_product(&self.coat, &self.layer, wi, wo, u);
+            let a = entrance_product(&coat, &layer, wi, wo, u);
             let lanes = (n - k).min(W::LANES as u64) as usize;
             for j in 0..lanes {
                 let v = [a.r.lane(j), a.g.lane(j), a.b.lane(j)];

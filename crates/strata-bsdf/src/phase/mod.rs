@@ -45,6 +45,18 @@ pub struct PhaseLanes<L: Lane> {
     pub p: [L; PHASE_ROW],
 }
 
+impl PhaseLanes<f64> {
+    /// This phase function on every lane of `L` (the lanes the stack makes
+    /// of it, bit for bit).
+    pub fn splat<L: Lane>(&self) -> PhaseLanes<L> {
+        PhaseLanes {
+            kind: self.kind,
+            g: L::splat(self.g),
+            p: self.p.map(L::splat),
+        }
+    }
+}
+
 impl<L: Lane> PhaseLanes<L> {
     /// Isotropic, direction-independent: what a layer without a medium has.
     pub fn isotropic() -> Self {
