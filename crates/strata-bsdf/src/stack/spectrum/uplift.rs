@@ -12,11 +12,11 @@
 //! with these tables: `tests/physics/spectra.rs`).
 //!
 //! Limits: the spectrum is one plausible metamer, smooth, not the measured
-//! spectrum of anything; outside [0, 1] (a `sigma_t`, an `eta` or a `k` above
-//! 1) the same linear combination is used, which scales with the value and
-//! stays positive, but is a guess about a quantity that is not a reflectance:
-//! Fresnel's or Beer's law of the uplifted spectrum does not reduce to the
-//! law of the RGB numbers. Give the measured spectrum where it matters.
+//! spectrum of anything. A `sigma_t`, an `eta` or a `k` above 1 takes the
+//! same linear combination, which scales with the value and stays positive,
+//! but is a guess about a quantity that is not a reflectance: Fresnel's or
+//! Beer's law of the uplifted spectrum does not reduce to the law of the RGB
+//! numbers. Give the measured spectrum where it matters.
 //!
 //! The basis is tabulated every 5 nm from 380 to 780 nm (the authors'
 //! supplementary data, as the colour-science package ships it:
