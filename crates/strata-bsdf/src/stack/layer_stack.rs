@@ -354,7 +354,7 @@ const LAW_RANGE_NM: [f64; 2] = [360.0, 830.0];
 
 /// The one IOR an RGB query uses (the value, or a spectrum's or law's value
 /// at the d line), its spectrum's samples or its law checked like a number.
-pub(super) fn ior_value(layer: Option<usize>, ior: &Spectrum) -> Result<f64, StackError> {
+fn ior_value(layer: Option<usize>, ior: &Spectrum) -> Result<f64, StackError> {
     let field = "interface.ior";
     match ior {
         Spectrum::Grey(v) => ior_in_range(layer, field, *v),
@@ -370,13 +370,14 @@ pub(super) fn ior_value(layer: Option<usize>, ior: &Spectrum) -> Result<f64, Sta
         }
         Spectrum::Cauchy { cauchy } => {
             let law = "interface.ior.cauchy";
-            finite_rgb(layer, law, [cauchy[0], cauchy[1], 0.0]).map_err(|_| {
-                StackError {
-                    value: format!("[{}, {}]", cauchy[0], cauchy[1]),
+            let given = format!("[{}, {}]", cauchy[0], cauchy[1]);
+            if !cauchy.iter().all(|x| x.is_finite()) {
+                return Err(StackError {
+                    value: given,
                     ..StackError::msg(layer, law, "must be finite numbers")
-                }
-            })?;
-            check_law(layer, law, &format!("[{}, {}]", cauchy[0], cauchy[1]), ior)?;
+                });
+            }
+            check_law(layer, law, &given, ior)?;
             Ok(ior.d_line())
         }
         Spectrum::Abbe { nd, abbe } => {
@@ -422,7 +423,7 @@ fn check_law(
 /// The RGB numbers of a coloured field: a number or RGB triple as given
 /// (checked afterwards, as before spectra), a tabulated spectrum's
 /// reduction once every sample passes `rule`.
-pub(super) fn colour(
+fn colour(
     layer: Option<usize>,
     field: &str,
     v: &Spectrum,
