@@ -82,6 +82,21 @@ fn tabulated_interpolation_and_clamping() {
         values: vec![],
     };
     assert!(none.at(500.0).is_nan());
+    assert!(none.rgb().iter().all(|x| x.is_nan()));
+    let nan = Spectrum::Tabulated {
+        nm: vec![400.0, 500.0],
+        values: vec![f64::NAN, 0.5],
+    };
+    let _ = nan.rgb(); // no panic
+    let unsorted = Spectrum::Tabulated {
+        nm: vec![500.0, 400.0, f64::NAN],
+        values: vec![0.1, 0.9],
+    };
+    let _ = (
+        unsorted.rgb(),
+        unsorted.at(450.0),
+        unsorted.at(f64::INFINITY),
+    );
 }
 
 /// The reduction is white-balanced: a flat spectrum keeps its value in

@@ -92,10 +92,11 @@ impl Spectrum {
             Spectrum::Tabulated { values, .. } => {
                 let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
                 let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                if lo == hi {
-                    return [lo; 3];
+                if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
+                    // One value throughout, or none (NaN: an invalid spectrum).
+                    return [if lo == hi { lo } else { f64::NAN }; 3];
                 }
-                cie::to_rgb(|nm| self.at(nm)).map(|c| c.clamp(lo, hi))
+                cie::to_rgb(|nm| self.at(nm)).map(|c| c.max(lo).min(hi))
             }
             Spectrum::Cauchy { .. } | Spectrum::Abbe { .. } => [self.d_line(); 3],
         }
