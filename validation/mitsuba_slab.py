@@ -70,7 +70,8 @@ def rough_conductor(eta, k, alpha, distribution="ggx"):
     }
 
 
-# strata's Cu preset (docs/materials.md), relative to vacuum.
+# The copper of the materials here, relative to vacuum: strata's Cu preset before issue 42
+# (now written out in validation/materials/*.toml, where the preset is measured spectra).
 CU_ETA = [0.200438, 0.924033, 1.10221]
 CU_K = [3.91295, 2.45285, 2.14219]
 

@@ -21,7 +21,7 @@ use strata_bsdf::estimator::params::SetTable;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Stats, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8, Wide};
-use strata_bsdf::stack::{InterfaceDesc, RgbParam, Roughness};
+use strata_bsdf::stack::{InterfaceDesc, Roughness, Spectrum};
 use strata_bsdf::{Engine, Estimator, EvalStart, LayerStack, LayeredBsdf, Materials, Settings};
 
 /// Arguments of `strata bench`.
@@ -198,9 +198,15 @@ fn varied(stack: &LayerStack, k: u64) -> LayerStack {
         let x = strata_bsdf::rng::mix64(k.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ i);
         (x >> 11) as f64 / (1u64 << 53) as f64
     };
-    let scale = |r: RgbParam, f: f64| match r {
-        RgbParam::Grey(v) => RgbParam::Grey(v * f),
-        RgbParam::Rgb(a) => RgbParam::Rgb(a.map(|v| v * f)),
+    let scale = |r: &Spectrum, f: f64| match r {
+        Spectrum::Grey(v) => Spectrum::Grey(v * f),
+        Spectrum::Rgb(a) => Spectrum::Rgb(a.map(|v| v * f)),
+        Spectrum::Tabulated { nm, values } => Spectrum::Tabulated {
+            nm: nm.clone(),
+            values: values.iter().map(|v| v * f).collect(),
+        },
+        // IOR laws: no albedo has one.
+        other => other.clone(),
     };
     let mut desc = stack.desc().clone();
     for (i, layer) in desc.layers.iter_mut().enumerate() {
@@ -214,11 +220,11 @@ fn varied(stack: &LayerStack, k: u64) -> LayerStack {
                     Roughness::Anisotropic(a) => Roughness::Anisotropic(a.map(|x| x * f)),
                 };
             }
-            InterfaceDesc::Diffuse { albedo, .. } => *albedo = scale(*albedo, 0.8 + 0.2 * u(i)),
+            InterfaceDesc::Diffuse { albedo, .. } => *albedo = scale(albedo, 0.8 + 0.2 * u(i)),
         }
         if let Some(m) = &mut layer.medium {
             m.thickness *= 0.5 + u(i + 1);
-            m.albedo = scale(m.albedo, 0.8 + 0.2 * u(i + 2));
+            m.albedo = scale(&m.albedo, 0.8 + 0.2 * u(i + 2));
         }
     }
     match LayerStack::new(&desc) {

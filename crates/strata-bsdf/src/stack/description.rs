@@ -1,12 +1,16 @@
 //! The material description as read from TOML or JSON (serde), before validation.
 //!
-//! The format is documented in `docs/materials.md`. Every RGB field accepts a
-//! single number (grey) or three; roughness accepts one number (isotropic) or
+//! The format is documented in `docs/materials.md`. Every coloured field
+//! accepts a single number (grey), three (RGB) or a tabulated spectrum, a
+//! dielectric's `ior` a number, a tabulated spectrum or a dispersion law
+//! ([`Spectrum`]); roughness accepts one number (isotropic) or
 //! `[alpha_x, alpha_y]`.
 
 use serde::de::{self, Deserializer, IgnoredAny, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::fmt;
+
+use super::spectrum::Spectrum;
 
 /// Implements `Deserialize` for types whose derived impl is inherent
 /// (`#[serde(remote = "Self")]`), taking a table (TOML) or an object (JSON)
@@ -65,42 +69,6 @@ serialized_as_derived!(
     PhaseDesc,
     ComponentDesc
 );
-
-/// A value that may be given once for all channels or per RGB channel.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-#[serde(untagged)]
-pub enum RgbParam {
-    /// The same value in every channel.
-    Grey(f64),
-    /// One value per channel.
-    Rgb([f64; 3]),
-}
-
-impl RgbParam {
-    /// As three channels.
-    pub fn rgb(self) -> [f64; 3] {
-        match self {
-            RgbParam::Grey(v) => [v; 3],
-            RgbParam::Rgb(a) => a,
-        }
-    }
-}
-
-impl<'de> Deserialize<'de> for RgbParam {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        rgb_named(d, "the value")
-    }
-}
-
-/// An [`RgbParam`] whose errors name `field`.
-fn rgb_named<'de, D: Deserializer<'de>>(d: D, field: &'static str) -> Result<RgbParam, D::Error> {
-    Ok(
-        match d.deserialize_any(OneOrN::<3>(field, "a number or [r, g, b]"))? {
-            Ok(x) => RgbParam::Grey(x),
-            Err(a) => RgbParam::Rgb(a),
-        },
-    )
-}
 
 /// GGX alpha: one value (isotropic) or `[alpha_x, alpha_y]`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -206,7 +174,7 @@ pub enum InterfaceDesc {
     Dielectric {
         /// IOR of the region below (for the bottom interface: the exterior below).
         #[serde(deserialize_with = "field::ior")]
-        ior: f64,
+        ior: Spectrum,
         /// GGX alpha; 0 is smooth.
         #[serde(default)]
         roughness: Roughness,
@@ -230,12 +198,12 @@ pub enum InterfaceDesc {
         /// A named metal (see [`crate::stack::presets`]).
         #[serde(default)]
         preset: Option<String>,
-        /// Real part of the IOR per channel.
+        /// Real part of the IOR per channel or as a spectrum.
         #[serde(default, deserialize_with = "field::eta")]
-        eta: Option<RgbParam>,
-        /// Imaginary part of the IOR per channel.
+        eta: Option<Spectrum>,
+        /// Imaginary part of the IOR per channel or as a spectrum.
         #[serde(default, deserialize_with = "field::k")]
-        k: Option<RgbParam>,
+        k: Option<Spectrum>,
         /// GGX alpha; 0 is smooth.
         #[serde(default)]
         roughness: Roughness,
@@ -256,9 +224,9 @@ pub enum InterfaceDesc {
     },
     /// An opaque Lambertian reflector.
     Diffuse {
-        /// Reflectance per channel.
+        /// Reflectance per channel or as a spectrum.
         #[serde(deserialize_with = "field::albedo")]
-        albedo: RgbParam,
+        albedo: Spectrum,
         /// Shading normal `[x, y, z]` in the slab's frame (z up; normalized
         /// when read); absent or `[0, 0, 1]`: untilted (method.md §9).
         #[serde(
@@ -377,43 +345,44 @@ impl Default for PhaseDesc {
 pub struct MediumDesc {
     /// Geometric thickness (any unit; `sigma_t` is per that unit).
     pub thickness: f64,
-    /// Extinction coefficient per channel.
+    /// Extinction coefficient per channel or as a spectrum.
     #[serde(deserialize_with = "field::sigma_t")]
-    pub sigma_t: RgbParam,
-    /// Single-scattering albedo per channel; 0 is a pure absorber.
+    pub sigma_t: Spectrum,
+    /// Single-scattering albedo per channel or as a spectrum; 0 is a pure
+    /// absorber.
     #[serde(default = "white", deserialize_with = "field::albedo")]
-    pub albedo: RgbParam,
+    pub albedo: Spectrum,
     /// Phase function.
     #[serde(default)]
     pub phase: PhaseDesc,
 }
 
-fn white() -> RgbParam {
-    RgbParam::Grey(1.0)
+fn white() -> Spectrum {
+    Spectrum::Grey(1.0)
 }
 
-/// RGB fields whose errors name them.
+/// Fields whose errors name them.
 mod field {
-    use super::{rgb_named, RgbParam};
+    use crate::stack::spectrum::{spectrum_named, Forms, Spectrum};
     use serde::de::{self, IgnoredAny, SeqAccess, Visitor};
     use serde::Deserializer;
     use std::fmt;
 
-    pub fn albedo<'de, D: Deserializer<'de>>(d: D) -> Result<RgbParam, D::Error> {
-        rgb_named(d, "albedo")
+    pub fn albedo<'de, D: Deserializer<'de>>(d: D) -> Result<Spectrum, D::Error> {
+        spectrum_named(d, "albedo", Forms::Colour)
     }
-    pub fn sigma_t<'de, D: Deserializer<'de>>(d: D) -> Result<RgbParam, D::Error> {
-        rgb_named(d, "sigma_t")
+    pub fn sigma_t<'de, D: Deserializer<'de>>(d: D) -> Result<Spectrum, D::Error> {
+        spectrum_named(d, "sigma_t", Forms::Colour)
     }
-    pub fn eta<'de, D: Deserializer<'de>>(d: D) -> Result<Option<RgbParam>, D::Error> {
+    pub fn eta<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Spectrum>, D::Error> {
         d.deserialize_option(Optional("eta"))
     }
-    pub fn k<'de, D: Deserializer<'de>>(d: D) -> Result<Option<RgbParam>, D::Error> {
+    pub fn k<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Spectrum>, D::Error> {
         d.deserialize_option(Optional("k"))
     }
 
-    pub fn ior<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-        d.deserialize_f64(Number("ior"))
+    pub fn ior<'de, D: Deserializer<'de>>(d: D) -> Result<Spectrum, D::Error> {
+        spectrum_named(d, "ior", Forms::Ior)
     }
     pub fn g<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
         d.deserialize_f64(Number("g"))
@@ -504,13 +473,17 @@ mod field {
         }
     }
 
-    /// An optional field (JSON writes an absent one as `null`).
+    /// An optional coloured field (JSON writes an absent one as `null`).
     struct Optional(&'static str);
 
     impl<'de> serde::de::Visitor<'de> for Optional {
-        type Value = Option<RgbParam>;
+        type Value = Option<Spectrum>;
         fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-            write!(f, "`{}` to be a number or [r, g, b]", self.0)
+            write!(
+                f,
+                "`{}` to be a number or [r, g, b], or a spectrum {{ nm = [...], values = [...] }}",
+                self.0
+            )
         }
         fn visit_none<E: serde::de::Error>(self) -> Result<Self::Value, E> {
             Ok(None)
@@ -519,7 +492,7 @@ mod field {
             Ok(None)
         }
         fn visit_some<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
-            rgb_named(d, self.0).map(Some)
+            spectrum_named(d, self.0, Forms::Colour).map(Some)
         }
     }
 }
@@ -559,7 +532,8 @@ fn one() -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{InterfaceDesc, RgbParam};
+    use super::InterfaceDesc;
+    use crate::stack::RgbParam;
     use crate::LayerStack;
 
     fn error(toml: &str) -> String {
@@ -657,7 +631,7 @@ mod tests {
             panic!("a conductor");
         };
         assert_eq!(
-            (*eta, *k),
+            (eta.clone(), k.clone()),
             (
                 Some(RgbParam::Rgb([0.2, 0.9, 1.1])),
                 Some(RgbParam::Grey(3.0))

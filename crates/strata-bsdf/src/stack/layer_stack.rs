@@ -8,6 +8,8 @@ use super::error::{MaterialError, StackError};
 use super::json;
 use super::phase::Phase;
 use super::presets;
+use super::samples::check_samples;
+use super::spectrum::Spectrum;
 use crate::interface::InterfaceLanes;
 use crate::lane::{Lane, LaneMask, Rgb, V3};
 use crate::microfacet::Microfacet;
@@ -331,6 +333,142 @@ pub(super) fn roughness(layer: usize, r: Roughness) -> Result<([f64; 2], bool), 
     }
 }
 
+/// The problem with one value of an IOR (a sample of a spectrum or of a
+/// dispersion law), or `None`.
+fn ior_rule(v: f64) -> Option<String> {
+    if !v.is_finite() {
+        Some("must be a finite number".into())
+    } else if v <= 0.0 {
+        Some("must be > 0".into())
+    } else if !(IOR_RANGE[0]..=IOR_RANGE[1]).contains(&v) {
+        Some(format!("must be in [{}, {}]", IOR_RANGE[0], IOR_RANGE[1]))
+    } else {
+        None
+    }
+}
+
+/// The wavelengths over which a dispersion law's IOR is checked, in nm: the
+/// range of the CIE tables and of spectral renderers' wavelengths. (A
+/// two-term Cauchy law is monotonic, so its ends bound it.)
+const LAW_RANGE_NM: [f64; 2] = [360.0, 830.0];
+
+/// The one IOR an RGB query uses (the value, or a spectrum's or law's value
+/// at the d line), its spectrum's samples or its law checked like a number.
+fn ior_value(layer: Option<usize>, ior: &Spectrum) -> Result<f64, StackError> {
+    let field = "interface.ior";
+    match ior {
+        Spectrum::Grey(v) => ior_in_range(layer, field, *v),
+        Spectrum::Rgb(c) => Err(StackError::new_rgb(
+            layer,
+            field,
+            *c,
+            "an IOR is one number or a spectrum, not one per channel (a refracted direction is one per walk)",
+        )),
+        Spectrum::Tabulated { nm, values } => {
+            check_samples(layer, field, nm, values, ior_rule)?;
+            Ok(ior.d_line())
+        }
+        Spectrum::Cauchy { cauchy } => {
+            let law = "interface.ior.cauchy";
+            let given = format!("[{}, {}]", cauchy[0], cauchy[1]);
+            if !cauchy.iter().all(|x| x.is_finite()) {
+                return Err(StackError {
+                    value: given,
+                    ..StackError::msg(layer, law, "must be finite numbers")
+                });
+            }
+            check_law(layer, law, &given, ior)?;
+            Ok(ior.d_line())
+        }
+        Spectrum::Abbe { nd, abbe } => {
+            let nd = ior_in_range(layer, "interface.ior.nd", *nd)?;
+            if !abbe.is_finite() || *abbe <= 0.0 {
+                return Err(StackError::new(
+                    layer,
+                    "interface.ior.abbe",
+                    *abbe,
+                    "must be a finite number > 0",
+                ));
+            }
+            check_law(layer, field, &format!("{{ nd = {nd}, abbe = {abbe} }}"), ior)?;
+            Ok(nd)
+        }
+    }
+}
+
+/// A dispersion law's IOR at both ends of [`LAW_RANGE_NM`] passes
+/// [`ior_rule`].
+fn check_law(
+    layer: Option<usize>,
+    field: &str,
+    given: &str,
+    law: &Spectrum,
+) -> Result<(), StackError> {
+    for nm in LAW_RANGE_NM {
+        let n = law.at(nm);
+        if let Some(problem) = ior_rule(n) {
+            return Err(StackError {
+                value: given.to_string(),
+                ..StackError::msg(
+                    layer,
+                    field,
+                    &format!("gives n = {n} at {nm} nm, which {problem}"),
+                )
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The RGB numbers of a coloured field: a number or RGB triple as given
+/// (checked afterwards, as before spectra), a tabulated spectrum's
+/// reduction once every sample passes `rule`.
+fn colour(
+    layer: Option<usize>,
+    field: &str,
+    v: &Spectrum,
+    rule: impl Fn(f64) -> Option<String>,
+) -> Result<[f64; 3], StackError> {
+    match v {
+        Spectrum::Grey(_) | Spectrum::Rgb(_) => Ok(v.rgb()),
+        Spectrum::Tabulated { nm, values } => {
+            check_samples(layer, field, nm, values, rule)?;
+            Ok(v.rgb())
+        }
+        Spectrum::Cauchy { .. } | Spectrum::Abbe { .. } => Err(StackError::msg(
+            layer,
+            field,
+            "a dispersion law (`cauchy`, or `nd` and `abbe`) is for a dielectric's `ior` only",
+        )),
+    }
+}
+
+/// The rule of one value in `[lo, hi]`, as the RGB checks word it.
+fn in_range(lo: f64, lo_open: bool, hi: f64) -> impl Fn(f64) -> Option<String> {
+    move |v: f64| {
+        if !v.is_finite() {
+            Some("must be a finite number".into())
+        } else if lo_open && v <= lo {
+            Some(format!("must be > {lo}"))
+        } else if v < lo {
+            Some(format!("must be >= {lo}"))
+        } else if v > hi {
+            Some(format!("must be at most {hi}"))
+        } else {
+            None
+        }
+    }
+}
+
+/// The rule of an albedo's values: in [0, 1].
+fn unit_rule(v: f64) -> Option<String> {
+    if !v.is_finite() {
+        Some("must be a finite number".into())
+    } else {
+        (!(0.0..=1.0).contains(&v)).then(|| "must be in [0, 1]".to_string())
+    }
+}
+
 impl LayerStack {
     /// Validates a description and builds the stack.
     ///
@@ -377,7 +515,7 @@ impl LayerStack {
                     shadowing,
                     ..
                 } => {
-                    let ior = ior_in_range(li, "interface.ior", *ior)?;
+                    let ior = ior_value(li, ior)?;
                     let (alpha, smooth) = roughness(i, *r)?;
                     let matched = ior == n_above;
                     Interface {
@@ -421,15 +559,14 @@ impl LayerStack {
                                 "interface.preset",
                                 &format!(
                                     "unknown conductor preset {p:?} (known: {})",
-                                    presets::PRESETS
-                                        .iter()
-                                        .map(|p| p.0)
-                                        .collect::<Vec<_>>()
-                                        .join(", ")
+                                    presets::names()
                                 ),
                             )
                         })?,
-                        (None, Some(e), Some(k)) => (e.rgb(), k.rgb()),
+                        (None, Some(e), Some(k)) => (
+                            colour(li, "interface.eta", e, in_range(0.0, true, MAX_CONDUCTOR))?,
+                            colour(li, "interface.k", k, in_range(0.0, false, MAX_CONDUCTOR))?,
+                        ),
                         (Some(_), _, _) => {
                             return Err(StackError::msg(
                                 li,
@@ -469,7 +606,8 @@ impl LayerStack {
                             "a diffuse interface is opaque and must be the last layer",
                         ));
                     }
-                    let a = unit_rgb(li, "interface.albedo", albedo.rgb())?;
+                    let field = "interface.albedo";
+                    let a = unit_rgb(li, field, colour(li, field, albedo, unit_rule)?)?;
                     Interface {
                         kind: InterfaceKind::Diffuse,
                         n_above,
@@ -511,9 +649,16 @@ impl LayerStack {
     fn parse_medium(i: usize, m: &MediumDesc) -> Result<Medium, StackError> {
         let li = Some(i);
         let h = thickness(li, m.thickness)?;
-        let st = sigma_t(li, m.sigma_t.rgb())?;
+        let deep =
+            format!("gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}");
+        let st_rule = |v: f64| {
+            in_range(0.0, false, f64::MAX)(v)
+                .or_else(|| (v * h > MAX_OPTICAL_DEPTH).then(|| deep.clone()))
+        };
+        let st = sigma_t(li, colour(li, "medium.sigma_t", &m.sigma_t, st_rule)?)?;
         check_depth(li, h, st)?;
-        let al = unit_rgb(li, "medium.albedo", m.albedo.rgb())?;
+        let field = "medium.albedo";
+        let al = unit_rgb(li, field, colour(li, field, &m.albedo, unit_rule)?)?;
         let phase = Phase::new(i, &m.phase)?;
         Ok(Medium {
             thickness: h,

@@ -6,22 +6,28 @@
 //! the value. Once built, a stack is immutable and the kernels never fail on it.
 //!
 //! The stack is in `layer_stack`; `shape` (what fixes a walk's schedule) and
-//! `set` (a per-query override of a number by its path) add to it.
+//! `set` (a per-query override of a number by its path) add to it. Coloured
+//! values and IORs may be spectra (`spectrum`, checked sample by sample in
+//! `samples`); the conductor presets are measured spectra (`presets`, with
+//! the tables in `measured`).
 
 mod description;
 mod error;
 mod in_place;
 mod json;
 mod layer_stack;
+mod measured;
 mod phase;
 pub mod presets;
+mod samples;
 mod set;
 mod shape;
+pub mod spectrum;
 
 pub(crate) use description::tables_only;
 pub use description::{
     ComponentDesc, ComponentKind, Distribution, FlakeScattering, Flakes, InterfaceDesc, LayerDesc,
-    MaterialDesc, MediumDesc, PhaseDesc, RgbParam, Roughness, Shadowing,
+    MaterialDesc, MediumDesc, PhaseDesc, Roughness, Shadowing,
 };
 pub use error::{MaterialError, StackError};
 pub use layer_stack::{
@@ -31,3 +37,4 @@ pub use layer_stack::{
 pub use phase::{Phase, PhaseKind, MAX_COMPONENTS, MIN_SGGX_ROUGHNESS};
 pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};
+pub use spectrum::{RgbParam, Spectrum};

@@ -1,40 +1,133 @@
-//! Named conductors: complex IOR `eta + i k` per RGB channel, relative to vacuum.
+//! Named conductors: measured complex IOR `eta + i k` relative to vacuum, as
+//! tabulated spectra, and the RGB numbers RGB queries use.
 //!
-//! The values are RGB reductions of measured spectral data (copper, gold and
-//! silver: Johnson & Christy 1972; aluminium and chromium: Palik 1985, via
-//! Rakić 1995 and Rakić et al. 1998), as shipped with Mitsuba's conductor
-//! tables and reproduced in many renderers. strata divides them by the IOR of
-//! the region above the conductor.
+//! Each preset is a published measurement (`super::measured` names the
+//! source of each table; docs/materials.md lists them with their ranges),
+//! read linearly between its samples. Its RGB numbers are the CIE reduction
+//! of the spectra (`super::spectrum::to_rgb`: XYZ under D65, linear sRGB).
+//! strata divides them by the IOR of the region above the conductor.
 
-/// `(name, eta, k)` of every preset.
-pub const PRESETS: &[(&str, [f64; 3], [f64; 3])] = &[
-    (
-        "Cu",
-        [0.200438, 0.924033, 1.10221],
-        [3.91295, 2.45285, 2.14219],
-    ),
-    (
-        "Au",
-        [0.143119, 0.374957, 1.44248],
-        [3.98316, 2.38572, 1.60322],
-    ),
-    (
-        "Ag",
-        [0.155265, 0.116723, 0.138342],
-        [4.82835, 3.12225, 2.14696],
-    ),
-    (
-        "Al",
-        [1.65746, 0.880369, 0.521229],
-        [9.22387, 6.26952, 4.837],
-    ),
-    ("Cr", [4.36968, 2.9167, 1.6547], [5.20643, 4.23136, 3.75495]),
+use super::measured;
+use super::spectrum::Spectrum;
+use std::sync::OnceLock;
+
+/// A named metal and its measured optical constants.
+#[derive(Debug)]
+pub struct Preset {
+    /// The name a material file gives (`preset = "Cu"`), case-insensitive.
+    pub name: &'static str,
+    /// The metal.
+    pub metal: &'static str,
+    /// Where the measurement is published.
+    pub source: &'static str,
+    /// `(wavelength in nm, n, k)`, increasing in wavelength.
+    pub samples: &'static [(f64, f64, f64)],
+}
+
+impl Preset {
+    /// The real part of the IOR as a tabulated spectrum.
+    pub fn eta(&self) -> Spectrum {
+        Spectrum::Tabulated {
+            nm: self.samples.iter().map(|s| s.0).collect(),
+            values: self.samples.iter().map(|s| s.1).collect(),
+        }
+    }
+    /// The imaginary part (extinction coefficient) as a tabulated spectrum.
+    pub fn k(&self) -> Spectrum {
+        Spectrum::Tabulated {
+            nm: self.samples.iter().map(|s| s.0).collect(),
+            values: self.samples.iter().map(|s| s.2).collect(),
+        }
+    }
+    /// The wavelengths the table spans, in nm.
+    pub fn range_nm(&self) -> [f64; 2] {
+        let first = self.samples.first().map_or(f64::NAN, |s| s.0);
+        let last = self.samples.last().map_or(f64::NAN, |s| s.0);
+        [first, last]
+    }
+}
+
+const JC72: &str = "P. B. Johnson and R. W. Christy, Phys. Rev. B 6, 4370 (1972)";
+const JC74: &str = "P. B. Johnson and R. W. Christy, Phys. Rev. B 9, 5056 (1974)";
+
+/// Every preset.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "Cu",
+        metal: "copper",
+        source: JC72,
+        samples: &measured::COPPER,
+    },
+    Preset {
+        name: "Au",
+        metal: "gold",
+        source: JC72,
+        samples: &measured::GOLD,
+    },
+    Preset {
+        name: "Ag",
+        metal: "silver",
+        source: JC72,
+        samples: &measured::SILVER,
+    },
+    Preset {
+        name: "Al",
+        metal: "aluminium",
+        source: "A. D. Rakić, Appl. Opt. 34, 4755 (1995)",
+        samples: &measured::ALUMINIUM,
+    },
+    Preset {
+        name: "Cr",
+        metal: "chromium",
+        source: JC74,
+        samples: &measured::CHROMIUM,
+    },
+    Preset {
+        name: "Ni",
+        metal: "nickel",
+        source: JC74,
+        samples: &measured::NICKEL,
+    },
+    Preset {
+        name: "Ti",
+        metal: "titanium",
+        source: JC74,
+        samples: &measured::TITANIUM,
+    },
+    Preset {
+        name: "Fe",
+        metal: "iron",
+        source: JC74,
+        samples: &measured::IRON,
+    },
 ];
 
 /// Looks up a preset by name (case-insensitive).
+pub fn preset(name: &str) -> Option<&'static Preset> {
+    PRESETS.iter().find(|p| p.name.eq_ignore_ascii_case(name))
+}
+
+/// The RGB numbers `(eta, k)` of a preset, by name (case-insensitive):
+/// the reductions of its spectra, computed once.
 pub fn conductor(name: &str) -> Option<([f64; 3], [f64; 3])> {
+    static RGB: OnceLock<Vec<([f64; 3], [f64; 3])>> = OnceLock::new();
+    let rgb = RGB.get_or_init(|| {
+        PRESETS
+            .iter()
+            .map(|p| (p.eta().rgb(), p.k().rgb()))
+            .collect()
+    });
+    let i = PRESETS
+        .iter()
+        .position(|p| p.name.eq_ignore_ascii_case(name))?;
+    rgb.get(i).copied()
+}
+
+/// The names of the presets, comma-separated (for messages).
+pub fn names() -> String {
     PRESETS
         .iter()
-        .find(|(n, _, _)| n.eq_ignore_ascii_case(name))
-        .map(|&(_, e, k)| (e, k))
+        .map(|p| p.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -18,12 +18,12 @@
 //!   of a layer without a medium, or `phase.g` of an isotropic phase is an
 //!   error; nothing is created.
 //! - Setting `eta` or `k` of a conductor given by `preset` replaces the
-//!   preset: the other of the two takes the preset's values, so the result is
-//!   the conductor written with explicit `eta` and `k`.
+//!   preset: the other of the two takes the preset's measured spectrum, so
+//!   the result is the conductor written with explicit `eta` and `k`.
 //! - Entries at different paths commute (the preset rule included), so the
 //!   order of a set does not matter; the same path twice is an error.
 
-use super::description::{InterfaceDesc, LayerDesc, MaterialDesc, PhaseDesc, RgbParam};
+use super::description::{InterfaceDesc, LayerDesc, MaterialDesc, PhaseDesc};
 use super::error::StackError;
 use super::layer_stack::LayerStack;
 use super::presets;
@@ -340,7 +340,7 @@ impl MaterialDesc {
     /// [`LayerStack::with_set`]); on error `self` is unchanged.
     ///
     /// Setting `eta` or `k` of a conductor given by `preset` replaces the
-    /// preset, the other of the two taking the preset's values.
+    /// preset, the other of the two taking the preset's measured spectrum.
     ///
     /// ```
     /// use strata_bsdf::stack::{MaterialDesc, SetPath};
@@ -412,17 +412,16 @@ impl MaterialDesc {
                 } = &old.interface
                 {
                     if matches!(f, InterfaceField::Eta | InterfaceField::K) {
-                        let (pe, pk) = presets::conductor(p).ok_or_else(|| {
+                        let preset = presets::preset(p).ok_or_else(|| {
                             missing(format!(
                                 "layer {layer}'s conductor preset {p:?} is unknown, so the \
                                  value it would leave for the other of eta and k is too"
                             ))
                         })?;
-                        let rgb = |v: Option<RgbParam>, d: [f64; 3]| {
-                            serde_json::to_value(v.unwrap_or(RgbParam::Rgb(d)))
-                        };
-                        iface["eta"] = rgb(*eta, pe).map_err(value_error)?;
-                        iface["k"] = rgb(*k, pk).map_err(value_error)?;
+                        // The preset's measured spectra, as a file would write them.
+                        let given = |v: &Option<_>, d| serde_json::to_value(v.clone().unwrap_or(d));
+                        iface["eta"] = given(eta, preset.eta()).map_err(value_error)?;
+                        iface["k"] = given(k, preset.k()).map_err(value_error)?;
                         iface["preset"] = Value::Null;
                     }
                 }

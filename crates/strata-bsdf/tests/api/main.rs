@@ -12,6 +12,7 @@ mod api_embedding;
 mod bounded_walks;
 mod layered_settings;
 mod material_set;
+mod material_spectra;
 mod module_tree;
 mod param_sets;
 mod per_query_chunks;

@@ -52,8 +52,19 @@ type Set = Vec<(&'static str, Value)>;
 /// The file's values, by placeholder.
 type Values = Vec<(&'static str, String)>;
 
-const CU_ETA: &str = "[0.200438, 0.924033, 1.10221]";
-const CU_K: &str = "[3.91295, 2.45285, 2.14219]";
+/// The `Cu` preset's measured eta or k (column 1 or 2), as a file writes it.
+fn cu(col: usize) -> String {
+    let p = strata_bsdf::stack::presets::preset("Cu").expect("Cu");
+    let list = |f: &dyn Fn(&(f64, f64, f64)) -> f64| {
+        p.samples
+            .iter()
+            .map(|s| f(s).to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let v = list(&|s| if col == 1 { s.1 } else { s.2 });
+    format!("{{ nm = [{}], values = [{v}] }}", list(&|s| s.0))
+}
 
 /// Every kind of parameter: the set equals the file.
 #[test]
@@ -111,11 +122,11 @@ fn set_equals_file_for_every_parameter() {
         // The preset rule: eta replaces the preset, k comes from it; and the other way.
         (
             vec![("layers[2].interface.eta", json!([0.3, 0.5, 1.2]))],
-            vec![("conductor", eta_k("[0.3, 0.5, 1.2]", CU_K))],
+            vec![("conductor", eta_k("[0.3, 0.5, 1.2]", &cu(2)))],
         ),
         (
             vec![("layers[2].interface.k", json!(3))],
-            vec![("conductor", eta_k(CU_ETA, "3"))],
+            vec![("conductor", eta_k(&cu(1), "3"))],
         ),
         (
             vec![
@@ -141,7 +152,7 @@ fn set_equals_file_for_every_parameter() {
             ],
             vec![
                 ("thickness", "0.5".into()),
-                ("conductor", eta_k("[0.3, 0.5, 1.2]", CU_K)),
+                ("conductor", eta_k("[0.3, 0.5, 1.2]", &cu(2))),
                 ("roughness", "[0.1, 0.2]".into()),
                 ("exterior_ior", "1.2".into()),
             ],
@@ -354,7 +365,10 @@ fn query_lines_with_set() {
     let got = s.apply(&base()).expect("valid set");
     let want = file(&[
         ("thickness", "0.5"),
-        ("conductor", &format!("eta = [0.3, 0.5, 1.2], k = {CU_K}")),
+        (
+            "conductor",
+            &format!("eta = [0.3, 0.5, 1.2], k = {}", cu(2)),
+        ),
         ("roughness", "[0.1, 0.2]"),
         ("exterior_ior", "1.2"),
     ]);

@@ -389,11 +389,32 @@ fn field(lo: f64, hi: f64) -> impl Strategy<Value = f64> {
     ]
 }
 
+/// A number, three, or now and then a tabulated spectrum (of any length,
+/// in any order: the invalid ones are errors, never a panic).
 fn rgb(lo: f64, hi: f64) -> impl Strategy<Value = RgbParam> {
     prop_oneof![
-        field(lo, hi).prop_map(RgbParam::Grey),
-        (field(lo, hi), field(lo, hi), field(lo, hi))
+        6 => field(lo, hi).prop_map(RgbParam::Grey),
+        6 => (field(lo, hi), field(lo, hi), field(lo, hi))
             .prop_map(|(a, b, c)| RgbParam::Rgb([a, b, c])),
+        1 => (
+            prop::collection::vec(field(300.0, 900.0), 0..4),
+            prop::collection::vec(field(lo, hi), 0..4)
+        )
+            .prop_map(|(nm, values)| RgbParam::Tabulated { nm, values }),
+    ]
+}
+
+/// An IOR: a number, or now and then a spectrum or a dispersion law.
+fn ior() -> impl Strategy<Value = RgbParam> {
+    prop_oneof![
+        12 => field(1.0, 3.0).prop_map(RgbParam::Grey),
+        1 => (
+            prop::collection::vec(field(300.0, 900.0), 0..4),
+            prop::collection::vec(field(1.0, 3.0), 0..4)
+        )
+            .prop_map(|(nm, values)| RgbParam::Tabulated { nm, values }),
+        1 => (field(1.0, 3.0), field(-0.1, 0.1)).prop_map(|(a, b)| RgbParam::Cauchy { cauchy: [a, b] }),
+        1 => (field(1.0, 3.0), field(-10.0, 100.0)).prop_map(|(nd, abbe)| RgbParam::Abbe { nd, abbe }),
     ]
 }
 
@@ -432,21 +453,15 @@ fn any_normal() -> impl Strategy<Value = Option<[f64; 3]>> {
 }
 
 fn dielectric() -> impl Strategy<Value = InterfaceDesc> {
-    (
-        field(1.0, 3.0),
-        any_roughness(),
-        any_distribution(),
-        any_normal(),
+    (ior(), any_roughness(), any_distribution(), any_normal()).prop_map(
+        |(ior, roughness, (distribution, shadowing), normal)| InterfaceDesc::Dielectric {
+            ior,
+            roughness,
+            distribution,
+            shadowing,
+            normal,
+        },
     )
-        .prop_map(|(ior, roughness, (distribution, shadowing), normal)| {
-            InterfaceDesc::Dielectric {
-                ior,
-                roughness,
-                distribution,
-                shadowing,
-                normal,
-            }
-        })
 }
 
 fn conductor() -> impl Strategy<Value = InterfaceDesc> {

@@ -20,5 +20,6 @@ mod layered_reciprocity;
 mod layered_single_scattering;
 mod phase_sggx;
 mod rough_coat;
+mod spectra;
 mod tilted_normals;
 mod validation;
