@@ -23,7 +23,6 @@ use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 use pyo3::IntoPyObjectExt;
-use strata_bsdf::stack::InterfaceKind;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
     LayeredBsdf, MaterialError as StackMaterialError, PdfWalks, PerQuery, SetError, SetPath,
@@ -705,37 +704,6 @@ impl VecOut {
     }
 }
 
-/// The lobes a stack can produce, for a renderer's flags.
-struct Lobes {
-    delta_reflection: bool,
-    delta_transmission: bool,
-    glossy: bool,
-    diffuse: bool,
-    transmission: bool,
-}
-
-fn lobes(stack: &LayerStack) -> Lobes {
-    let its = stack.interfaces();
-    let features = stack.features();
-    let delta = |i: &strata_bsdf::stack::Interface| i.smooth && i.kind != InterfaceKind::Diffuse;
-    let top = &its[0];
-    let bottom = &its[its.len() - 1];
-    let transmission = stack.transmissive();
-    Lobes {
-        // An all-delta walk reflects off a smooth top (or, for light from
-        // below a transmissive stack, off a smooth bottom).
-        delta_reflection: delta(top) || (transmission && delta(bottom)),
-        // Through every interface without a non-delta event.
-        delta_transmission: transmission && its.iter().all(delta) && !features.scattering,
-        glossy: its
-            .iter()
-            .any(|i| !i.smooth && i.kind != InterfaceKind::Diffuse)
-            || features.scattering,
-        diffuse: its.iter().any(|i| i.kind == InterfaceKind::Diffuse),
-        transmission,
-    }
-}
-
 /// A layered BSDF (a strata `LayeredBsdf`), answering batches of queries.
 ///
 /// Create one with `Bsdf.from_toml`, `Bsdf.from_json` or `Bsdf.from_path`.
@@ -1263,7 +1231,7 @@ impl Bsdf {
     /// Lambertian interface) and `transmission` (the stack transmits).
     #[getter]
     fn lobes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let l = lobes(self.inner.stack());
+        let l = self.inner.stack().lobes();
         let d = PyDict::new(py);
         d.set_item("delta_reflection", l.delta_reflection)?;
         d.set_item("delta_transmission", l.delta_transmission)?;

@@ -21,6 +21,7 @@
 use std::cell::Cell;
 use std::ptr;
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
+use std::thread::LocalKey;
 
 use rayon::prelude::*;
 use rayon::{ThreadPool, ThreadPoolBuildError, ThreadPoolBuilder};
@@ -65,13 +66,23 @@ thread_local! {
 /// this thread: [`par_map`] maps in order here, [`current_threads`] is 1.
 /// Nests; the setting ends with `f`, also when it unwinds.
 pub(crate) fn on_calling_thread<R>(f: impl FnOnce() -> R) -> R {
-    struct Restore(bool);
-    impl Drop for Restore {
+    with_set(&CALLING_ONLY, true, f)
+}
+
+/// Runs `f` with this thread's `cell` set to `value`, restored after `f`,
+/// also when it unwinds.
+fn with_set<T: Copy + 'static, R>(
+    cell: &'static LocalKey<Cell<T>>,
+    value: T,
+    f: impl FnOnce() -> R,
+) -> R {
+    struct Restore<T: Copy + 'static>(&'static LocalKey<Cell<T>>, T);
+    impl<T: Copy + 'static> Drop for Restore<T> {
         fn drop(&mut self) {
-            CALLING_ONLY.with(|c| c.set(self.0));
+            self.0.with(|c| c.set(self.1));
         }
     }
-    let _restore = Restore(CALLING_ONLY.with(|c| c.replace(true)));
+    let _restore = Restore(cell, cell.with(|c| c.replace(value)));
     f()
 }
 
@@ -90,14 +101,7 @@ thread_local! {
 /// [`build_threads`] says on this thread outside a pool. Nests; the setting
 /// ends with `f`, also when it unwinds.
 pub(crate) fn with_budget<R>(threads: usize, f: impl FnOnce() -> R) -> R {
-    struct Restore(usize);
-    impl Drop for Restore {
-        fn drop(&mut self) {
-            BUDGET.with(|c| c.set(self.0));
-        }
-    }
-    let _restore = Restore(BUDGET.with(|c| c.replace(threads)));
-    f()
+    with_set(&BUDGET, threads, f)
 }
 
 /// How many threads a one-off build started here (a table that later

@@ -117,6 +117,33 @@
 #define STRATA_SAMPLE_DELTA 4
 
 /**
+ * `StrataStackInfo::lobes` bit: a smooth entry interface reflects a delta
+ * lobe (from below a transmissive stack, a smooth bottom does).
+ */
+#define STRATA_LOBE_DELTA_REFLECTION 1
+
+/**
+ * `StrataStackInfo::lobes` bit: light can pass every interface without a
+ * non-delta event (sample only).
+ */
+#define STRATA_LOBE_DELTA_TRANSMISSION 2
+
+/**
+ * `StrataStackInfo::lobes` bit: a rough interface or a scattering medium.
+ */
+#define STRATA_LOBE_GLOSSY 4
+
+/**
+ * `StrataStackInfo::lobes` bit: a Lambertian interface.
+ */
+#define STRATA_LOBE_DIFFUSE 8
+
+/**
+ * `StrataStackInfo::lobes` bit: the stack transmits.
+ */
+#define STRATA_LOBE_TRANSMISSION 16
+
+/**
  * A layered BSDF: a material stack with its walk count and seed. Create it
  * with `strata_bsdf_from_toml`, `_from_json` or `_from_path`, free it with
  * `strata_bsdf_free`. It is immutable once configured: any number of threads
@@ -127,8 +154,9 @@ typedef struct StrataBsdf StrataBsdf;
 
 /**
  * What a renderer needs to know of a stack to declare its BSDF: the
- * exteriors' IORs (for a transmitted sample's relative IOR) and whether light
- * passes through. Filled by `strata_bsdf_info`.
+ * exteriors' IORs (for a transmitted sample's relative IOR), whether light
+ * passes through, and the lobes it can produce. Filled by
+ * `strata_bsdf_info`.
  */
 typedef struct StrataStackInfo {
   /**
@@ -150,6 +178,10 @@ typedef struct StrataStackInfo {
    * material's `two_sided`), else 0.
    */
   uint32_t two_sided;
+  /**
+   * The lobes the stack can produce: `STRATA_LOBE_*` bits.
+   */
+  uint32_t lobes;
 } StrataStackInfo;
 
 /**

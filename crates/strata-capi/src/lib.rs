@@ -99,6 +99,19 @@ pub const STRATA_SAMPLE_TRANSMISSION: u32 = 2;
 /// direction is a specular one; treat the sample as a delta).
 pub const STRATA_SAMPLE_DELTA: u32 = 4;
 
+/// `StrataStackInfo::lobes` bit: a smooth entry interface reflects a delta
+/// lobe (from below a transmissive stack, a smooth bottom does).
+pub const STRATA_LOBE_DELTA_REFLECTION: u32 = 1;
+/// `StrataStackInfo::lobes` bit: light can pass every interface without a
+/// non-delta event (sample only).
+pub const STRATA_LOBE_DELTA_TRANSMISSION: u32 = 2;
+/// `StrataStackInfo::lobes` bit: a rough interface or a scattering medium.
+pub const STRATA_LOBE_GLOSSY: u32 = 4;
+/// `StrataStackInfo::lobes` bit: a Lambertian interface.
+pub const STRATA_LOBE_DIFFUSE: u32 = 8;
+/// `StrataStackInfo::lobes` bit: the stack transmits.
+pub const STRATA_LOBE_TRANSMISSION: u32 = 16;
+
 const _: () = {
     assert!(STRATA_SAMPLE_REFLECTION == strata_bsdf::SampleFlags::REFLECTION);
     assert!(STRATA_SAMPLE_TRANSMISSION == strata_bsdf::SampleFlags::TRANSMISSION);
@@ -183,8 +196,9 @@ const _: () = {
 };
 
 /// What a renderer needs to know of a stack to declare its BSDF: the
-/// exteriors' IORs (for a transmitted sample's relative IOR) and whether light
-/// passes through. Filled by `strata_bsdf_info`.
+/// exteriors' IORs (for a transmitted sample's relative IOR), whether light
+/// passes through, and the lobes it can produce. Filled by
+/// `strata_bsdf_info`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StrataStackInfo {
@@ -199,6 +213,8 @@ pub struct StrataStackInfo {
     /// 1 if light from below an opaque stack is mirrored to the top (the
     /// material's `two_sided`), else 0.
     pub two_sided: u32,
+    /// The lobes the stack can produce: `STRATA_LOBE_*` bits.
+    pub lobes: u32,
 }
 
 /// One per-query parameter of a batch (`StrataBatch::columns`): the values
@@ -851,11 +867,26 @@ pub unsafe extern "C" fn strata_bsdf_info(b: *const StrataBsdf, out: *mut Strata
             ior_below: stack.exterior_below() as f32,
             transmissive: stack.transmissive() as u32,
             two_sided: stack.two_sided() as u32,
+            lobes: lobe_bits(&stack.lobes()),
         };
         // SAFETY: `out` is non-NULL and the caller guarantees it is writable.
         unsafe { out.write(info) };
         Ok(())
     })
+}
+
+/// The `STRATA_LOBE_*` bits of `l`.
+fn lobe_bits(l: &strata_bsdf::stack::Lobes) -> u32 {
+    [
+        (l.delta_reflection, STRATA_LOBE_DELTA_REFLECTION),
+        (l.delta_transmission, STRATA_LOBE_DELTA_TRANSMISSION),
+        (l.glossy, STRATA_LOBE_GLOSSY),
+        (l.diffuse, STRATA_LOBE_DIFFUSE),
+        (l.transmission, STRATA_LOBE_TRANSMISSION),
+    ]
+    .iter()
+    .filter(|(on, _)| *on)
+    .fold(0, |bits, (_, bit)| bits | bit)
 }
 
 /// Writes to `*out` whether the BSDF answers sample and pdf without walks

@@ -16,6 +16,7 @@ mod error;
 mod in_place;
 mod json;
 mod layer_stack;
+mod lobes;
 mod measured;
 mod phase;
 pub mod presets;
@@ -34,6 +35,7 @@ pub use layer_stack::{
     Features, Interface, InterfaceKind, LayerStack, Medium, IOR_RANGE, MAX_ALPHA, MAX_CONDUCTOR,
     MAX_LAYERS, MAX_OPTICAL_DEPTH, MIN_ALPHA,
 };
+pub use lobes::Lobes;
 pub use phase::{Phase, PhaseKind, MAX_COMPONENTS, MIN_SGGX_ROUGHNESS};
 pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};

@@ -24,22 +24,15 @@ static void check(int32_t status, const char *what) {
     }
 }
 
-/* The number a column's float `x` sets, as text: the first of its correctly
- * rounded decimals of 1 to 9 digits that reads back as `x` (a column's 0.45f
- * is a material file's 0.45). */
-static void shortest(char *out, size_t size, float x) {
-    for (int digits = 1; digits <= 9; digits++) {
-        snprintf(out, size, "%.*g", digits, (double)x);
-        if (strtof(out, NULL) == x) {
-            return;
-        }
-    }
-}
+/* The number a column's float `x` sets, as text: the float itself (a
+ * thickness column's 0.45f is a material file's 0.449999988079071, the
+ * decimal of that float, not 0.45; docs/changes.md). */
+static void exact(char *out, size_t size, float x) { snprintf(out, size, "%.17g", (double)x); }
 
 /* The material with a coat of thickness `t`, as a column sets it. */
 static void material(char *out, size_t size, float t) {
     char thickness[32];
-    shortest(thickness, sizeof thickness, t);
+    exact(thickness, sizeof thickness, t);
     snprintf(out, size,
              "[[layers]]\n"
              "interface = { kind = \"dielectric\", ior = 1.5, roughness = 0.1 }\n"

@@ -934,15 +934,36 @@ fn info_describes_the_stack() {
                 ior_above: 1.0,
                 ior_below: 1.5,
                 transmissive: 0,
-                two_sided: 0
+                two_sided: 0,
+                // A rough coat over an absorber over rough copper.
+                lobes: STRATA_LOBE_GLOSSY,
             }
         );
         let glass = Capi::toml(&format!("exterior_ior = 1.33\n{GLASS}"), 1, 0);
         assert_eq!(strata_bsdf_info(glass.0, &mut info), STRATA_OK);
         assert_eq!(
-            (info.ior_above, info.ior_below, info.transmissive),
-            (1.33, 1.5, 1)
+            (
+                info.ior_above,
+                info.ior_below,
+                info.transmissive,
+                info.lobes
+            ),
+            (1.33, 1.5, 1, STRATA_LOBE_GLOSSY | STRATA_LOBE_TRANSMISSION)
         );
+        let smooth = Capi::toml(crate::common::SMOOTH_COAT_WHITE, 1, 0);
+        assert_eq!(strata_bsdf_info(smooth.0, &mut info), STRATA_OK);
+        assert_eq!(
+            info.lobes,
+            STRATA_LOBE_DELTA_REFLECTION | STRATA_LOBE_DIFFUSE
+        );
+        let window = Capi::toml(
+            "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n",
+            1,
+            0,
+        );
+        assert_eq!(strata_bsdf_info(window.0, &mut info), STRATA_OK);
+        let all_delta = STRATA_LOBE_DELTA_REFLECTION | STRATA_LOBE_DELTA_TRANSMISSION;
+        assert_eq!(info.lobes, all_delta | STRATA_LOBE_TRANSMISSION);
         assert_eq!(strata_bsdf_info(glass.0, null_mut()), STRATA_ERR_NULL);
         assert_eq!(last_error(), "strata_bsdf_info: out is NULL");
         assert_eq!(strata_bsdf_info(null(), &mut info), STRATA_ERR_NULL);

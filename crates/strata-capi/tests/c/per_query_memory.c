@@ -13,6 +13,9 @@
 #include "strata.h"
 
 #include <math.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -43,6 +46,10 @@ static double now(void) {
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
+/* Queries of the warm call: many more one-walk queries than a batch runs on
+ * the calling thread. */
+#define WARM 4096
+
 static int eval_columns(const struct StrataBsdf *b, size_t n, const char *path) {
     struct StrataColumn col = {path, 1, thickness};
     StrataBatch batch = {
@@ -66,11 +73,13 @@ static long mapped_bytes(void) {
     return pages < 0 ? -1 : pages * sysconf(_SC_PAGESIZE);
 }
 
-/* In a child: a warm call (threads and buffers exist), then the address
- * space limited to what is mapped, then the 10^6-row call: it must fail
- * with STRATA_ERR_OUT_OF_MEMORY, not abort. The column is the coat's IOR,
- * whose rows are materials (a thickness is written into the BSDF's numbers
- * in place, in a chunk's memory that the warm call already holds). */
+/* In a child: a warm call, large enough to go parallel, so that the pool's
+ * threads and the buffers exist (glibc aborts a process that starts a
+ * thread it cannot register under the limit), then the address space
+ * limited to what is mapped, then the 10^6-row call: it must fail with
+ * STRATA_ERR_OUT_OF_MEMORY, not abort. The column is the coat's IOR, whose
+ * rows are materials (a thickness is written into the BSDF's numbers in
+ * place, in a chunk's memory that the warm call already holds). */
 static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
     fflush(stdout);
     pid_t pid = fork();
@@ -79,7 +88,14 @@ static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
         return 1;
     }
     if (pid == 0) {
-        if (eval_columns(b, 64, IOR) != STRATA_OK) {
+#ifdef __GLIBC__
+        /* One malloc arena for every thread: glibc otherwise reserves 64 MB
+         * of address space for a thread's first allocation, which the limit
+         * refuses to a pool thread that sat out the warm call (an abort
+         * outside strata's reach). */
+        mallopt(M_ARENA_MAX, 1);
+#endif
+        if (eval_columns(b, WARM, IOR) != STRATA_OK) {
             fprintf(stderr, "warm call: %s\n", strata_last_error());
             _exit(2);
         }
