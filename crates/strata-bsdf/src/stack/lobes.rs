@@ -1,7 +1,7 @@
 //! Which lobes a stack can produce: what a renderer declares of a BSDF
 //! (Mitsuba's flags, pbrt-v4's `BxDFFlags`) before it samples one.
 
-use super::{InterfaceKind, LayerStack};
+use super::layer_stack::{Interface, InterfaceKind, LayerStack};
 
 /// The kinds of scattering a stack's samples and evals can have.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -26,7 +26,7 @@ impl LayerStack {
     pub fn lobes(&self) -> Lobes {
         let its = self.interfaces();
         let scattering = self.features().scattering;
-        let delta = |i: &super::Interface| i.smooth && i.kind != InterfaceKind::Diffuse;
+        let delta = |i: &Interface| i.smooth && i.kind != InterfaceKind::Diffuse;
         let transmission = self.transmissive();
         let (top, bottom) = (&its[0], &its[its.len() - 1]);
         Lobes {
