@@ -560,11 +560,13 @@ fn counted<'py>(
 /// scalar variants call one query at a time from each render thread).
 const KEEP_GIL_WALKS: u64 = 64;
 
-/// Walks a pdf query may run (its density walks, at most this many under
-/// every rule): what [`Bsdf::run`] counts for it.
-const PDF_WALKS_AT_MOST: u64 = 64;
-
 impl Bsdf {
+    /// The density walks a pdf query runs at most under this BSDF's rule
+    /// (none for the lobe pdf; a sample's pdf counts them too).
+    fn pdf_walks_at_most(&self) -> u64 {
+        self.inner.pdf_walks_value().max().max(1)
+    }
+
     /// Runs `call` on the answerer `params` makes for `n` queries of
     /// `walks` walks each: the BSDF itself without params, else one material
     /// per query ([`PerQuery`], every row checked first), with the GIL
@@ -1051,7 +1053,7 @@ impl Bsdf {
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (wom, wm) = (wo.as_mut(), weight.as_mut());
             let (p, fl) = (&mut pdf[..], &mut flags[..]);
-            self.run(py, &params, n, PDF_WALKS_AT_MOST, |a| {
+            self.run(py, &params, n, self.pdf_walks_at_most(), |a| {
                 a.sample(wiv, k, wom, wm, p, fl)
             })?;
         }
@@ -1082,7 +1084,8 @@ impl Bsdf {
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
-            self.run(py, &params, n, PDF_WALKS_AT_MOST, |a| a.pdf(wiv, wov, p))?;
+            let walks = self.pdf_walks_at_most();
+            self.run(py, &params, n, walks, |a| a.pdf(wiv, wov, p))?;
         }
         Ok(pdf.into_pyarray(py))
     }

@@ -60,13 +60,11 @@ pub struct InterfaceLanes<L: Lane> {
     pub run_all: bool,
 }
 
-/// The result of sampling an interface.
 impl InterfaceLanes<f64> {
     /// This interface on every lane of `L`: the lanes
     /// `LayerStack::interface_lanes::<L>` makes of it, bit for bit (both
     /// splat the same numbers).
     pub fn splat<L: Lane>(&self) -> InterfaceLanes<L> {
-        let rgb = |c: &Rgb<f64>| Rgb::new(L::splat(c.r), L::splat(c.g), L::splat(c.b));
         let m = L::Mask::splat;
         InterfaceLanes {
             n_above: L::splat(self.n_above),
@@ -81,9 +79,9 @@ impl InterfaceLanes<f64> {
             dielectric: m(self.dielectric),
             conductor: m(self.conductor),
             diffuse: m(self.diffuse),
-            eta: rgb(&self.eta),
-            k: rgb(&self.k),
-            albedo: rgb(&self.albedo),
+            eta: Rgb::from_array([self.eta.r, self.eta.g, self.eta.b]),
+            k: Rgb::from_array([self.k.r, self.k.g, self.k.b]),
+            albedo: Rgb::from_array([self.albedo.r, self.albedo.g, self.albedo.b]),
             normal: V3::new(
                 L::splat(self.normal.x),
                 L::splat(self.normal.y),
@@ -96,6 +94,7 @@ impl InterfaceLanes<f64> {
     }
 }
 
+/// The result of sampling an interface.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample<L: Lane> {
     /// The outgoing direction (pointing away from the interface).

@@ -35,12 +35,11 @@ impl MediumLanes<f64> {
     /// This layer on every lane of `L` (the lanes [`MediumLanes::new`]
     /// makes of it, bit for bit).
     pub fn splat<L: Lane>(&self) -> MediumLanes<L> {
-        let rgb = |c: &Rgb<f64>| Rgb::new(L::splat(c.r), L::splat(c.g), L::splat(c.b));
         MediumLanes {
             kind: self.kind,
             thickness: L::splat(self.thickness),
-            sigma_t: rgb(&self.sigma_t),
-            albedo: rgb(&self.albedo),
+            sigma_t: Rgb::from_array([self.sigma_t.r, self.sigma_t.g, self.sigma_t.b]),
+            albedo: Rgb::from_array([self.albedo.r, self.albedo.g, self.albedo.b]),
             phase: self.phase.splat(),
             directional: self.directional,
             grey: self.grey,

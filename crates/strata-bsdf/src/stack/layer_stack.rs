@@ -20,20 +20,12 @@ use std::path::Path;
 /// (docs/numerics.md); no physical material comes near either end.
 pub const IOR_RANGE: [f64; 2] = [1e-3, 1e3];
 
+/// An IOR: finite, > 0 and in [`IOR_RANGE`] ([`ior_rule`]).
 fn ior_in_range(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> {
-    let v = finite(layer, field, v)?;
-    if v <= 0.0 {
-        return Err(StackError::new(layer, field, v, "must be > 0"));
+    match ior_rule(v) {
+        Some(why) => Err(StackError::new(layer, field, v, &why)),
+        None => Ok(v),
     }
-    if !(IOR_RANGE[0]..=IOR_RANGE[1]).contains(&v) {
-        return Err(StackError::new(
-            layer,
-            field,
-            v,
-            &format!("must be in [{}, {}]", IOR_RANGE[0], IOR_RANGE[1]),
-        ));
-    }
-    Ok(v)
 }
 
 /// The largest optical depth (`thickness × sigma_t`) of a medium: beyond it
@@ -421,7 +413,7 @@ fn check_law(
 }
 
 /// The RGB numbers of a coloured field: a number or RGB triple as given
-/// (checked afterwards, as before spectra), a tabulated spectrum's
+/// (checked afterwards, by the field's own checks), a tabulated spectrum's
 /// reduction once every sample passes `rule`.
 fn colour(
     layer: Option<usize>,

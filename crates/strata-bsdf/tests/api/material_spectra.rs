@@ -260,6 +260,19 @@ fn bad_spectra_are_errors_naming_the_sample() {
 
 /// Forms a field does not take, unknown and mixed keys, and wrong types
 /// are parse errors that name the field.
+/// A spectrum whose reduction to RGB overflows (values near `f64::MAX`
+/// under a tiny thickness: an ordinary optical depth) is an error naming
+/// the field, not an extinction clamped to 0.
+#[test]
+fn a_reduction_that_overflows_is_an_error() {
+    let e = error(
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
+         medium = { thickness = 1e-300, sigma_t = { nm = [400, 700], values = [0, 1e308] }, albedo = 0 }\n\
+         [[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.5 }\n",
+    );
+    assert!(e.contains("sigma_t"), "{e}");
+}
+
 #[test]
 fn wrong_forms_are_parse_errors() {
     let cases = [

@@ -87,16 +87,31 @@ fn tabulated_interpolation_and_clamping() {
         nm: vec![400.0, 500.0],
         values: vec![f64::NAN, 0.5],
     };
-    let _ = nan.rgb(); // no panic
+    // A NaN value is NaN in every channel, not skipped by the min and max.
+    assert!(nan.rgb().iter().all(|x| x.is_nan()));
+    // Wavelengths out of order: two samples (the NaN has no value), the
+    // ends as given.
     let unsorted = Spectrum::Tabulated {
         nm: vec![500.0, 400.0, f64::NAN],
         values: vec![0.1, 0.9],
     };
-    let _ = (
-        unsorted.rgb(),
-        unsorted.at(450.0),
-        unsorted.at(f64::INFINITY),
-    );
+    assert_eq!(unsorted.at(450.0), 0.1);
+    assert_eq!(unsorted.at(f64::INFINITY), 0.9);
+    assert!(unsorted.rgb().iter().all(|x| x.is_finite()));
+    // A NaN wavelength at an end answers NaN, and does not index out of
+    // bounds.
+    for nm in [vec![f64::NAN], vec![f64::NAN, 500.0], vec![400.0, f64::NAN]] {
+        let values = vec![0.5; nm.len()];
+        let s = Spectrum::Tabulated { nm, values };
+        assert!(s.at(450.0).is_nan(), "{s:?}");
+    }
+    // A reduction that overflows is NaN (which the field's checks refuse),
+    // not a number clamped into range.
+    let huge = Spectrum::Tabulated {
+        nm: vec![400.0, 700.0],
+        values: vec![0.0, 1e308],
+    };
+    assert!(huge.rgb().iter().any(|x| x.is_nan()), "{:?}", huge.rgb());
 }
 
 /// The reduction is white-balanced: a flat spectrum keeps its value in

@@ -57,14 +57,15 @@ pub enum Spectrum {
     },
 }
 
-/// Alias of [`Spectrum`], the type's name when it held RGB values only.
+/// Alias of [`Spectrum`].
 pub type RgbParam = Spectrum;
 
 impl Spectrum {
     /// The value at the wavelength `nm`. An RGB triple answers with its
     /// uplift (Mallett and Yuksel 2019: `super::uplift`), a grey value
-    /// with itself. An invalid spectrum (no samples; which
-    /// [`crate::stack::LayerStack::new`] refuses) answers NaN.
+    /// with itself. An invalid spectrum (no samples, a NaN at an end of its
+    /// wavelengths; which [`crate::stack::LayerStack::new`] refuses)
+    /// answers NaN.
     pub fn at(&self, nm: f64) -> f64 {
         match self {
             Spectrum::Grey(v) => *v,
@@ -83,20 +84,28 @@ impl Spectrum {
     /// XYZ under D65, then linear sRGB), each channel clamped to the
     /// spectrum's range of values (a colour outside the sRGB gamut has no
     /// RGB within it; the clamp keeps the numbers within the values the
-    /// field's checks accepted); a Cauchy or Abbe law its value at the d
+    /// field's checks accepted), NaN where the spectrum is invalid or its
+    /// reduction overflows; a Cauchy or Abbe law its value at the d
     /// line in every channel ([`Spectrum::d_line`]).
     pub fn rgb(&self) -> [f64; 3] {
         match self {
             Spectrum::Grey(v) => [*v; 3],
             Spectrum::Rgb(c) => *c,
             Spectrum::Tabulated { values, .. } => {
+                if values.is_empty() || values.iter().any(|v| !v.is_finite()) {
+                    return [f64::NAN; 3];
+                }
                 let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
                 let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                if lo.partial_cmp(&hi) != Some(std::cmp::Ordering::Less) {
-                    // One value throughout, or none (NaN: an invalid spectrum).
-                    return [if lo == hi { lo } else { f64::NAN }; 3];
+                if lo == hi {
+                    return [lo; 3];
                 }
-                cie::to_rgb(|nm| self.at(nm)).map(|c| c.max(lo).min(hi))
+                // A reduction that overflows is NaN, which the field's
+                // checks refuse, not a clamped number.
+                cie::to_rgb(|nm| self.at(nm)).map(|c| match c.is_finite() {
+                    true => c.max(lo).min(hi),
+                    false => f64::NAN,
+                })
             }
             Spectrum::Cauchy { .. } | Spectrum::Abbe { .. } => [self.d_line(); 3],
         }
@@ -114,15 +123,6 @@ impl Spectrum {
             _ => self.at(D_LINE_NM),
         }
     }
-
-    /// The value varies with the wavelength beyond what three RGB numbers
-    /// hold: a tabulated spectrum or a dispersion law.
-    pub fn is_spectral(&self) -> bool {
-        matches!(
-            self,
-            Spectrum::Tabulated { .. } | Spectrum::Cauchy { .. } | Spectrum::Abbe { .. }
-        )
-    }
 }
 
 impl From<f64> for Spectrum {
@@ -138,7 +138,7 @@ impl From<[f64; 3]> for Spectrum {
 }
 
 /// Linear interpolation of the samples, constant outside them; NaN for no
-/// samples or a NaN wavelength.
+/// samples, a NaN wavelength, or a NaN in the table's ends.
 fn interpolate(nm: &[f64], values: &[f64], x: f64) -> f64 {
     let n = nm.len().min(values.len());
     if n == 0 || x.is_nan() {
@@ -149,6 +149,10 @@ fn interpolate(nm: &[f64], values: &[f64], x: f64) -> f64 {
     }
     if x >= nm[n - 1] {
         return values[n - 1];
+    }
+    if !(nm[0] < x && x < nm[n - 1]) {
+        // A NaN wavelength in the table (which the checks refuse).
+        return f64::NAN;
     }
     // nm[0] < x < nm[n-1]: the sample below x is in 0..n-1.
     let i = (nm[..n].partition_point(|&w| w <= x) - 1).min(n - 2);
