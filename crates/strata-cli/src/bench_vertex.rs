@@ -13,8 +13,9 @@ use strata_reports::vertex::{self, PbrtVertex, VertexRun};
 /// parameters ([`vertex::Texture`]).
 type Setting = (&'static str, fn(LayeredBsdf) -> LayeredBsdf, bool);
 
-/// The library's defaults, textured, then the pdf's other settings.
-const SETTINGS: [Setting; 4] = [
+/// The library's defaults, textured, the pdf's other settings, and a
+/// lower roulette threshold ([`strata_bsdf::Settings::rr_threshold`]).
+const SETTINGS: [Setting; 5] = [
     ("default", |b| b, false),
     ("textured", |b| b, true),
     ("pdf 1 walk", |b| b.pdf_samples(1), false),
@@ -23,6 +24,7 @@ const SETTINGS: [Setting; 4] = [
         |b| b.pdf_walks(strata_bsdf::PdfWalks::ADAPTIVE),
         false,
     ),
+    ("roulette 0.5", |b| b.rr_threshold(0.5), false),
 ];
 
 /// One row: a configuration, a view, a setting.

@@ -214,6 +214,18 @@ impl LayeredBsdf {
         self.rebuilt(self.stack().clone(), settings)
     }
 
+    /// Sets the throughput below which Russian roulette ends walks
+    /// ([`Settings::rr_threshold`]; taken in
+    /// `[`[`crate::estimator::events::MIN_RR_THRESHOLD`]`, 1]`, NaN as 1).
+    #[must_use]
+    pub fn rr_threshold(self, threshold: f64) -> Self {
+        let settings = Settings {
+            rr_threshold: threshold,
+            ..self.settings
+        };
+        self.rebuilt(self.stack().clone(), settings)
+    }
+
     /// This BSDF's configuration over `stack` with walk settings `settings`.
     fn rebuilt(&self, stack: LayerStack, settings: Settings) -> Self {
         let b = LayeredBsdf {

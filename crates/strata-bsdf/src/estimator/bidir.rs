@@ -88,6 +88,7 @@ impl<'a, L: Lane> BidirWalk<'a, L> {
     ) -> Self {
         let settings = Settings {
             max_events: events::subpath_limit(settings.max_events),
+            rr_threshold: 1.0,
             ..*settings
         };
         BidirWalk {

@@ -1097,7 +1097,7 @@ impl<L: Lane> DensityWalk<'_, L> {
     fn survival(&self, st: &mut State<L>) -> L {
         let zero = L::zero();
         let early = st.events.lt(L::splat(self.settings.rr_start as f64));
-        let q = st.beta.max_channel().min(L::one());
+        let q = events::survival(st.beta, events::rr_threshold(self.settings));
         let (b, ok) = events::walk_roulette(st.beta, st.events, zero, self.settings);
         st.beta = b;
         let bounded = match self.max_events {

@@ -122,31 +122,54 @@ pub fn subpath_limit(max_events: u32) -> u32 {
     event_limit(max_events).isqrt().max(2)
 }
 
-/// Russian roulette after `rr_start` events, and the limit of events `cap`.
-/// Returns the new throughput and the lanes that survive. Survivors past
-/// `rr_start` continue with probability `q = min(1, max channel of beta)` and
-/// are divided by it, so the estimate stays unbiased.
+/// Russian roulette after `rr_start` events below the throughput
+/// `threshold`, and the limit of events `cap`. Returns the new throughput
+/// and the lanes that survive. Survivors past `rr_start` continue with
+/// probability `q = min(1, max channel of beta / threshold)` and are divided
+/// by it, so the estimate stays unbiased.
 #[inline]
 pub fn roulette<L: Lane>(
     beta: Rgb<L>,
     events: L,
     u: L,
     rr_start: u32,
+    threshold: f64,
     cap: u32,
 ) -> (Rgb<L>, L::Mask) {
     let capped = at_limit(events, cap);
     let early = events.lt(L::splat(rr_start as f64));
-    let q = beta.max_channel().min(L::one());
+    let q = survival(beta, threshold);
     let survive = u.lt(q);
     let alive = !capped & (early | survive);
     let scaled = beta.scale(L::div_or_zero(L::one(), q, survive));
     (Rgb::select(early, beta, scaled), alive)
 }
 
+/// The probability that a walk of throughput `beta` survives a roulette
+/// of threshold `threshold`: `min(1, max channel of beta / threshold)`.
+#[inline]
+pub fn survival<L: Lane>(beta: Rgb<L>, threshold: f64) -> L {
+    (beta.max_channel() * L::splat(1.0 / threshold)).min(L::one())
+}
+
+/// The least throughput threshold a walk's roulette takes
+/// ([`Settings::rr_threshold`]).
+pub const MIN_RR_THRESHOLD: f64 = 1e-3;
+
+/// [`Settings::rr_threshold`] as the roulette takes it: in
+/// `[MIN_RR_THRESHOLD, 1]`, NaN as 1.
+#[inline]
+pub fn rr_threshold(s: &Settings) -> f64 {
+    match s.rr_threshold {
+        t if t.is_nan() => 1.0,
+        t => t.clamp(MIN_RR_THRESHOLD, 1.0),
+    }
+}
+
 /// [`roulette`] with a walk's settings.
 #[inline]
 pub fn walk_roulette<L: Lane>(beta: Rgb<L>, events: L, u: L, s: &Settings) -> (Rgb<L>, L::Mask) {
-    roulette(beta, events, u, s.rr_start, s.max_events)
+    roulette(beta, events, u, s.rr_start, rr_threshold(s), s.max_events)
 }
 
 /// The walk's hero channel (0, 1 or 2, as a lane value) for spectral MIS.
@@ -797,6 +820,6 @@ pub fn chain_roulette<L: Lane>(
     u: L,
     s: &Settings,
 ) -> (Connection<L>, L::Mask) {
-    let (v, alive) = roulette(c.v, events, u, s.rr_start, MAX_CAP);
+    let (v, alive) = roulette(c.v, events, u, s.rr_start, 1.0, MAX_CAP);
     (Connection { v, ..c }, alive)
 }

@@ -13,12 +13,26 @@ pub const MAX_CAP: u32 = 1 << 24;
 /// than five times the longest walk of the stress suite (docs/numerics.md).
 pub const MAX_EVENTS: u32 = 1 << 20;
 
+/// The default of [`Settings::rr_threshold`]: 1, the classic rule. Lower
+/// values (0.25–0.5) halve or better the variance of a renderer's one-walk
+/// samples and evals in high-albedo media, at slightly longer walks
+/// (`strata bench --vertex --against pbrt-v4`, its "roulette 0.5" rows).
+pub const RR_THRESHOLD: f64 = 1.0;
+
 /// Walk controls shared by the estimators.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
     /// Russian roulette starts after this many events (interface or medium).
     /// It is unbiased: survivors are reweighted.
     pub rr_start: u32,
+    /// Past `rr_start`, a walk whose throughput's largest channel `b` is
+    /// below this survives the roulette with probability `b / rr_threshold`
+    /// (and is divided by it); above it, it always survives. 1 is the
+    /// classic rule (survival `min(1, b)`); lower values keep more walks
+    /// of high-albedo media whole, at the cost of longer walks. Unbiased for
+    /// any value; values are taken in
+    /// `[`[`crate::estimator::events::MIN_RR_THRESHOLD`]`, 1]` (NaN as 1).
+    pub rr_threshold: f64,
     /// The limit of events (interface events and collisions) per walk: a
     /// walk that reaches it ends there, and its result counts it as cut.
     /// The default, [`MAX_EVENTS`], bounds the time and memory of a
@@ -43,6 +57,7 @@ impl Default for Settings {
     fn default() -> Self {
         Settings {
             rr_start: 4,
+            rr_threshold: RR_THRESHOLD,
             max_events: MAX_EVENTS,
             max_scatter_order: None,
             mis: true,

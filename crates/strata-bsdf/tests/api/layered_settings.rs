@@ -1,5 +1,6 @@
 //! The estimator's settings change its variance, never its expectation:
-//! MIS on and off, and Russian roulette from the first event or much later,
+//! MIS on and off, Russian roulette from the first event or much later, and
+//! its threshold,
 //! estimate the same f (|z| < 4 on the difference of independent estimates).
 //! A depth cap is the one biased option: it can only lose energy.
 //!
@@ -106,6 +107,98 @@ fn russian_roulette_start_does_not_bias() {
         ..Settings::default()
     };
     agree(early, late, "rr 0/64");
+}
+
+/// The roulette's threshold changes who survives, not the expectation: the
+/// classic rule (survival `min(1, throughput)`) and a low threshold agree.
+#[test]
+fn russian_roulette_threshold_does_not_bias() {
+    let classic = Settings {
+        rr_threshold: 1.0,
+        ..Settings::default()
+    };
+    let low = Settings {
+        rr_threshold: 0.1,
+        ..Settings::default()
+    };
+    agree(classic, low, "rr threshold 1/0.1");
+}
+
+/// Below the threshold fewer walks end early: on a high-albedo layer one
+/// walk's reflected albedo has less variance under a threshold of 0.25 than
+/// under the classic rule (the lever of `Settings::rr_threshold`), and the
+/// two agree.
+#[test]
+fn a_lower_roulette_threshold_lowers_the_variance_of_one_walk() {
+    let st = stack(STACKS[0].1);
+    let classic = Walks::new(&st, Settings::default());
+    assert_eq!(Settings::default().rr_threshold, 1.0);
+    let low = Walks::new(
+        &st,
+        Settings {
+            rr_threshold: 0.25,
+            ..Settings::default()
+        },
+    );
+    let wi = dir(30.0, 0.0);
+    let n = 100_000;
+    let a = classic.albedo(wi, n, 1, 7);
+    let b = low.albedo(wi, n, 2, 7);
+    let (mut va, mut vb) = (0.0, 0.0);
+    for c in 0..3 {
+        let (x, sx) = (a.reflected.value[c], a.reflected.stderr[c]);
+        let (y, sy) = (b.reflected.value[c], b.reflected.stderr[c]);
+        let z = (x - y) / sx.hypot(sy);
+        assert!(z.abs() < 4.0, "ch {c}: classic {x} ± {sx}, 0.25 {y} ± {sy}");
+        // The standard error of a standard error of 1e5 walks is under
+        // 0.5 % of it for these bounded weights.
+        assert!(
+            sy < sx,
+            "ch {c}: 0.25's error {sy} not below classic's {sx}"
+        );
+        (va, vb) = (va + sx * sx, vb + sy * sy);
+    }
+    // Most where the throughput stays high (the bright channel): in all,
+    // a quarter less variance.
+    assert!(
+        vb < 0.85 * va,
+        "variance {vb:.3e} under 0.25, {va:.3e} classic"
+    );
+}
+
+/// `LayeredBsdf::rr_threshold` sets the walks' threshold, taken in
+/// `[MIN_RR_THRESHOLD, 1]` with NaN as 1: the answers of a BSDF built with
+/// those settings, bit for bit.
+#[test]
+fn rr_threshold_is_the_walk_setting() {
+    use strata_bsdf::estimator::events::{rr_threshold, MIN_RR_THRESHOLD};
+    let taken = |t: f64| {
+        rr_threshold(&Settings {
+            rr_threshold: t,
+            ..Settings::default()
+        })
+    };
+    assert_eq!(taken(0.3), 0.3);
+    assert_eq!(taken(0.0), MIN_RR_THRESHOLD);
+    assert_eq!(taken(-1.0), MIN_RR_THRESHOLD);
+    assert_eq!(taken(7.0), 1.0);
+    assert_eq!(taken(f64::NAN), 1.0);
+    let st = stack(STACKS[0].1);
+    let set = LayeredBsdf::new(st.clone()).rr_threshold(0.3).samples(64);
+    let built = LayeredBsdf::with_settings(
+        st,
+        Settings {
+            rr_threshold: 0.3,
+            ..Settings::default()
+        },
+    )
+    .samples(64);
+    assert_eq!(set.settings().rr_threshold, 0.3);
+    let (wi, wo) = (
+        glam::Vec3::new(0.3, 0.0, 0.95),
+        glam::Vec3::new(-0.2, 0.1, 0.97),
+    );
+    assert_eq!(set.eval(wi, wo).unwrap(), built.eval(wi, wo).unwrap());
 }
 
 /// A depth cap only removes paths: the capped albedo is at most the uncapped
