@@ -246,6 +246,85 @@ fn presets_are_their_spectra() {
     }
 }
 
+/// The normal-incidence reflectances docs/changes.md quotes for chromium:
+/// 0.55, 0.56, 0.56 from the measured preset, 0.69, 0.65, 0.69 from the
+/// RGB numbers it replaced.
+#[test]
+fn chromium_reflectances_are_the_ones_changes_quotes() {
+    let r = |n: f64, k: f64| ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
+    let (eta, k) = presets::conductor("Cr").expect("Cr");
+    let old = ([4.36968, 2.9167, 1.6547], [5.20643, 4.23136, 3.75495]);
+    for (c, (new, was)) in [0.55, 0.56, 0.56]
+        .into_iter()
+        .zip([0.69, 0.65, 0.69])
+        .enumerate()
+    {
+        close(r(eta[c], k[c]), new, 0.005, &format!("Cr channel {c}"));
+        close(
+            r(old.0[c], old.1[c]),
+            was,
+            0.005,
+            &format!("old Cr channel {c}"),
+        );
+    }
+}
+
+/// docs/materials.md's table of presets is the library's: one row per
+/// preset, in order, with its metal, its table's range and its RGB numbers
+/// as printed (each within half a unit of its last digit); and the error
+/// message it quotes for an unknown preset names every preset.
+#[test]
+fn the_docs_table_of_presets_is_the_librarys() {
+    let doc = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../docs/materials.md"
+    ))
+    .expect("docs/materials.md");
+    let rows: Vec<Vec<&str>> = doc
+        .lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| l.trim_matches('|').split('|').map(str::trim).collect())
+        .filter(|c: &Vec<&str>| c.len() == 6)
+        .collect();
+    assert_eq!(rows.len(), presets::PRESETS.len(), "rows of the table");
+    // A printed number and half a unit of its last digit.
+    let printed = |s: &str| -> (f64, f64) {
+        let decimals = s.split_once('.').map_or(0, |(_, d)| d.len());
+        (s.parse().unwrap(), 0.5 * 10f64.powi(-(decimals as i32)))
+    };
+    let triple = |s: &str| -> Vec<(f64, f64)> { s.split(", ").map(printed).collect() };
+    for (row, p) in rows.iter().zip(presets::PRESETS) {
+        assert_eq!(row[0], format!("`{}`", p.name));
+        assert_eq!(row[1], p.metal, "{}", p.name);
+        let (lo, hi) = row[3].split_once('–').expect("a range");
+        let [from, to] = p.range_nm();
+        assert_eq!(
+            (printed(lo).0, printed(hi).0),
+            (from, to),
+            "{}: range",
+            p.name
+        );
+        let (eta, k) = presets::conductor(p.name).expect("a preset");
+        for (col, rgb) in [(4, eta), (5, k)] {
+            let want = triple(row[col]);
+            assert_eq!(want.len(), 3, "{}: {}", p.name, row[col]);
+            for (c, &(x, half)) in want.iter().enumerate() {
+                // The clamped channels are printed as their samples are.
+                let tol = half.max(1e-12) * (1.0 + 1e-9);
+                close(
+                    rgb[c],
+                    x,
+                    tol,
+                    &format!("{} column {col} channel {c}", p.name),
+                );
+            }
+        }
+    }
+    let known: Vec<&str> = presets::PRESETS.iter().map(|p| p.name).collect();
+    let quoted = format!("(known: {})`", known.join(", "));
+    assert!(doc.contains(&quoted), "docs/materials.md quotes {quoted}");
+}
+
 /// Linear interpolation of column `col` of `(nm, eta, k)` rows, constant
 /// outside (as Mitsuba reads a `.spd` file within its range).
 fn interp(rows: &[(f64, f64, f64)], nm: f64, col: usize) -> f64 {
