@@ -177,9 +177,10 @@ pub struct WalkLanes<L: Lane> {
     /// Collisions so far.
     order: L,
     /// The walk's density of its direction since its last non-delta vertex,
-    /// carried through delta events in their solid angle (0 before the
-    /// first one): the weight of its own arrival at a rough exit, or at k,
-    /// against the connections.
+    /// carried through delta events in their solid angle ([`NO_DENSITY`]
+    /// before the first one): the weight of its own arrival at a rough exit,
+    /// or at k, against the connections. An estimated phase value may be
+    /// 0 for a direction the walk sampled: its weight is then 0, not 1.
     rho: L,
     /// For the walk's own arrival at a rough exit, the medium connection's
     /// ratio `K` of its last collision, if that was its last non-delta
@@ -354,6 +355,21 @@ impl<L: Lane> Target<L> {
     }
 }
 
+/// The walk's arrival density before its first non-delta vertex: none
+/// (a density is never negative).
+const NO_DENSITY: f64 = -1.0;
+
+/// The power-heuristic weight of the walk's own arrival, of density `rho`
+/// ([`NO_DENSITY`] if it has none), against a connection of density `q`:
+/// 1 where only the walk makes the path (no density, or `q` = 0), else
+/// `rho² / (rho² + q²)`, which is 0 where an estimated phase value was 0
+/// (the connection takes such paths whole, weight `q² / (q² + 0)`).
+#[inline(always)]
+fn own_weight<L: Lane>(rho: L, q: L) -> L {
+    let alone = rho.lt(L::zero()) | q.le(L::zero());
+    L::select(alone, L::one(), events::power_heuristic(rho, q))
+}
+
 /// The second moment `4π ∫ p²` of a phase function from which the density
 /// walk connects its medium (`DensityWalk::medium_connects`):
 /// Henyey–Greenstein with `g ≈ 0.58`.
@@ -486,7 +502,7 @@ impl<L: Lane> DensityWalk<'_, L> {
                 events: s0.events,
             },
             order: s0.order,
-            rho: zero,
+            rho: L::splat(NO_DENSITY),
             k_b: zero,
             i: L::select(wi.z.gt(zero), zero, last),
             a: wi,
@@ -529,7 +545,7 @@ impl<L: Lane> DensityWalk<'_, L> {
         if direct.any() {
             let v = it.pdf(a, wo, L::Mask::splat(false)).max(zero);
             let q = goal.exit.pdf(wo, a, L::Mask::splat(true));
-            let w = L::select(rho.gt(zero), events::power_heuristic(rho, q), L::one());
+            let w = own_weight(rho, q);
             let k = L::select(q.gt(zero), k_b, zero);
             // Against the medium connection: 1 / (1 + K²).
             let w_b = events::power_heuristic(L::one(), k);
@@ -712,10 +728,10 @@ impl<L: Lane> DensityWalk<'_, L> {
                 let w_own = match v {
                     Vertex::Surface { i, a, .. } => {
                         let toward = if up { top } else { !top };
-                        let at_k = ok & inner_on & i.eq(g.k) & toward & rho.gt(zero);
+                        let at_k = ok & inner_on & i.eq(g.k) & toward;
                         if at_k.any() {
                             let q = g.inner.pdf(g.u_w, *a, L::Mask::splat(false));
-                            L::select(at_k, events::power_heuristic(rho, q), L::one())
+                            L::select(at_k, own_weight(rho, q), L::one())
                         } else {
                             L::one()
                         }
