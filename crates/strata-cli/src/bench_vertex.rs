@@ -13,8 +13,8 @@ use strata_reports::vertex::{self, PbrtVertex, VertexRun};
 /// parameters ([`vertex::Texture`]).
 type Setting = (&'static str, fn(LayeredBsdf) -> LayeredBsdf, bool);
 
-/// The library's defaults, textured, the pdf's other settings, and a
-/// lower roulette threshold ([`strata_bsdf::Settings::rr_threshold`]).
+/// The library's defaults, textured, the pdf's other settings, and the
+/// classic roulette ([`strata_bsdf::Settings::rr_threshold`] 1).
 const SETTINGS: [Setting; 5] = [
     ("default", |b| b, false),
     ("textured", |b| b, true),
@@ -24,7 +24,7 @@ const SETTINGS: [Setting; 5] = [
         |b| b.pdf_walks(strata_bsdf::PdfWalks::ADAPTIVE),
         false,
     ),
-    ("roulette 0.5", |b| b.rr_threshold(0.5), false),
+    ("roulette 1", |b| b.rr_threshold(1.0), false),
 ];
 
 /// One row: a configuration, a view, a setting.

@@ -13,11 +13,12 @@ pub const MAX_CAP: u32 = 1 << 24;
 /// than five times the longest walk of the stress suite (docs/numerics.md).
 pub const MAX_EVENTS: u32 = 1 << 20;
 
-/// The default of [`Settings::rr_threshold`]: 1, the classic rule. Lower
-/// values (0.25–0.5) halve or better the variance of a renderer's one-walk
-/// samples and evals in high-albedo media, at slightly longer walks
-/// (`strata bench --vertex --against pbrt-v4`, its "roulette 0.5" rows).
-pub const RR_THRESHOLD: f64 = 1.0;
+/// The default of [`Settings::rr_threshold`]: chosen by a renderer's
+/// vertex (`strata bench --vertex --against pbrt-v4`: one-walk samples and
+/// evals in high-albedo layers lose far less to the roulette than their
+/// walks lengthen); the bidirectional estimator's subpaths keep 1, the
+/// classic rule, as their cost grows with the square of their length.
+pub const RR_THRESHOLD: f64 = 0.5;
 
 /// Walk controls shared by the estimators.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -131,8 +131,13 @@ fn russian_roulette_threshold_does_not_bias() {
 #[test]
 fn a_lower_roulette_threshold_lowers_the_variance_of_one_walk() {
     let st = stack(STACKS[0].1);
-    let classic = Walks::new(&st, Settings::default());
-    assert_eq!(Settings::default().rr_threshold, 1.0);
+    let classic = Walks::new(
+        &st,
+        Settings {
+            rr_threshold: 1.0,
+            ..Settings::default()
+        },
+    );
     let low = Walks::new(
         &st,
         Settings {
