@@ -149,6 +149,11 @@ pub struct LayeredBsdf {
     threads: Threads,
     /// The stack's shape, which parameter sets must have.
     pub(super) shape: Shape,
+    /// Whether the interface that walks from above (`[0]`) and from below
+    /// (`[1]`) enter is rough (`EvalStart::Normal`'s side of a reflected
+    /// pair): an opaque stack lit from below is mirrored, so both are its
+    /// top.
+    rough_entry: [bool; 2],
 }
 
 /// Where the wavefront engine's large batches run.
@@ -192,6 +197,7 @@ impl LayeredBsdf {
             estimator: Estimator::default(),
             coat,
             threads: Threads::Current,
+            rough_entry: rough_entry(&stack),
             shape: stack.shape(),
         }
     }
@@ -644,7 +650,8 @@ impl LayeredBsdf {
     /// Whether the walks of a query `(a, b)` start from `b`: as `eval_start`
     /// says, on a reciprocal (untilted) stack only.
     fn swaps(&self, a_z: f64, b_z: f64) -> bool {
-        !self.shape.tilted() && self.eval_start.swaps(a_z, b_z)
+        let rough_entry = a_z * b_z > 0.0 && self.rough_entry[usize::from(a_z < 0.0)];
+        !self.shape.tilted() && self.eval_start.swaps(a_z, b_z, rough_entry)
     }
 
     /// Eval after checking the directions, keys and walk count.
@@ -1430,6 +1437,18 @@ pub(super) fn dir_keys(wis: &[Vec3]) -> Vec<u64> {
 pub(super) fn pdf_key(a: [f64; 3], b: [f64; 3]) -> u64 {
     let f32s = |d: [f64; 3]| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
     direction_key(f32s(a), f32s(b))
+}
+
+/// Whether the interface walks enter from above and from below is rough
+/// ([`LayeredBsdf::swaps`]).
+fn rough_entry(stack: &LayerStack) -> [bool; 2] {
+    let top = !stack.interface(0).smooth;
+    let below = if stack.transmissive() {
+        !stack.interface(stack.len() - 1).smooth
+    } else {
+        top
+    };
+    [top, below]
 }
 
 /// A query key from the bits of two directions.

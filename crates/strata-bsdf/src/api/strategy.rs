@@ -5,14 +5,20 @@
 /// `f(wi, wo)` can be estimated by walks from `wi`, or by walks from `wo` and
 /// reciprocity (reflection: `f(wi, wo) = f(wo, wi)`; transmission: the η²
 /// relation). Both are unbiased; their variances differ, most at grazing
-/// angles: walks that start grazing mostly reflect off the top and score
-/// little, while walks from the other direction enter and connect to the
-/// grazing exit by next-event estimation. `Normal`, the default, starts
-/// from whichever direction is nearer the normal (docs/performance.md has
-/// the measured gain); `Wi` always starts from `wi`, as the engines do.
+/// angles. Under a smooth entrance, walks that start grazing mostly
+/// reflect off it and score little, while walks from the other direction
+/// enter and connect to the grazing exit by next-event estimation; under a
+/// rough one, walks that start grazing enter by its own lobe, while the
+/// connection to a grazing exit evaluates its narrow transmission lobe at
+/// directions drawn from other lobes. `Normal`, the default, starts a
+/// reflected pair under a rough entrance from the direction farther from
+/// the normal, and every other pair from the direction nearer it
+/// (docs/performance.md has the measured gains); `Wi` always starts from
+/// `wi`, as the engines do.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum EvalStart {
-    /// From whichever of `wi` and `wo` has the larger `|cos θ|` (`wi` on a tie).
+    /// From whichever of `wi` and `wo` has the larger `|cos θ|` (`wi` on a
+    /// tie), or the smaller for a reflected pair under a rough entrance.
     #[default]
     Normal,
     /// From `wi`, always.
@@ -20,9 +26,15 @@ pub enum EvalStart {
 }
 
 impl EvalStart {
-    /// Whether the walks of a query start from `wo`.
-    pub(crate) fn swaps(self, wi_z: f64, wo_z: f64) -> bool {
-        self == EvalStart::Normal && wo_z.abs() > wi_z.abs()
+    /// Whether the walks of a query start from `wo`; `rough_entry`: the
+    /// pair is reflected and the interface its walks enter is rough.
+    pub(crate) fn swaps(self, wi_z: f64, wo_z: f64, rough_entry: bool) -> bool {
+        self == EvalStart::Normal
+            && if rough_entry {
+                wo_z.abs() < wi_z.abs()
+            } else {
+                wo_z.abs() > wi_z.abs()
+            }
     }
 }
 
