@@ -61,8 +61,9 @@ pub struct Args {
     /// Walks per direction pair of `--against` (pbrt-v4's data averages 10^6 calls).
     #[arg(long, default_value_t = 65536, value_parser = crate::common::walks)]
     walks: u64,
-    /// Where eval starts its walks, for `--against`: from the direction nearer
-    /// the normal (the library's default) or always from wi.
+    /// Where eval starts its walks, for `--against`: the side `normal` picks
+    /// (the library's default: nearer the normal, or farther from it for a
+    /// reflected pair under a rough coat) or always from wi.
     #[arg(long, default_value = "normal")]
     eval_start: strata_bsdf::EvalStart,
     /// The estimator of `--against`: auto (the library's default: a closed

@@ -52,7 +52,8 @@ pub struct Args {
     #[arg(long, default_value = "auto")]
     estimator: strata_bsdf::Estimator,
     /// Where the walks start: from whichever of wi and wo is nearer the
-    /// normal (normal, the default) or always from wi.
+    /// normal, or farther from it for a reflected pair under a rough coat
+    /// (normal, the default), or always from wi.
     #[arg(long, default_value = "normal")]
     eval_start: strata_bsdf::EvalStart,
     /// Which pdf of sample(): approx (what `strata sample` reports, the
