@@ -103,7 +103,7 @@ pub fn report(vertices: u64, batch: usize, rounds: u32, json: bool) -> Result<St
         "view",
         "setting",
         "ns/vertex",
-        "[table+]sample/eval/pdf",
+        "[table+]sample/eval_pdf",
         "pbrt ns",
         "variance",
         "pbrt var",
@@ -121,8 +121,8 @@ pub fn report(vertices: u64, batch: usize, rounds: u32, json: bool) -> Result<St
             r.setting,
             r.run.ns_per_vertex,
             match r.run.ns_per_call {
-                [0.0, s, e, p] => format!("{s:.0}/{e:.0}/{p:.0}"),
-                [t, s, e, p] => format!("{t:.0}+{s:.0}/{e:.0}/{p:.0}"),
+                [0.0, s, l] => format!("{s:.0}/{l:.0}"),
+                [t, s, l] => format!("{t:.0}+{s:.0}/{l:.0}"),
             },
             r.pbrt.ns_per_vertex,
             r.run.variance,
@@ -206,6 +206,6 @@ fn pool(runs: &[VertexRun]) -> VertexRun {
         mean,
         variance: ss / (n - 1.0),
         ns_per_vertex: ns,
-        ns_per_call: [per_call(0), per_call(1), per_call(2), per_call(3)],
+        ns_per_call: [per_call(0), per_call(1), per_call(2)],
     }
 }

@@ -15,8 +15,8 @@
 //! and its scalar is the mean of the three channels. strata answers batches
 //! of vertices on one thread with one walk per eval, keyed per vertex (fresh
 //! randomness), in importance mode (the view is `wi`), through the slice
-//! calls that the C ABI makes; the time is the thread's CPU time of the
-//! three calls. Efficiency is `1 / (variance × time per vertex)`.
+//! calls (a sample, then the light sample's eval and pdf in one call); the
+//! time is the thread's CPU time of the calls. Efficiency is `1 / (variance × time per vertex)`.
 
 use crate::pbrt::{self, Config};
 use glam::Vec3;
@@ -128,9 +128,10 @@ pub struct VertexRun {
     pub variance: f64,
     /// Thread-CPU nanoseconds per vertex of the library's calls.
     pub ns_per_vertex: f64,
-    /// Of which: the per-vertex tables of the three calls (textured; 0
-    /// otherwise), the sample call's, the eval call's and the pdf call's.
-    pub ns_per_call: [f64; 4],
+    /// Of which: the per-vertex tables of the two calls (textured; 0
+    /// otherwise), the sample call's and the light sample's eval and pdf
+    /// call's.
+    pub ns_per_call: [f64; 3],
 }
 
 impl VertexRun {
@@ -248,17 +249,16 @@ impl Batch {
         }
     }
 
-    /// The three calls of a batch of vertices: sample, and eval and pdf of
-    /// the light samples, on the BSDF's own parameters or, with a texture,
-    /// on per-vertex columns, which each call takes (as the C ABI's and
-    /// Python's per-query calls do: the thread's kept table serves the
-    /// second and third); their CPU times, the tables' first, are added to
-    /// `ns`.
+    /// The two calls of a batch of vertices: sample, and eval and pdf of
+    /// the light samples in one call, on the BSDF's own parameters or, with
+    /// a texture, on per-vertex columns, which each call takes (as the C
+    /// ABI's and Python's per-query calls do: the thread's kept table serves
+    /// the second); their CPU times, the tables' first, are added to `ns`.
     fn run(
         &mut self,
         bsdf: &LayeredBsdf,
         texture: Option<&Texture>,
-        ns: &mut [f64; 4],
+        ns: &mut [f64; 3],
     ) -> Result<(), String> {
         let e = |e: strata_bsdf::BatchError| e.to_string();
         let n = self.keys.len();
@@ -290,23 +290,15 @@ impl Batch {
         let per = on()?;
         let t0 = thread_cpu_ns();
         let (f, keys) = (flat_mut(&mut self.f), Some(&self.light_keys[..]));
+        let light_pdf = &mut self.light_pdf;
         match &per {
-            None => bsdf.eval_into(wi(), light(), keys, f, None),
-            Some(p) => p.eval_into(wi(), light(), keys, f, None),
+            None => bsdf.eval_pdf_into(wi(), light(), keys, f, None, light_pdf),
+            Some(p) => p.eval_pdf_into(wi(), light(), keys, f, None, light_pdf),
         }
         .map_err(e)?;
-        let eval = thread_cpu_ns() - t0;
+        let light = thread_cpu_ns() - t0;
         drop(per);
-        let per = on()?;
-        let t0 = thread_cpu_ns();
-        match &per {
-            None => bsdf.pdf_into(wi(), light(), &mut self.light_pdf),
-            Some(p) => p.pdf_into(wi(), light(), &mut self.light_pdf),
-        }
-        .map_err(e)?;
-        let pdf = thread_cpu_ns() - t0;
-        drop(per);
-        for (n, d) in ns.iter_mut().zip([table, sample, eval, pdf]) {
+        for (n, d) in ns.iter_mut().zip([table, sample, light]) {
             *n += d;
         }
         Ok(())
@@ -375,7 +367,7 @@ pub fn run(
     let p_l = 1.0 / sun_solid_angle();
     let mut b = Batch::new(batch, view(deg));
     let mut rng = seed ^ 0x5eed_0f7e_27e5;
-    let (mut sum, mut sum2, mut ns) = (0.0f64, 0.0f64, [0.0f64; 4]);
+    let (mut sum, mut sum2, mut ns) = (0.0f64, 0.0f64, [0.0f64; 3]);
     // One batch first, neither timed nor counted: what the calls build on
     // first use, once per process (a rough coat's table of `R̄` for
     // per-query rows, the threads' buffers), is not a vertex's cost.
@@ -392,7 +384,7 @@ pub fn run(
             t.draw(batch, &mut rng);
         }
         if round == 0 {
-            b.run(bsdf, texture.as_deref(), &mut [0.0; 4])?;
+            b.run(bsdf, texture.as_deref(), &mut [0.0; 3])?;
             continue;
         }
         b.run(bsdf, texture.as_deref(), &mut ns)?;

@@ -168,6 +168,17 @@ enum Threads {
     Pool(Arc<crate::pool::OwnPool>),
 }
 
+impl Threads {
+    /// The same setting (one pool: the same pool).
+    fn same(&self, other: &Threads) -> bool {
+        match (self, other) {
+            (Threads::Current, Threads::Current) | (Threads::Calling, Threads::Calling) => true,
+            (Threads::Pool(a), Threads::Pool(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+}
+
 impl LayeredBsdf {
     /// Default number of walks per `eval`.
     pub const DEFAULT_SAMPLES: u64 = 256;
@@ -233,6 +244,20 @@ impl LayeredBsdf {
     }
 
     /// This BSDF's configuration over `stack` with walk settings `settings`.
+    /// Whether it answers with `other`'s configuration: everything but the
+    /// stack (a BSDF [`LayeredBsdf::with_stack`] made of `other`).
+    pub(super) fn same_configuration(&self, other: &LayeredBsdf) -> bool {
+        self.settings == other.settings
+            && self.engine == other.engine
+            && self.samples == other.samples
+            && self.pdf_walks == other.pdf_walks
+            && self.seed == other.seed
+            && self.eval_start == other.eval_start
+            && self.estimator == other.estimator
+            && self.transport == other.transport
+            && self.threads.same(&other.threads)
+    }
+
     fn rebuilt(&self, stack: LayerStack, settings: Settings) -> Self {
         let b = LayeredBsdf {
             engine: self.engine,
@@ -1116,6 +1141,18 @@ impl LayeredBsdf {
             || self.pdf_engine(queries) == Engine::Scalar
     }
 
+    /// Whether the `n` queries of `per` take their pdfs one by one
+    /// ([`LayeredBsdf::pdf_one`]): [`LayeredBsdf::pdf_by_query`] on the
+    /// BSDF's own stack; with sets, by the lobe pdf, where every query's set
+    /// has a walk-free sampler, or on the scalar engine.
+    pub(super) fn pdf_by_query_in(&self, per: Per, n: usize) -> bool {
+        if per.is_own() {
+            return self.pdf_by_query(n);
+        }
+        let free = |k: usize| self.exact_sampler(per, k).is_some();
+        self.pdf_walks.is_lobes() || (0..n).all(free) || self.pdf_engine(n) == Engine::Scalar
+    }
+
     /// Query `k`'s approximate pdf, keyed by the directions, on the engine
     /// [`LayeredBsdf::pdf_engine`] picks; allocates nothing once the thread
     /// is warm.
@@ -1150,9 +1187,7 @@ impl LayeredBsdf {
     pub(super) fn pdf_validated(&self, per: Per, dirs: &[Pair]) -> Vec<f32> {
         let n = dirs.len();
         let free = |k: usize| self.exact_sampler(per, k).is_some();
-        let by_query =
-            self.pdf_walks.is_lobes() || (0..n).all(free) || self.pdf_engine(n) == Engine::Scalar;
-        if by_query {
+        if self.pdf_by_query_in(per, n) {
             let pdf = |(k, &(a, b)): (usize, &Pair)| self.pdf_one(per, k, a, b);
             return dirs.iter().enumerate().map(pdf).collect();
         }

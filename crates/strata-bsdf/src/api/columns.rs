@@ -338,7 +338,12 @@ struct InPlace {
 impl Drop for InPlace {
     fn drop(&mut self) {
         if let Some(sets) = self.sets.take() {
-            keep_spare(std::mem::take(&mut self.key), sets);
+            let key = std::mem::take(&mut self.key);
+            keep_spare(Spare {
+                key,
+                sets,
+                shape: self.shape.take(),
+            });
         }
     }
 }
@@ -389,16 +394,35 @@ impl Key {
     }
 }
 
+/// A table of rows kept for the thread's next one.
+struct Spare {
+    /// What it was built from.
+    key: Key,
+    sets: ParamSets,
+    /// The BSDF of the rows' shape, where it was not the template's.
+    shape: Option<Box<LayeredBsdf>>,
+}
+
+impl Spare {
+    /// A table's memory, with nothing it was built from.
+    fn memory(sets: ParamSets) -> Self {
+        Spare {
+            key: Key::default(),
+            sets,
+            shape: None,
+        }
+    }
+}
+
 thread_local! {
     /// This thread's last table of rows and its key: the next one reuses
     /// it if built from the same (a renderer's three calls at a batch of
     /// vertices), or its memory.
-    static SPARE: std::cell::RefCell<Option<(Key, ParamSets)>> =
-        const { std::cell::RefCell::new(None) };
+    static SPARE: std::cell::RefCell<Option<Spare>> = const { std::cell::RefCell::new(None) };
 }
 
-/// The thread's spare table and its key, if it has one.
-fn take_spare() -> Option<(Key, ParamSets)> {
+/// The thread's spare table, if it has one.
+fn take_spare() -> Option<Spare> {
     SPARE.try_with(|s| s.borrow_mut().take()).ok().flatten()
 }
 
@@ -406,14 +430,14 @@ fn take_spare() -> Option<(Key, ParamSets)> {
 /// ones if it has some.
 fn spare_sets(bsdf: &LayeredBsdf) -> ParamSets {
     match take_spare() {
-        Some((_, sets)) => bsdf.reuse_sets(sets),
+        Some(spare) => bsdf.reuse_sets(spare.sets),
         None => bsdf.empty_sets(),
     }
 }
 
-/// Keeps `sets`, built from `key`, as the thread's spare table.
-fn keep_spare(key: Key, sets: ParamSets) {
-    let _ = SPARE.try_with(|s| *s.borrow_mut() = Some((key, sets)));
+/// Keeps `spare` as the thread's spare table.
+fn keep_spare(spare: Spare) {
+    let _ = SPARE.try_with(|s| *s.borrow_mut() = Some(spare));
 }
 
 /// Why rows cannot be written in place.
@@ -516,6 +540,28 @@ impl<'a> PerQuery<'a> {
     /// The rows share one shape: the template's, or the first row's.
     fn write_in_place(&self) -> Result<InPlace, Refused> {
         let n = self.queries;
+        let mut key = Key::default();
+        if n <= self.rows {
+            // The thread's last table, if these columns built it for this
+            // configuration.
+            if let Some(spare) = take_spare() {
+                let bsdf = spare.shape.as_deref().unwrap_or(self.template);
+                if spare.key.is(self.template, &self.columns)
+                    && bsdf.same_configuration(self.template)
+                    && bsdf.built(&spare.sets)
+                {
+                    return Ok(InPlace {
+                        shape: spare.shape,
+                        identity: Materials::identity(n),
+                        sets: Some(spare.sets),
+                        key: spare.key,
+                    });
+                }
+                key = spare.key;
+                keep_spare(Spare::memory(spare.sets));
+            }
+            key.set(self.template, &self.columns);
+        }
         let mut shape = None;
         if n > 0 {
             let mut first = self.template.stack().clone();
@@ -531,24 +577,6 @@ impl<'a> PerQuery<'a> {
             }
         }
         let bsdf = shape.as_deref().unwrap_or(self.template);
-        let mut key = Key::default();
-        if n <= self.rows {
-            // The thread's last table, if these columns built it.
-            if let Some((k, sets)) = take_spare() {
-                if k.is(self.template, &self.columns) && bsdf.built(&sets) {
-                    let identity = Materials::identity(n);
-                    return Ok(InPlace {
-                        shape,
-                        identity,
-                        sets: Some(sets),
-                        key: k,
-                    });
-                }
-                key = k;
-                keep_spare(Key::default(), sets);
-            }
-            key.set(self.template, &self.columns);
-        }
         let mut sets = (n <= self.rows).then(|| spare_sets(bsdf));
         // What a row's choices compute (a coat's table of `R̄`) honours the
         // thread setting.
@@ -605,11 +633,11 @@ impl<'a> PerQuery<'a> {
             let per = Per(Some((&sets, &p.identity[..end - start])));
             if let Err(e) = run(per, start..end) {
                 let index = e.index.map(|i| i + start);
-                keep_spare(Key::default(), sets);
+                keep_spare(Spare::memory(sets));
                 return Some(Err(BatchError { index, ..e }));
             }
         }
-        keep_spare(Key::default(), sets);
+        keep_spare(Spare::memory(sets));
         Some(Ok(()))
     }
 
@@ -640,6 +668,12 @@ impl<'a> PerQuery<'a> {
     /// row.
     pub fn rows_in_place(&self) -> bool {
         self.in_place.is_some()
+    }
+
+    /// Whether the batch is one chunk of rows written in place, whose
+    /// sets [`PerQuery::new`] built.
+    pub(super) fn one_chunk_in_place(&self) -> bool {
+        self.in_place.as_ref().is_some_and(|p| p.sets.is_some())
     }
 
     /// The most distinct rows a chunk holds.

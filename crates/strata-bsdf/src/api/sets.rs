@@ -113,8 +113,10 @@ impl LayeredBsdf {
             .as_ref()
             .filter(|_| self.control_variate_for(st))
             .cloned();
+        // A set with a walk-free form has a walk-free sampler too.
+        let lobe_pdf = coat.is_none() || !self.walks_can_be_skipped();
         let table = sets.table_mut();
-        table.push(st, cv);
+        table.push(st, cv, lobe_pdf);
         table.set_adjoint_of_last(self.adjoint());
         sets.coat.push(coat);
         sets.route.push(self.estimator.route(st));

@@ -405,30 +405,77 @@ impl LayeredBsdf {
         let n = self.pairs_count(&wi, &wo)?;
         one_each("pdf", pdf.len(), n)?;
         check_pairs(&wi, &wo)?;
-        self.pdfs(Per::OWN, &wi, &wo, pdf);
+        self.pdfs(Per::OWN, |k| pair_at(&wi, &wo, k), pdf);
         Ok(())
     }
 
-    /// The approximate pdf of every checked pair, written to `pdf`.
-    fn pdfs(&self, per: Per, wi: &Vectors, wo: &Vectors, pdf: &mut [f32]) {
+    /// [`LayeredBsdf::eval_into`] and [`LayeredBsdf::pdf_into`] of the same
+    /// pairs in one call, the numbers of the two (a renderer's light sample
+    /// needs both): the directions are checked and normalized once. Returns
+    /// the walks the limit of events ended; nothing is written on an error.
+    pub fn eval_pdf_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        f: VectorsMut,
+        stderr: Option<VectorsMut>,
+        pdf: &mut [f32],
+    ) -> Result<u64, BatchError> {
+        let n = self.pairs_count(&wi, &wo)?;
+        f.check("f", n)?;
+        if let Some(s) = &stderr {
+            s.check("stderr", n)?;
+        }
+        one_each("pdf", pdf.len(), n)?;
+        let (mut f, mut stderr) = (f, stderr);
+        let outputs = (0, &mut f, &mut stderr);
+        self.eval_pdfs(Per::OWN, &wi, &wo, keys, outputs, pdf)
+    }
+
+    /// The evals and pdfs of checked queries, from one check of the pairs:
+    /// query `k`'s eval to `f` and `stderr` at `start + k`, its pdf to
+    /// `pdf[k]`.
+    fn eval_pdfs(
+        &self,
+        per: Per,
+        wi: &Vectors,
+        wo: &Vectors,
+        keys: Option<&[u64]>,
+        (start, f, stderr): (usize, &mut VectorsMut, &mut Option<VectorsMut>),
+        pdf: &mut [f32],
+    ) -> Result<u64, BatchError> {
+        let out = |k: usize, e: &Estimate| {
+            f.set(start + k, f32x3(e.value));
+            if let Some(s) = stderr {
+                s.set(start + k, f32x3(e.stderr));
+            }
+        };
+        let pdfs = |q: &[(Pair, u64)]| self.pdfs(per, |k| q[k].0, pdf);
+        self.evals_then(per, wi, wo, keys, out, pdfs)
+    }
+
+    /// The approximate pdf of every checked pair (`pair(k)`, normalized),
+    /// written to `pdf`.
+    fn pdfs(&self, per: Per, pair: impl Fn(usize) -> Pair, pdf: &mut [f32]) {
         let n = pdf.len();
-        if !per.is_own() {
-            let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
-            pdf.copy_from_slice(&self.pdf_validated(per, &pairs));
+        if self.pdf_by_query_in(per, n) {
+            for (k, p) in pdf.iter_mut().enumerate() {
+                let (a, b) = pair(k);
+                *p = self.pdf_one(per, k, a, b);
+            }
             return;
         }
-        if self.pdf_by_query(n) {
-            for (k, p) in pdf.iter_mut().enumerate() {
-                let (a, b) = pair_at(wi, wo, k);
-                *p = self.pdf_one(Per::OWN, k, a, b);
-            }
+        if !per.is_own() {
+            let pairs: Vec<Pair> = (0..n).map(pair).collect();
+            pdf.copy_from_slice(&self.pdf_validated(per, &pairs));
             return;
         }
         if self.serial() || n <= PDF_CHUNK {
             // On this thread, from the buffers it keeps: allocates nothing
             // once warm (the numbers of `pdf_validated`, lane for lane).
             let keyed = |k: usize| {
-                let (a, b) = pair_at(wi, wo, k);
+                let (a, b) = pair(k);
                 ((a, b), pdf_key(a, b))
             };
             let (walks, kind) = (self.pdf_walks, PdfKind::Approximate);
@@ -438,7 +485,7 @@ impl LayeredBsdf {
                 .pdf_each(own, n, keyed, walks, self.seed, kind, put);
             return;
         }
-        let pairs: Vec<Pair> = (0..n).map(|k| pair_at(wi, wo, k)).collect();
+        let pairs: Vec<Pair> = (0..n).map(pair).collect();
         pdf.copy_from_slice(&self.pdf_validated(Per::OWN, &pairs));
     }
 
@@ -538,7 +585,21 @@ impl LayeredBsdf {
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
+        out: impl FnMut(usize, &Estimate) + Send,
+    ) -> Result<u64, BatchError> {
+        self.evals_then(per, wi, wo, keys, out, |_| ())
+    }
+
+    /// [`LayeredBsdf::evals`], then `then` of the checked queries (each
+    /// pair normalized, and its key).
+    fn evals_then(
+        &self,
+        per: Per,
+        wi: &Vectors,
+        wo: &Vectors,
+        keys: Option<&[u64]>,
         mut out: impl FnMut(usize, &Estimate) + Send,
+        then: impl FnOnce(&[(Pair, u64)]),
     ) -> Result<u64, BatchError> {
         let n = wi.len();
         check_walks("samples", self.samples).map_err(BatchError::call)?;
@@ -569,6 +630,7 @@ impl LayeredBsdf {
                     out(k, &e)
                 },
             );
+            then(queries);
             Ok(cut)
         })
     }
@@ -764,7 +826,7 @@ impl PerQuery<'_> {
         mut f: VectorsMut,
         mut stderr: Option<VectorsMut>,
     ) -> Result<u64, BatchError> {
-        let n = self.pairs_checked(&wi, &wo, keys)?;
+        let n = self.pairs_checked(&wi, &wo, keys, true)?;
         f.check("f", n)?;
         if let Some(s) = &stderr {
             s.check("stderr", n)?;
@@ -809,7 +871,7 @@ impl PerQuery<'_> {
         pdf: &mut [f32],
         flags: &mut [u32],
     ) -> Result<(), BatchError> {
-        let n = self.directions_checked(&wi, keys)?;
+        let n = self.directions_checked(&wi, keys, true)?;
         wo.check("wo", n)?;
         weight.check("weight", n)?;
         one_each("pdf", pdf.len(), n)?;
@@ -830,18 +892,56 @@ impl PerQuery<'_> {
         keys: Option<&[u64]>,
         out: &mut [SampleRecord],
     ) -> Result<(), BatchError> {
-        let n = self.directions_checked(&wi, keys)?;
+        let n = self.directions_checked(&wi, keys, true)?;
         one_each("out", out.len(), n)?;
         self.samples_of(&wi, keys, |k, s| out[k] = SampleRecord::of(s))
     }
 
+    /// [`LayeredBsdf::eval_pdf_into`]: [`PerQuery::eval_into`] and
+    /// [`PerQuery::pdf_into`] of the same pairs in one call, the numbers of
+    /// the two, each row's table found once.
+    pub fn eval_pdf_into(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        mut f: VectorsMut,
+        mut stderr: Option<VectorsMut>,
+        pdf: &mut [f32],
+    ) -> Result<u64, BatchError> {
+        let n = self.pairs_checked(&wi, &wo, keys, true)?;
+        f.check("f", n)?;
+        if let Some(s) = &stderr {
+            s.check("stderr", n)?;
+        }
+        one_each("pdf", pdf.len(), n)?;
+        check_walks("samples", self.template.samples).map_err(BatchError::call)?;
+        let mut cut = 0;
+        let in_place = self.in_place_chunks("eval_pdf", |per, r| {
+            let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
+            let keys = keys.map(|x| &x[r.clone()]);
+            let outputs = (r.start, &mut f, &mut stderr);
+            cut += (self.rows_bsdf()).eval_pdfs(per, &a, &b, keys, outputs, &mut pdf[r])?;
+            Ok(())
+        });
+        if let Some(done) = in_place {
+            return done.map(|()| cut);
+        }
+        // Rows that are materials: the two calls (every pair is checked
+        // above, so the second cannot fail after the first wrote).
+        let cut = self.eval_into(wi, wo, keys, f, stderr)?;
+        self.pdf_into(wi, wo, pdf)?;
+        Ok(cut)
+    }
+
     /// [`Materials::pdf_into`].
     pub fn pdf_into(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
-        let n = self.pairs_checked(&wi, &wo, None)?;
+        let n = self.pairs_checked(&wi, &wo, None, false)?;
         one_each("pdf", pdf.len(), n)?;
         let in_place = self.in_place_chunks("pdf", |per, r| {
             let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
-            self.rows_bsdf().pdfs(per, &a, &b, &mut pdf[r]);
+            self.rows_bsdf()
+                .pdfs(per, |k| pair_at(&a, &b, k), &mut pdf[r]);
             Ok(())
         });
         if let Some(done) = in_place {
@@ -865,7 +965,7 @@ impl PerQuery<'_> {
         pdf: &mut [f32],
         stderr: &mut [f32],
     ) -> Result<u64, BatchError> {
-        let n = self.pairs_checked(&wi, &wo, None)?;
+        let n = self.pairs_checked(&wi, &wo, None, false)?;
         one_each("pdf", pdf.len(), n)?;
         one_each("stderr", stderr.len(), n)?;
         check_walks("samples", samples).map_err(BatchError::call)?;
@@ -898,7 +998,7 @@ impl PerQuery<'_> {
         keys: Option<&[u64]>,
         out: &mut [AlbedoRecord],
     ) -> Result<u64, BatchError> {
-        let m = self.directions_checked(&wi, keys)?;
+        let m = self.directions_checked(&wi, keys, false)?;
         one_each("out", out.len(), m)?;
         check_walks("n", n).map_err(BatchError::call)?;
         let mut cut = 0;
@@ -971,21 +1071,48 @@ impl PerQuery<'_> {
     }
 
     /// Checks a call on pairs before anything runs: one pair per query, each
-    /// of two directions, and keys (if given) one per query.
+    /// of two directions, and keys (if given) one per query. Where the
+    /// call's own checks run first (`call_checks`: eval and sample check
+    /// every direction and key of a chunk before they write) and the batch
+    /// is one chunk of rows in place, only the lengths (which slicing a
+    /// chunk needs).
     fn pairs_checked(
         &self,
         wi: &Vectors,
         wo: &Vectors,
         keys: Option<&[u64]>,
+        call_checks: bool,
     ) -> Result<usize, BatchError> {
-        let n = Vectors::check_pairs(wi, wo, keys)?;
+        let n = if call_checks && self.one_chunk_in_place() {
+            let n = wi.count("wi")?;
+            one_each("wo", wo.count("wo")?, n)?;
+            if let Some(k) = keys {
+                one_each("keys", k.len(), n)?;
+            }
+            n
+        } else {
+            Vectors::check_pairs(wi, wo, keys)?
+        };
         one_each("wi", n, self.queries)?;
         Ok(n)
     }
 
     /// [`PerQuery::pairs_checked`] for a call on incident directions.
-    fn directions_checked(&self, wi: &Vectors, keys: Option<&[u64]>) -> Result<usize, BatchError> {
-        let n = Vectors::check_directions(wi, keys)?;
+    fn directions_checked(
+        &self,
+        wi: &Vectors,
+        keys: Option<&[u64]>,
+        call_checks: bool,
+    ) -> Result<usize, BatchError> {
+        let n = if call_checks && self.one_chunk_in_place() {
+            let n = wi.count("wi")?;
+            if let Some(k) = keys {
+                one_each("keys", k.len(), n)?;
+            }
+            n
+        } else {
+            Vectors::check_directions(wi, keys)?
+        };
         one_each("wi", n, self.queries)?;
         Ok(n)
     }

@@ -97,7 +97,7 @@ impl SmoothCoatLambertian {
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
         let eta = coat.n_below / coat.n_above;
         let r_bar = if tabulated {
-            coat_return::SmoothReturn::for_eta(eta).r_bar(tau)
+            coat_return::SmoothReturn::r_bar_of(eta, tau)
         } else if tau[0] == tau[1] && tau[1] == tau[2] {
             [coat_return::smooth(eta, tau[0]); 3]
         } else {

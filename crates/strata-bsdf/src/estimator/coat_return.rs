@@ -38,6 +38,7 @@ use std::cell::RefCell;
 use std::f64::consts::PI;
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::thread::LocalKey;
+use wide::f64x4;
 
 /// `R̄ = 2 ∫₀¹ F_in(μ) e^(−2τ/μ) μ dμ` of a smooth coat of relative IOR
 /// `eta` (`n_below / n_above`) over a layer of optical depth `tau`, by
@@ -391,19 +392,31 @@ pub struct SmoothReturn {
     rows: DepthRows,
 }
 
+thread_local! {
+    /// The thread's last [`SmoothReturn`] table.
+    static SMOOTH_LAST: Last<u64, SmoothReturn> = const { RefCell::new(None) };
+    /// The thread's last [`RoughReturn`] table.
+    static ROUGH_LAST: Last<(u64, bool, bool), RoughReturn> = const { RefCell::new(None) };
+}
+
 impl SmoothReturn {
     /// The table of relative IOR `eta` (`n_below / n_above`), built on first
     /// request and shared by every later one (the cache holds the last
     /// [`CACHE_SIZE`] IORs; a handle outlives its eviction).
     pub fn for_eta(eta: f64) -> Arc<SmoothReturn> {
         static CACHE: Cache<u64, SmoothReturn> = Mutex::new(Vec::new());
-        thread_local! {
-            static LAST: Last<u64, SmoothReturn> = const { RefCell::new(None) };
-        }
         let key = eta.to_bits();
-        last_or(&LAST, key, || {
+        last_or(&SMOOTH_LAST, key, || {
             cached(&CACHE, key, || SmoothReturn::new(eta))
         })
+    }
+
+    /// `R̄` per channel of relative IOR `eta` at the optical depths `tau`:
+    /// [`SmoothReturn::for_eta`]'s [`SmoothReturn::r_bar`], read in place
+    /// when it is the thread's last table (a per-query row's case).
+    pub fn r_bar_of(eta: f64, tau: [f64; 3]) -> [f64; 3] {
+        let read = |t: &SmoothReturn| t.r_bar(tau);
+        read_last_or(&SMOOTH_LAST, eta.to_bits(), || Self::for_eta(eta), read)
     }
 
     /// The table of relative IOR `eta`, built now and not cached.
@@ -431,14 +444,9 @@ impl SmoothReturn {
     /// [`smooth`]; a depth that is not positive is a clear layer).
     #[inline]
     pub fn r_bar(&self, tau: [f64; 3]) -> [f64; 3] {
-        [self.at(tau[0]), self.at(tau[1]), self.at(tau[2])]
-    }
-
-    /// `R̄` at one depth.
-    #[inline(always)]
-    fn at(&self, tau: f64) -> f64 {
-        let (j, t) = self.rows.at(tau);
-        horner(self.rows.block::<1>(0, j)[0], t)
+        self.rows
+            .at3(tau)
+            .map(|(j, t)| horner(self.rows.block::<1>(0, j)[0], t))
     }
 }
 
@@ -484,13 +492,19 @@ impl RoughReturn {
     /// [`rough_coat::DOMAIN`]: super::rough_coat::DOMAIN
     pub fn for_coat(eta: f64, beckmann: bool, separable: bool) -> Arc<RoughReturn> {
         static CACHE: Cache<(u64, bool, bool), RoughReturn> = Mutex::new(Vec::new());
-        thread_local! {
-            static LAST: Last<(u64, bool, bool), RoughReturn> = const { RefCell::new(None) };
-        }
         let key = (eta.to_bits(), beckmann, separable);
-        last_or(&LAST, key, || {
+        last_or(&ROUGH_LAST, key, || {
             cached(&CACHE, key, || RoughReturn::new(eta, beckmann, separable))
         })
+    }
+
+    /// [`RoughReturn::for_coat`]'s [`RoughReturn::r_bar`], read in place
+    /// when it is the thread's last table (a per-query row's case).
+    pub fn r_bar_of(mf: &Microfacet<f64>, eta: f64, tau: [f64; 3]) -> [f64; 3] {
+        let (beckmann, separable) = (mf.beckmann, mf.separable);
+        let key = (eta.to_bits(), beckmann, separable);
+        let get = || Self::for_coat(eta, beckmann, separable);
+        read_last_or(&ROUGH_LAST, key, get, |t| t.r_bar(mf.alpha_x, tau))
     }
 
     /// The table of that coat, built now and not cached, on as many threads
@@ -630,17 +644,13 @@ impl RoughReturn {
             -a * b * d * 0.5,
             a * b * c * (1.0 / 6.0),
         ];
-        [
-            self.at(i, weights, tau[0]),
-            self.at(i, weights, tau[1]),
-            self.at(i, weights, tau[2]),
-        ]
+        self.rows.at3(tau).map(|at| self.at(i, weights, at))
     }
 
-    /// `R̄` at one depth, between the rows `i − 1 … i + 2` with `weights`.
+    /// `R̄` at one depth (its interval and where in it), between the rows
+    /// `i − 1 … i + 2` with `weights`.
     #[inline(always)]
-    fn at(&self, i: usize, weights: [f64; 4], tau: f64) -> f64 {
-        let (j, t) = self.rows.at(tau);
+    fn at(&self, i: usize, weights: [f64; 4], (j, t): (usize, f64)) -> f64 {
         let [p, q, r, s] = self.rows.block::<4>(i - 1, j);
         let [a, b, c, d] = weights;
         horner(
@@ -702,6 +712,18 @@ fn last_or<K: PartialEq + Copy + 'static, T: 'static>(
     t
 }
 
+/// `read` of the thread's last table if it is `key`'s (read in place, no
+/// handle taken), else of [`last_or`]'s.
+fn read_last_or<K: PartialEq + Copy + 'static, T: 'static, R>(
+    last: &'static LocalKey<Last<K, T>>,
+    key: K,
+    get: impl FnOnce() -> Arc<T>,
+    read: impl Fn(&T) -> R,
+) -> R {
+    let hit = last.with_borrow(|l| l.as_ref().filter(|(k, _)| *k == key).map(|(_, t)| read(t)));
+    hit.unwrap_or_else(|| read(&last_or(last, key, get)))
+}
+
 fn cached<K: PartialEq, T>(cache: &Cache<K, T>, key: K, build: impl FnOnce() -> T) -> Arc<T> {
     let slot = {
         let mut entries = cache.lock().unwrap_or_else(PoisonError::into_inner);
@@ -760,15 +782,20 @@ impl DepthRows {
         self.pieces[k..k + R].try_into().expect("R rows")
     }
 
-    /// The interval of depth `tau` and where in it (`t ∈ [0, 1]`). A
-    /// depth that is not positive (or NaN) is 0; ∞ is `x = 1`, where every
-    /// row is 0.
+    /// The interval of each depth of `tau` and where in it (`t ∈ [0, 1]`).
+    /// A depth that is not positive (or NaN) is 0; ∞ is `x = 1`, where
+    /// every row is 0. The division and square roots of the three run in
+    /// the lanes of one vector.
     #[inline(always)]
-    fn at(&self, tau: f64) -> (usize, f64) {
-        let tau = if tau > 0.0 { tau.min(f64::MAX) } else { 0.0 };
-        let s = (tau / (tau + TAU_SCALE)).sqrt().sqrt() * self.n as f64;
-        let j = s.floor().min((self.n - 1) as f64);
-        (j as u32 as usize, s - j)
+    fn at3(&self, tau: [f64; 3]) -> [(usize, f64); 3] {
+        let [a, b, c] = tau.map(|t| if t > 0.0 { t.min(f64::MAX) } else { 0.0 });
+        let v = f64x4::new([a, b, c, 0.0]);
+        let s = (v / (v + f64x4::splat(TAU_SCALE))).sqrt().sqrt() * f64x4::splat(self.n as f64);
+        let s = s.to_array();
+        [s[0], s[1], s[2]].map(|s| {
+            let j = s.floor().min((self.n - 1) as f64);
+            (j as u32 as usize, s - j)
+        })
     }
 }
 

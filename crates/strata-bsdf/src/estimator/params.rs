@@ -108,8 +108,10 @@ impl SetTable {
 
     /// Adds `stack` (of the table's shape) as the next set; with `cv`
     /// (what [`CoatLambertian::unscattered`] gives for it, or `None`), eval
-    /// walks of its queries leave out what `cv` holds.
-    pub fn push(&mut self, stack: &LayerStack, cv: Option<CoatLambertian>) {
+    /// walks of its queries leave out what `cv` holds. `lobe_pdf` says
+    /// whether its pdfs may be the lobe pdf, which needs its body's return:
+    /// a set with a walk-free sampler never reads it (1 is stored).
+    pub fn push(&mut self, stack: &LayerStack, cv: Option<CoatLambertian>, lobe_pdf: bool) {
         debug_assert_eq!(stack.len(), self.n);
         let n = self.n;
         let first = (self.ifaces.len(), self.media.len());
@@ -124,7 +126,10 @@ impl SetTable {
         let rows = self.media[first.1..].iter().map(|m| m.phase.p);
         self.phase_rows.extend(rows);
         self.cv.push(cv);
-        self.body.push(super::body_return::body_return(stack));
+        self.body.push(match lobe_pdf {
+            true => super::body_return::body_return(stack),
+            false => 1.0,
+        });
     }
 
     /// Empties it for stacks of `n` interfaces, keeping its memory.

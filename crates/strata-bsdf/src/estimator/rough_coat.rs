@@ -136,7 +136,8 @@ impl RoughCoatLambertian {
             mf,
             eta: (it.n_below / it.n_above) as f64,
             tau: f64s(medium.sigma_t).map(|t| t * medium.thickness as f64),
-            rho: f64s(stack.interface_lanes::<f32>(1).albedo),
+            // (The numbers the walks take: the albedo in single precision.)
+            rho: stack.interface(1).albedo.map(|a| f64::from(a as f32)),
             r_bar: ReturnOf::Table([0.0; 3]),
         })
         .map(|r| match tabulated {
@@ -165,9 +166,8 @@ impl RoughCoatLambertian {
     /// per-query row takes, where a quadrature per row would cost far more
     /// than its queries.
     pub fn tabulated(mut self) -> Self {
-        let table =
-            coat_return::RoughReturn::for_coat(self.eta, self.mf.beckmann, self.mf.separable);
-        self.r_bar = ReturnOf::Table(table.r_bar(self.mf.alpha_x, self.tau));
+        let r_bar = coat_return::RoughReturn::r_bar_of(&self.mf, self.eta, self.tau);
+        self.r_bar = ReturnOf::Table(r_bar);
         self
     }
 

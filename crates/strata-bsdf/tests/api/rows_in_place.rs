@@ -258,3 +258,122 @@ fn a_kept_table_answers_only_for_its_own_columns() {
     assert_eq!(fresh(other.clone(), a), on_other);
     assert_eq!(fresh(uni.clone(), a), with_uni);
 }
+
+/// `eval_pdf_into` answers, bit for bit, what `eval_into` and `pdf_into`
+/// answer for the same pairs: on the BSDF's own parameters and on
+/// per-query rows (written in place, and as materials where a column is an
+/// IOR), over a walked stack, a walk-free one and one whose control
+/// variate walks. A direction that is not one is the error the two calls
+/// give, and nothing is written.
+#[test]
+fn eval_pdf_is_eval_and_pdf() {
+    let n = 9;
+    let wi: Vec<[f32; 3]> = (0..n)
+        .map(|k| [0.1 * k as f32 - 0.4, 0.3, 0.5 + 0.05 * k as f32])
+        .collect();
+    let wo: Vec<[f32; 3]> = (0..n)
+        .map(|k| [0.2 - 0.05 * k as f32, -0.4, 0.6 + 0.1 * (k % 3) as f32])
+        .collect();
+    let keys: Vec<u64> = (0..n as u64).map(|k| 7 * k + 1).collect();
+    let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+    type Answer = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<f32>);
+    let apart = |eval: &dyn Fn(VectorsMut, VectorsMut), pdf: &dyn Fn(&mut [f32])| -> Answer {
+        let (mut f, mut e, mut p) = (vec![[0f32; 3]; n], vec![[0f32; 3]; n], vec![0f32; n]);
+        eval(VectorsMut::Aos(&mut f), VectorsMut::Aos(&mut e));
+        pdf(&mut p);
+        (f, e, p)
+    };
+    let together = |call: &dyn Fn(VectorsMut, VectorsMut, &mut [f32])| -> Answer {
+        let (mut f, mut e, mut p) = (vec![[0f32; 3]; n], vec![[0f32; 3]; n], vec![0f32; n]);
+        call(VectorsMut::Aos(&mut f), VectorsMut::Aos(&mut e), &mut p);
+        (f, e, p)
+    };
+    let thickness: SetPath = "layers[0].medium.thickness".parse().unwrap();
+    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let depths: Vec<f32> = (0..n).map(|k| sixty_fourths(k, 0, 8)).collect();
+    let iors: Vec<f32> = (0..n).map(|k| 1.25 + sixty_fourths(k, 0, 0)).collect();
+    for toml in [COATED_COPPER, SMOOTH_COAT_ABSORBER, VARNISH_OVER_SCATTERING] {
+        let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(toml).unwrap())
+            .samples(2)
+            .seed(3);
+        let k = Some(&keys[..]);
+        let own_apart = apart(
+            &|f, e| {
+                bsdf.eval_into(a, b, k, f, Some(e)).unwrap();
+            },
+            &|p| bsdf.pdf_into(a, b, p).unwrap(),
+        );
+        let own = together(&|f, e, p| {
+            bsdf.eval_pdf_into(a, b, k, f, Some(e), p).unwrap();
+        });
+        assert_eq!(own, own_apart, "{toml}");
+        for (path, values) in [(&thickness, &depths), (&ior, &iors)] {
+            let cols = [Column {
+                path,
+                width: 1,
+                values,
+            }];
+            let q = PerQuery::new(&bsdf, n, &cols).unwrap();
+            assert_eq!(q.rows_in_place(), path == &thickness);
+            let rows_apart = apart(
+                &|f, e| {
+                    q.eval_into(a, b, k, f, Some(e)).unwrap();
+                },
+                &|p| q.pdf_into(a, b, p).unwrap(),
+            );
+            let rows = together(&|f, e, p| {
+                q.eval_pdf_into(a, b, k, f, Some(e), p).unwrap();
+            });
+            assert_eq!(rows, rows_apart, "{path} of {toml}");
+            assert!(rows.2.iter().all(|p| p.is_finite() && *p >= 0.0));
+        }
+        // A NaN direction: the calls' error, nothing written.
+        let mut bad = wo.clone();
+        bad[4] = [f32::NAN, 0.0, 1.0];
+        let c = Vectors::Aos(&bad);
+        let (mut f, mut p) = (vec![[-1f32; 3]; n], vec![-1f32; n]);
+        let e = bsdf
+            .eval_pdf_into(a, c, k, VectorsMut::Aos(&mut f), None, &mut p)
+            .unwrap_err();
+        let alone = bsdf.pdf_into(a, c, &mut vec![0.0; n]).unwrap_err();
+        assert_eq!((e.index, e.to_string()), (alone.index, alone.to_string()));
+        assert!(f.iter().all(|v| *v == [-1.0; 3]) && p.iter().all(|x| *x == -1.0));
+    }
+}
+
+/// A table kept for the same columns under another configuration is not
+/// reused where the rows' shape is not the template's (a grey extinction
+/// given per query as RGB, which answers on a BSDF of the rows' shape with
+/// the template's configuration): each call answers with its own
+/// template's seed and walks, as a table built afresh does.
+#[test]
+fn a_kept_table_of_another_shape_answers_with_its_templates_configuration() {
+    let path: SetPath = "layers[0].medium.sigma_t".parse().unwrap();
+    let sigma: Vec<f32> = (0..9).map(|k| sixty_fourths(k / 3, k % 3, 16)).collect();
+    let wi = [[0.0f32, 0.6, 0.8]; 3];
+    let eval = |bsdf: &LayeredBsdf| {
+        let cols = [Column {
+            path: &path,
+            width: 3,
+            values: &sigma,
+        }];
+        let q = PerQuery::new(bsdf, 3, &cols).unwrap();
+        assert!(q.rows_in_place());
+        let mut f = [[0f32; 3]; 3];
+        let d = Vectors::Aos(&wi);
+        q.eval_into(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+            .unwrap();
+        f
+    };
+    let grey = LayerStack::from_toml_str(VARNISH_OVER_SCATTERING).unwrap();
+    let (one, other) = (
+        LayeredBsdf::new(grey.clone()).seed(9).samples(4),
+        LayeredBsdf::new(grey).seed(10).samples(4),
+    );
+    let fresh = |bsdf: &LayeredBsdf| std::thread::scope(|s| s.spawn(|| eval(bsdf)).join().unwrap());
+    let (first, second) = (eval(&one), eval(&other));
+    assert_ne!(first, second, "the seeds differ");
+    assert_eq!(first, fresh(&one));
+    assert_eq!(second, fresh(&other));
+    assert_eq!(eval(&one), first);
+}
