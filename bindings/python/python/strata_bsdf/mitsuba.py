@@ -189,14 +189,15 @@ def _mix_int(k: int) -> int:
     return k ^ (k >> 31)
 
 
-def _bits(x: float) -> int:
-    return struct.unpack("<I", struct.pack("<f", x))[0]
+_F3 = struct.Struct("<3f")
+_I3 = struct.Struct("<3I")
 
 
 def sample_key(u1: float, u2x: float, u2y: float) -> int:
     """:func:`sample_keys` for one sample, on Python numbers (the scalar variants)."""
-    k = _mix_int(((_bits(u1) | (_bits(u2x) << 32)) + 0x9E3779B97F4A7C15) & _MASK)
-    return _mix_int(k ^ ((_bits(u2y) + 0x9E3779B97F4A7C15) & _MASK))
+    b0, b1, b2 = _I3.unpack(_F3.pack(u1, u2x, u2y))  # the float32 bits
+    k = _mix_int(((b0 | (b1 << 32)) + 0x9E3779B97F4A7C15) & _MASK)
+    return _mix_int(k ^ ((b2 + 0x9E3779B97F4A7C15) & _MASK))
 
 
 def _width(*xs) -> int:
@@ -432,7 +433,8 @@ def _make_class():
             t0 = time.perf_counter()
             bs = mi.BSDFSample3f()
             bs.wo, bs.pdf, bs.eta, bs.sampled_type, bs.sampled_component = mi.Vector3f(0), 0.0, 1.0, 0, 0
-            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            v = si.wi  # (each read of si.wi makes a new vector)
+            wi = (float(v.x), float(v.y), float(v.z))
             if not (active and all(map(math.isfinite, wi)) and any(wi)):
                 return bs, mi.Color3f(0)
             key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
@@ -462,7 +464,8 @@ def _make_class():
         def _eval_scalar(self, ctx, si, wo, active, method):
             """eval/pdf/eval_pdf for the scalar variants."""
             t0 = time.perf_counter()
-            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            v = si.wi
+            wi = (float(v.x), float(v.y), float(v.z))
             w = (float(wo.x), float(wo.y), float(wo.z))
             ok = (
                 active
