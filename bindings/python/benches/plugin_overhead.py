@@ -133,8 +133,10 @@ def run_variant(variant, width, height, spp, repeat, material, profile):
     print(f"\nstrata / built-in: wall {ws / wb:.2f}x (best {min(res['strata']['wall']) / min(res['built-in']['wall']):.2f}x), "
           f"CPU {cs / cb:.2f}x; image means differ by {100 * (ms / mb - 1):+.2f} % (z {z:+.2f})\n")
 
-    # Where a strata render's time goes: the median render's stats.
-    i = res["strata"]["wall"].index(statistics.median(res["strata"]["wall"]))
+    # Where a strata render's time goes: the stats of its median render
+    # (the lower of the two middle ones for an even count).
+    walls = res["strata"]["wall"]
+    i = sorted(range(len(walls)), key=walls.__getitem__)[(len(walls) - 1) // 2]
     st, wall = res["strata"]["stats"][i], res["strata"]["wall"][i]
     print("| plugin method | calls | queries | in the method (s) | in strata's batch calls (s) | "
           "plugin glue (s) | glue per call (ms) |")

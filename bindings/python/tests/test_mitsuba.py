@@ -445,3 +445,21 @@ def test_sample_keys_match_the_scalar_hash():
     keys = sm.sample_keys(u[0], u[1], u[2])
     assert keys.dtype == np.uint64
     assert keys.tolist() == [sm.sample_key(float(a), float(b), float(c)) for a, b, c in u.T]
+
+
+def test_overhead_report_runs():
+    """bindings/python/benches/plugin_overhead.py (docs/embedding.md), small:
+    it runs in both variants, reports its tables and finds the strata and
+    built-in image means within 5 standard errors (no time is checked)."""
+    import pathlib
+    import subprocess
+    import sys
+
+    script = pathlib.Path(__file__).resolve().parents[1] / "benches" / "plugin_overhead.py"
+    args = ["--width", "31", "--height", "23", "--spp", "16", "--repeat", "3", "--scalar-size", "11", "7",
+            "--scalar-spp", "4", "--check"]
+    p = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    for text in ("## llvm_ad_rgb, 31x23 px", "## scalar_rgb, 11x7 px", "| strata |", "| built-in |",
+                 "in strata's batch calls", "check: image means agree"):
+        assert text in p.stdout, p.stdout
