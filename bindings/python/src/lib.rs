@@ -300,9 +300,29 @@ fn keys_in<'py>(obj: Option<&Bound<'py, PyAny>>) -> PyResult<Option<PyReadonlyAr
     Ok(Some(borrow("keys", a.cast::<PyArray1<u64>>()?)?))
 }
 
+/// Whether every vector of `v` is plainly a direction: finite components,
+/// not all zero. Those are what the library's checks accept (a finite
+/// nonzero vector normalizes); this decides it without normalizing, which
+/// the library's checks do for every vector (and the call does again).
+fn plainly_directions(v: &Vectors<'_>) -> bool {
+    let ok = |x: f32, y: f32, z: f32| {
+        x.is_finite() && y.is_finite() && z.is_finite() && (x != 0.0 || y != 0.0 || z != 0.0)
+    };
+    match v {
+        Vectors::Aos(a) => a.iter().all(|&[x, y, z]| ok(x, y, z)),
+        Vectors::Soa([x, y, z]) => {
+            x.len() == y.len()
+                && x.len() == z.len()
+                && x.iter().zip(*y).zip(*z).all(|((&x, &y), &z)| ok(x, y, z))
+        }
+    }
+}
+
 /// Checks a pair call's vectors and keys as the library's call will
 /// (lengths, directions), before anything is allocated for its results:
-/// the number of queries, or the call's `QueryError`.
+/// the number of queries, or the call's `QueryError`. A batch whose lengths
+/// agree and whose vectors are [`plainly_directions`] passes at once; any
+/// other goes through the library's own checks, which name what is wrong.
 fn check_pairs(
     py: Python<'_>,
     wi: &VecIn<'_>,
@@ -310,7 +330,16 @@ fn check_pairs(
     keys: Option<&PyReadonlyArray1<'_, u64>>,
 ) -> PyResult<usize> {
     let k = keys.map(|k| k.as_slice().expect("checked contiguous"));
-    Vectors::check_pairs(&wi.vectors(), &wo.vectors(), k).map_err(|e| batch_err(py, e))
+    let (a, b) = (wi.vectors(), wo.vectors());
+    let n = a.len();
+    if b.len() == n
+        && k.is_none_or(|k| k.len() == n)
+        && plainly_directions(&a)
+        && plainly_directions(&b)
+    {
+        return Ok(n);
+    }
+    Vectors::check_pairs(&a, &b, k).map_err(|e| batch_err(py, e))
 }
 
 /// [`check_pairs`] for a call on incident directions alone.
@@ -320,7 +349,12 @@ fn check_directions(
     keys: Option<&PyReadonlyArray1<'_, u64>>,
 ) -> PyResult<usize> {
     let k = keys.map(|k| k.as_slice().expect("checked contiguous"));
-    Vectors::check_directions(&wi.vectors(), k).map_err(|e| batch_err(py, e))
+    let a = wi.vectors();
+    let n = a.len();
+    if k.is_none_or(|k| k.len() == n) && plainly_directions(&a) {
+        return Ok(n);
+    }
+    Vectors::check_directions(&a, k).map_err(|e| batch_err(py, e))
 }
 
 // ------------------------------------------------------- per-query parameters

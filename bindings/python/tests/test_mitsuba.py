@@ -366,3 +366,100 @@ def test_light_tracer_agrees_with_builtin(tmp_path, case):
     print(f"ptracer {case}: strata {a.mean():.5f} builtin {b.mean():.5f} ({100 * (a.mean() / b.mean() - 1):+.2f} % "
           f"+- {100 * se / b.mean():.2f} %)")
     assert abs(a.mean() - b.mean()) < Z_MAX * se
+
+
+def test_jit_calls_answer_each_lane_as_the_module(tmp_path):
+    """In llvm_ad_rgb the plugin's sample, eval, pdf and eval_pdf answer each
+    lane bit for bit as strata's Bsdf does (keys from sample_keys, eval with
+    |cos wo|, eta per side), and zeros (eta 1, type 0) for lanes that are
+    inactive, NaN or zero, or whose lobe a type mask excludes."""
+    use_variant("llvm_ad_rgb")
+    import strata_bsdf.mitsuba as sm
+    from strata_bsdf import Bsdf
+
+    path = material(tmp_path, GLASS)
+    plugin = mi.load_dict({"type": "strata", "filename": path})
+    bsdf = Bsdf.from_path(path, transport="importance")  # camera paths
+    rng = np.random.default_rng(5)
+    n = 257
+    wi, wo = (rng.normal(size=(n, 3)).astype(np.float32) for _ in range(2))
+    wi[3], wi[4], wo[5], wo[6] = np.nan, 0, np.inf, 0
+    active = rng.random(n) > 0.1
+    u = rng.random((3, n)).astype(np.float32)
+
+    def vec(a):
+        return mi.Vector3f(*(mi.Float(np.ascontiguousarray(a[:, i])) for i in range(3)))
+
+    def cols(x):
+        return tuple(np.array(c, np.float32) for c in (x.x, x.y, x.z))
+
+    def queried(a):
+        """Lanes that can be queried, and the directions strata is given."""
+        ok = active & np.isfinite(a).all(axis=1) & (a != 0).any(axis=1)
+        return ok, tuple(np.ascontiguousarray(np.where(ok, a[:, i], float(i == 2))).astype(np.float32) for i in range(3))
+
+    si = mi.SurfaceInteraction3f()
+    si.wi = vec(wi)
+    ok_i, wi_q = queried(wi)
+    ok_o, wo_q = queried(wo)
+    F = mi.BSDFFlags
+    for mask in (F.All, F.Reflection):
+        ctx = mi.BSDFContext(mi.TransportMode.Radiance, mask)
+        bs, weight = plugin.sample(ctx, si, mi.Float(u[0]), mi.Point2f(mi.Float(u[1]), mi.Float(u[2])), mi.Bool(active))
+        w_s, wt_s, p_s, fl = bsdf.sample(wi_q, sm.sample_keys(u[0], u[1], u[2]))
+        refl = (fl & 1) != 0
+        ok = ok_i & (fl != 0) & (refl if mask == F.Reflection else True)
+        assert 0 < ok.sum() < n
+        for got, want in zip((*cols(bs.wo), *cols(weight), np.array(bs.pdf)), (*w_s, *wt_s, p_s)):
+            np.testing.assert_array_equal(got, np.where(ok, want, np.float32(0)))
+        eta = np.where(ok & ~refl, np.where(wi_q[2] > 0, np.float32(1.5), 1 / np.float32(1.5)), np.float32(1))
+        np.testing.assert_array_equal(np.array(bs.eta), eta)
+        want_type = np.where(refl, int(F.GlossyReflection), int(F.GlossyTransmission))
+        np.testing.assert_array_equal(np.array(bs.sampled_type), np.where(ok, want_type, 0))
+
+    ctx = mi.BSDFContext()
+    ok = ok_i & ok_o
+    f, _ = bsdf.eval(wi_q, wo_q)
+    p = bsdf.pdf(wi_q, wo_q)
+    value = [np.where(ok, c * np.abs(wo_q[2]), np.float32(0)) for c in f]
+    v1, p1 = plugin.eval_pdf(ctx, si, vec(wo), mi.Bool(active))
+    v2, p2 = plugin.eval(ctx, si, vec(wo), mi.Bool(active)), plugin.pdf(ctx, si, vec(wo), mi.Bool(active))
+    for v in (v1, v2):
+        for got, want in zip(cols(v), value):
+            np.testing.assert_array_equal(got, want)
+    for q in (p1, p2):
+        np.testing.assert_array_equal(np.array(q), np.where(ok, p, np.float32(0)))
+    # A context without smooth lobes asks for nothing: zeros.
+    v3, p3 = plugin.eval_pdf(mi.BSDFContext(mi.TransportMode.Radiance, F.Delta), si, vec(wo), mi.Bool(active))
+    assert not np.any(cols(v3)) and not np.any(np.array(p3))
+
+
+def test_sample_keys_match_the_scalar_hash():
+    """The vectorized key hash (in place, on uint64 arrays) is the scalar
+    variants' hash on Python integers, lane for lane."""
+    use_variant("scalar_rgb")
+    import strata_bsdf.mitsuba as sm
+
+    u = np.random.default_rng(2).random((3, 200)).astype(np.float32)
+    u[:, :3] = [[0, 1, 0.5], [0, 0.999999, 0.25], [0, 0, 0.75]]
+    keys = sm.sample_keys(u[0], u[1], u[2])
+    assert keys.dtype == np.uint64
+    assert keys.tolist() == [sm.sample_key(float(a), float(b), float(c)) for a, b, c in u.T]
+
+
+def test_overhead_report_runs():
+    """bindings/python/benches/plugin_overhead.py (docs/embedding.md), small:
+    it runs in both variants, reports its tables and finds the strata and
+    built-in image means within 5 standard errors (no time is checked)."""
+    import pathlib
+    import subprocess
+    import sys
+
+    script = pathlib.Path(__file__).resolve().parents[1] / "benches" / "plugin_overhead.py"
+    args = ["--width", "31", "--height", "23", "--spp", "16", "--repeat", "3", "--scalar-size", "11", "7",
+            "--scalar-spp", "4", "--check"]
+    p = subprocess.run([sys.executable, str(script), *args], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    for text in ("## llvm_ad_rgb, 31x23 px", "## scalar_rgb, 11x7 px", "| strata |", "| built-in |",
+                 "in strata's batch calls", "check: image means agree"):
+        assert text in p.stdout, p.stdout

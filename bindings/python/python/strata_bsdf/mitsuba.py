@@ -99,8 +99,10 @@ from . import DELTA, REFLECTION, TRANSMISSION, Bsdf
 __all__ = ["register", "enable_evaluated_mode", "stats", "reset_stats", "sample_keys", "sample_key"]
 
 #: Per plugin method: calls, queries (lanes), ``seconds`` spent in the method
-#: (wall clock: conversions, key hashing and the strata calls) and
-#: ``strata_seconds`` spent in the compiled module's batch calls alone.
+#: (wall clock, from its arguments to its returned values: evaluating and
+#: converting the inputs, key hashing, the strata calls and building the
+#: results) and ``strata_seconds`` spent in the compiled module's batch calls
+#: alone.
 stats: dict = {}
 
 
@@ -146,13 +148,18 @@ _M2 = np.uint64(0x94D049BB133111EB)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
-def _mix(k: np.ndarray) -> np.ndarray:
-    """SplitMix64's finalizer, on uint64 arrays (wrapping arithmetic)."""
-    k = k ^ (k >> np.uint64(30))
-    k = k * _M1
-    k = k ^ (k >> np.uint64(27))
-    k = k * _M2
-    return k ^ (k >> np.uint64(31))
+def _mix_inplace(k: np.ndarray) -> np.ndarray:
+    """SplitMix64's finalizer, in place on a uint64 array (wrapping
+    arithmetic; one temporary array)."""
+    t = k >> np.uint64(30)
+    k ^= t
+    k *= _M1
+    np.right_shift(k, np.uint64(27), out=t)
+    k ^= t
+    k *= _M2
+    np.right_shift(k, np.uint64(31), out=t)
+    k ^= t
+    return k
 
 
 def sample_keys(u1: np.ndarray, u2x: np.ndarray, u2y: np.ndarray) -> np.ndarray:
@@ -161,8 +168,14 @@ def sample_keys(u1: np.ndarray, u2x: np.ndarray, u2y: np.ndarray) -> np.ndarray:
     independent walks and the same numbers draw the same walk."""
     b = [np.ascontiguousarray(x, dtype=np.float32).view(np.uint32).astype(np.uint64) for x in (u1, u2x, u2y)]
     with np.errstate(over="ignore"):
-        k = _mix((b[0] | (b[1] << np.uint64(32))) + _GOLDEN)
-        return _mix(k ^ (b[2] + _GOLDEN))
+        k = b[1]
+        k <<= np.uint64(32)
+        k |= b[0]
+        k += _GOLDEN
+        _mix_inplace(k)
+        b[2] += _GOLDEN
+        k ^= b[2]
+        return _mix_inplace(k)
 
 
 _MASK = (1 << 64) - 1
@@ -176,14 +189,15 @@ def _mix_int(k: int) -> int:
     return k ^ (k >> 31)
 
 
-def _bits(x: float) -> int:
-    return struct.unpack("<I", struct.pack("<f", x))[0]
+_F3 = struct.Struct("<3f")
+_I3 = struct.Struct("<3I")
 
 
 def sample_key(u1: float, u2x: float, u2y: float) -> int:
     """:func:`sample_keys` for one sample, on Python numbers (the scalar variants)."""
-    k = _mix_int(((_bits(u1) | (_bits(u2x) << 32)) + 0x9E3779B97F4A7C15) & _MASK)
-    return _mix_int(k ^ ((_bits(u2y) + 0x9E3779B97F4A7C15) & _MASK))
+    b0, b1, b2 = _I3.unpack(_F3.pack(u1, u2x, u2y))  # the float32 bits
+    k = _mix_int(((b0 | (b1 << 32)) + 0x9E3779B97F4A7C15) & _MASK)
+    return _mix_int(k ^ ((b2 + 0x9E3779B97F4A7C15) & _MASK))
 
 
 def _width(*xs) -> int:
@@ -221,9 +235,15 @@ class _Host:
         if self.jit and dr.flag(dr.JitFlag.SymbolicScope):
             raise RuntimeError(_SYMBOLIC)
 
-    def vec_in(self, v, n):
-        if self.jit:
-            dr.eval(v)
+    @staticmethod
+    def evaluate(*values):
+        """Evaluates a call's Dr.Jit inputs together: one kernel for all of
+        them, where converting them one by one would launch one each."""
+        dr.eval(*values)
+
+    @staticmethod
+    def vec_in(v, n):
+        """An evaluated Vector3f as three float32 arrays (views, no copy)."""
         return tuple(_floats(c, n) for c in (v.x, v.y, v.z))
 
     def float_out(self, a: np.ndarray):
@@ -298,10 +318,13 @@ class _Param:
         lanes not ``ok`` get the mean."""
         if self.width == 1:
             v = self.texture.eval_1(si, active)
+            if jit:
+                dr.eval(v)
             a = _floats(v, n) if jit else np.full(n, float(v), np.float32)
         else:
             c = self.texture.eval(si, active)
             if jit:
+                dr.eval(c)  # one kernel for the three channels
                 a = np.stack([_floats(c[i], n) for i in range(3)], axis=1)
             else:
                 a = np.array([[float(c[0]), float(c[1]), float(c[2])]], np.float32)
@@ -342,6 +365,7 @@ def _make_class():
             lobes = self._camera.lobes
             n_above, n_below = self._camera.exterior_ior, self._camera.exterior_ior_below
             self._eta_down = np.float32(n_below / n_above)  # wi above, wo below
+            self._eta_up = 1 / self._eta_down  # wi below, wo above (float32)
             sides = F.FrontSide
             if lobes["transmission"] or self._camera.two_sided:
                 sides = sides | F.BackSide
@@ -365,6 +389,19 @@ def _make_class():
                 self._component[k] = i
             self.m_components = comps
             self.m_flags = flags
+            # The sampled type and component of each value of strata's flag
+            # bits (REFLECTION | TRANSMISSION | DELTA), for the JIT sample;
+            # 0 where no bit says reflection or transmission.
+            self._stype_of = np.zeros(8, np.uint32)
+            self._comp_of = np.zeros(8, np.uint32)
+            for fl in range(8):
+                delta = bool(fl & DELTA)
+                for side, key, t in (
+                    (REFLECTION, "dr" if delta else "r", F.DeltaReflection if delta else self._refl),
+                    (TRANSMISSION, "dt" if delta else "t", F.DeltaTransmission if delta else self._trans),
+                ):
+                    if fl & side:  # (transmission wins if both were set)
+                        self._stype_of[fl], self._comp_of[fl] = int(t), self._component.get(key, 0)
             self._nondelta = bool(lobes["glossy"] or lobes["diffuse"])
             self._params = [
                 _Param(k, props.get_unbounded_texture(k), self._camera)
@@ -396,7 +433,8 @@ def _make_class():
             t0 = time.perf_counter()
             bs = mi.BSDFSample3f()
             bs.wo, bs.pdf, bs.eta, bs.sampled_type, bs.sampled_component = mi.Vector3f(0), 0.0, 1.0, 0, 0
-            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            v = si.wi  # (each read of si.wi makes a new vector)
+            wi = (float(v.x), float(v.y), float(v.z))
             if not (active and all(map(math.isfinite, wi)) and any(wi)):
                 return bs, mi.Color3f(0)
             key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
@@ -426,7 +464,8 @@ def _make_class():
         def _eval_scalar(self, ctx, si, wo, active, method):
             """eval/pdf/eval_pdf for the scalar variants."""
             t0 = time.perf_counter()
-            wi = (float(si.wi.x), float(si.wi.y), float(si.wi.z))
+            v = si.wi
+            wi = (float(v.x), float(v.y), float(v.z))
             w = (float(wo.x), float(wo.y), float(wo.z))
             ok = (
                 active
@@ -462,92 +501,108 @@ def _make_class():
             if not h.jit:
                 return self._sample_scalar(ctx, si, sample1, sample2, active)
             h.check()
-            n = _width(si.wi.x, sample1, sample2.x, active)
             t0 = time.perf_counter()
+            n = _width(si.wi.x, sample1, sample2.x, active)
+            h.evaluate(si.wi, sample1, sample2, active)
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
             keys = sample_keys(_floats(sample1, n), _floats(sample2.x, n), _floats(sample2.y, n))
             params = self._params_at(si, active, n, ok)
             t1 = time.perf_counter()
-            (wx, wy, wz), (r, g, b), pdf, flags = self._bsdf(ctx).sample(wi, keys, params=params)
+            wo, weight, pdf, flags = self._bsdf(ctx).sample(wi, keys, params=params)
             t_strata = time.perf_counter() - t1
-            refl = (flags & REFLECTION) != 0
-            trans = (flags & TRANSMISSION) != 0
-            delta = (flags & DELTA) != 0
-            c = self._component
-            stype = np.zeros(n, np.uint32)
-            comp = np.zeros(n, np.uint32)
-            for mask, key, t in (
-                (refl & delta, "dr", F.DeltaReflection),
-                (trans & delta, "dt", F.DeltaTransmission),
-                (refl & ~delta, "r", self._refl),
-                (trans & ~delta, "t", self._trans),
-            ):
-                stype[mask] = int(t)
-                comp[mask] = c.get(key, 0)
-            ok = ok & (flags != 0)
+            # Sampled type and component per lane: a table lookup by flags.
+            lobe = flags & np.uint32(7)
+            stype, comp = self._stype_of[lobe], self._comp_of[lobe]
+            ok &= flags != 0
             if int(ctx.type_mask) != int(F.All):
                 ok &= (stype & np.uint32(int(ctx.type_mask))) != 0
             if ctx.component != 0xFFFFFFFF and ctx.component != -1:
                 ok &= comp == np.uint32(ctx.component)
-            zero = np.float32(0)
-            # eta of a refraction: IOR on wo's side over wi's side.
-            eta = np.where(trans, np.where(wi[2] > 0, self._eta_down, 1 / self._eta_down), 1).astype(np.float32)
-            outs = [np.where(ok, a, zero).astype(np.float32) for a in (wx, wy, wz, r, g, b, pdf, eta)]
-            _count("sample", n, t0, t_strata)
+            # eta of a refraction: IOR on wo's side over wi's side; 1 for a
+            # reflection and for lanes not sampled.
+            eta = np.ones(n, np.float32)
+            refracted = ok & ((flags & TRANSMISSION) != 0)
+            eta[refracted] = np.where(wi[2][refracted] > 0, self._eta_down, self._eta_up)
+            # strata's arrays are the plugin's own: lanes not sampled are
+            # zeroed in place, and the arrays go to Dr.Jit without a copy.
+            if not ok.all():
+                off = ~ok
+                for a in (*wo, *weight, pdf, stype):
+                    a[off] = 0
             bs = mi.BSDFSample3f()
-            bs.wo = h.vec_out(outs[0:3])
-            bs.pdf = h.float_out(outs[6])
-            bs.eta = h.float_out(np.where(ok, outs[7], 1).astype(np.float32))
-            bs.sampled_type = h.uint_out(np.where(ok, stype, 0))
+            bs.wo = h.vec_out(wo)
+            bs.pdf = h.float_out(pdf)
+            bs.eta = h.float_out(eta)
+            bs.sampled_type = h.uint_out(stype)
             bs.sampled_component = h.uint_out(comp)
-            return bs, h.color_out(outs[3:6])
+            value = h.color_out(weight)
+            _count("sample", n, t0, t_strata)
+            return bs, value
 
         def _eval(self, ctx, si, wo, active, method):
+            """eval/pdf/eval_pdf in the JIT variants: (value, pdf) as Dr.Jit
+            arrays (None for the one not asked for)."""
             h = self._host
             h.check()
-            n = _width(si.wi.x, wo.x, active)
             t0 = time.perf_counter()
+            n = _width(si.wi.x, wo.x, active)
+            h.evaluate(si.wi, wo, active)
             act = _bools(active, n)
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), act)
             w, ok2 = _valid_dirs(h.vec_in(wo, n), act)
             ok &= ok2
             if not self._nondelta or not (int(ctx.type_mask) & int(F.Smooth)):
                 ok[:] = False
+            # No lane to query (a delta-only stack, a mask without smooth
+            # lobes): zeros, without calling strata.
+            query = bool(ok.any())
             bsdf = self._bsdf(ctx)
-            params = self._params_at(si, active, n, ok) if ok.any() else None
+            params = self._params_at(si, active, n, ok) if query else None
+            off = None if ok.all() else ~ok
             value = pdf = None
             t_strata = 0.0
             if method in ("eval", "eval_pdf"):
-                t1 = time.perf_counter()
-                (r, g, b), _ = bsdf.eval(wi, w, params=params)
-                t_strata += time.perf_counter() - t1
-                cos = np.abs(w[2])
-                value = tuple(np.where(ok, c * cos, 0).astype(np.float32) for c in (r, g, b))
+                if query:
+                    t1 = time.perf_counter()
+                    f, _ = bsdf.eval(wi, w, params=params)
+                    t_strata += time.perf_counter() - t1
+                    # Mitsuba's eval includes |cos wo|: in place, on
+                    # strata's arrays (the plugin's own).
+                    cos = np.abs(w[2])
+                    for c in f:
+                        np.multiply(c, cos, out=c)
+                        if off is not None:
+                            c[off] = 0
+                else:
+                    f = tuple(np.zeros(n, np.float32) for _ in range(3))
+                value = h.color_out(f)
             if method in ("pdf", "eval_pdf"):
-                t1 = time.perf_counter()
-                p = bsdf.pdf(wi, w, params=params)
-                t_strata += time.perf_counter() - t1
-                pdf = np.where(ok, p, 0).astype(np.float32)
+                if query:
+                    t1 = time.perf_counter()
+                    p = bsdf.pdf(wi, w, params=params)
+                    t_strata += time.perf_counter() - t1
+                    if off is not None:
+                        p[off] = 0
+                else:
+                    p = np.zeros(n, np.float32)
+                pdf = h.float_out(p)
             _count(method, n, t0, t_strata)
             return value, pdf
 
         def eval(self, ctx, si, wo, active=True):
             if not self._host.jit:
                 return self._eval_scalar(ctx, si, wo, active, "eval")[0]
-            value, _ = self._eval(ctx, si, wo, active, "eval")
-            return self._host.color_out(value)
+            return self._eval(ctx, si, wo, active, "eval")[0]
 
         def pdf(self, ctx, si, wo, active=True):
             if not self._host.jit:
                 return self._eval_scalar(ctx, si, wo, active, "pdf")[1]
-            _, pdf = self._eval(ctx, si, wo, active, "pdf")
-            return self._host.float_out(pdf)
+            return self._eval(ctx, si, wo, active, "pdf")[1]
 
         def eval_pdf(self, ctx, si, wo, active=True):
             if not self._host.jit:
                 return self._eval_scalar(ctx, si, wo, active, "eval_pdf")
-            value, pdf = self._eval(ctx, si, wo, active, "eval_pdf")
-            return self._host.color_out(value), self._host.float_out(pdf)
+            return self._eval(ctx, si, wo, active, "eval_pdf")
 
         def traverse(self, callback):
             # The textures, so that mi.traverse reaches their parameters
