@@ -106,6 +106,15 @@ fn slice_calls_allocate_nothing() {
                 .unwrap();
                 b.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut p)
                     .unwrap();
+                b.eval_pdf_into(
+                    Vectors::Aos(&wi),
+                    Vectors::Aos(&wo),
+                    Some(&[7, 8, 9]),
+                    VectorsMut::Aos(&mut f),
+                    None,
+                    &mut p,
+                )
+                .unwrap();
             };
             run(); // sets up the thread's chain buffer
             assert_eq!(allocations(&mut run), 0, "{toml}");
@@ -166,7 +175,8 @@ fn slice_calls_allocate_nothing() {
                 .transport(transport)
                 .threads(1)
                 .unwrap();
-            // eval_into, eval_records, sample_records, sample_into, albedo_records, pdf_into.
+            // eval_into, eval_records, sample_records, sample_into, albedo_records, pdf_into,
+            // eval_pdf_into.
             let mut calls = |m: usize| {
                 [
                     allocations(|| {
@@ -211,16 +221,27 @@ fn slice_calls_allocate_nothing() {
                         b.pdf_into(Vectors::Aos(&wi[..m]), Vectors::Aos(&wo[..m]), &mut pd[..m])
                             .unwrap()
                     }),
+                    allocations(|| {
+                        b.eval_pdf_into(
+                            Vectors::Aos(&wi[..m]),
+                            Vectors::Aos(&wo[..m]),
+                            Some(&keys[..m]),
+                            VectorsMut::Aos(&mut f[..m]),
+                            None,
+                            &mut pd[..m],
+                        )
+                        .unwrap();
+                    }),
                 ]
             };
             let what = format!("{transport:?}, {toml}");
             // A first call sets up the thread's buffers; the second allocates
             // nothing, and neither does a smaller batch after a larger one.
             calls(64);
-            assert_eq!(calls(64), [0; 6], "64 queries, {what}");
+            assert_eq!(calls(64), [0; 7], "64 queries, {what}");
             calls(n);
-            assert_eq!(calls(n), [0; 6], "{n} queries, {what}");
-            assert_eq!(calls(64), [0; 6], "64 after {n} queries, {what}");
+            assert_eq!(calls(n), [0; 7], "{n} queries, {what}");
+            assert_eq!(calls(64), [0; 7], "64 after {n} queries, {what}");
             assert!(f.iter().flatten().any(|&x| x > 0.0));
             assert!(s.iter().any(|r| r.flags != 0) && sf.iter().any(|&x| x != 0));
             assert!(a.iter().any(|r| r.reflected[0] > 0.0));
