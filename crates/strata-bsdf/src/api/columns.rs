@@ -458,11 +458,13 @@ fn write_rows(
     bsdf: &LayeredBsdf,
     columns: &[Column],
     range: Range<usize>,
-    mut sets: Option<&mut ParamSets>,
+    sets: Option<&mut ParamSets>,
 ) -> Result<(), Refused> {
     let own = template.stack();
     let mut row = own.clone();
     let mut v = [0.0f64; 3];
+    let paths: Vec<&SetPath> = columns.iter().map(|c| c.path).collect();
+    let mut adding = sets.map(ParamSets::sets_mut);
     for k in range {
         let written = columns.iter().try_for_each(|c| {
             let x = &c.values[k * c.width..(k + 1) * c.width];
@@ -479,11 +481,14 @@ fn write_rows(
                 Ok(_) => Refused::Materials,
             });
         }
-        if !row.same_shape(bsdf.stack()) {
+        // (The row is the template's stack written at `paths`, and the
+        // rows' BSDF has the template's shape there but for the first
+        // row's values at those paths.)
+        if !row.same_shape_at(bsdf.stack(), &paths) {
             return Err(Refused::Materials);
         }
-        if let Some(sets) = sets.as_deref_mut() {
-            bsdf.push_set(sets, &row, Returns::Tabulated);
+        if let Some(adding) = adding.as_mut() {
+            bsdf.push_set(adding, &row, Returns::Tabulated);
         }
     }
     Ok(())

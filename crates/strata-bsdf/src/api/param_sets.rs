@@ -37,6 +37,13 @@ pub struct ParamSets {
     pub(super) route: Vec<EvalRoute>,
 }
 
+/// The per-set parts of [`ParamSets`], borrowed to add sets.
+pub(super) struct SetsMut<'a> {
+    pub(super) table: &'a mut SetTable,
+    pub(super) coat: &'a mut Vec<Option<CoatLambertian>>,
+    pub(super) route: &'a mut Vec<EvalRoute>,
+}
+
 impl ParamSets {
     /// Number of sets.
     pub fn len(&self) -> usize {
@@ -64,6 +71,17 @@ impl ParamSets {
         self.coat.try_reserve(n).map_err(|_| bytes)?;
         self.route.try_reserve(n).map_err(|_| bytes)?;
         self.table_mut().try_reserve(n).map_err(|_| bytes)
+    }
+
+    /// Its per-set parts, to add sets to (one check that the table is
+    /// not shared, for any number of sets).
+    pub(super) fn sets_mut(&mut self) -> SetsMut<'_> {
+        self.table_mut();
+        SetsMut {
+            table: Arc::get_mut(&mut self.table).expect("unique"),
+            coat: &mut self.coat,
+            route: &mut self.route,
+        }
     }
 
     /// The table, to change: a call that ran on it may still hold it, and

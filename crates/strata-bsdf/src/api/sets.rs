@@ -11,7 +11,7 @@
 
 use super::bsdf::{dir_keys, directions2, one_each, pair_keys, LayeredBsdf, Sample};
 use super::error::{BatchError, QueryError};
-use super::param_sets::{ParamSets, Per, Returns, SetsError};
+use super::param_sets::{ParamSets, Per, Returns, SetsError, SetsMut};
 use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::pdf::PdfEstimate;
@@ -51,8 +51,9 @@ impl LayeredBsdf {
             }
         }
         let mut sets = self.empty_sets();
+        let mut adding = sets.sets_mut();
         for st in &stacks {
-            self.push_set(&mut sets, st, returns);
+            self.push_set(&mut adding, st, returns);
         }
         sets.stacks = stacks.into_iter().map(Arc::new).collect();
         Ok(sets)
@@ -94,7 +95,7 @@ impl LayeredBsdf {
     /// Adds the numbers of `st` (of this BSDF's shape) to `sets` as their
     /// next set, with every choice its stack makes (the walk-free form, the
     /// control variate, the estimator of its evals) decided here.
-    pub(super) fn push_set(&self, sets: &mut ParamSets, st: &LayerStack, returns: Returns) {
+    pub(super) fn push_set(&self, sets: &mut SetsMut, st: &LayerStack, returns: Returns) {
         let tabulated = matches!(returns, Returns::Tabulated);
         let coat = CoatLambertian::unscattered_with(st, &self.settings, tabulated).and_then(|c| {
             let (with, own) = match returns {
@@ -115,9 +116,8 @@ impl LayeredBsdf {
             .cloned();
         // A set with a walk-free form has a walk-free sampler too.
         let lobe_pdf = coat.is_none() || !self.walks_can_be_skipped();
-        let table = sets.table_mut();
-        table.push(st, cv, lobe_pdf);
-        table.set_adjoint_of_last(self.adjoint());
+        sets.table.push(st, cv, lobe_pdf);
+        sets.table.set_adjoint_of_last(self.adjoint());
         sets.coat.push(coat);
         sets.route.push(self.estimator.route(st));
     }

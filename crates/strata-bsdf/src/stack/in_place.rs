@@ -112,6 +112,17 @@ impl LayerStack {
         Ok(())
     }
 
+    /// [`LayerStack::same_shape`] for this stack written from `other` at
+    /// `paths` alone (paths [`SetPath::in_place`] takes): only the parts a
+    /// write there can change are compared.
+    pub fn same_shape_at(&self, other: &LayerStack, paths: &[&SetPath]) -> bool {
+        paths.iter().all(|p| match p.target {
+            Target::Medium(l, _) => self.layer_shape(l) == other.layer_shape(l),
+            Target::Interface(i, _) => self.interface_shape(i) == other.interface_shape(i),
+            Target::ExteriorIor => self.same_shape(other),
+        })
+    }
+
     /// Whether this stack has `other`'s shape: compared part by part,
     /// without building either [`super::Shape`].
     pub fn same_shape(&self, other: &LayerStack) -> bool {
