@@ -525,6 +525,20 @@ impl Answerer<'_> {
         }
     }
 
+    fn eval_pdf(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        (f, se): (VectorsMut, VectorsMut),
+        pdf: &mut [f32],
+    ) -> Result<u64, BatchError> {
+        match self {
+            Answerer::Own(b) => b.eval_pdf_into(wi, wo, keys, f, Some(se), pdf),
+            Answerer::PerQuery(m) => m.eval_pdf_into(wi, wo, keys, f, Some(se), pdf),
+        }
+    }
+
     fn sample(
         &self,
         wi: Vectors,
@@ -1047,6 +1061,46 @@ impl Bsdf {
             })?
         };
         let result = (f.into_py(py)?, se.into_py(py)?);
+        counted(py, result, return_truncated.then_some(cut))
+    }
+
+    /// `eval` and `pdf` of the same pairs in one call: `(f, stderr, pdf)`,
+    /// bit for bit what `eval(wi, wo, keys)` and `pdf(wi, wo)` return (a
+    /// light sample's value and its density for MIS), with the directions
+    /// checked and normalized once. `keys`, `params` and `return_truncated`
+    /// as for `eval` (the count is that of `f`'s walks).
+    #[pyo3(signature = (wi, wo, keys=None, *, params=None, return_truncated=false))]
+    fn eval_pdf<'py>(
+        &self,
+        py: Python<'py>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+        keys: Option<&Bound<'py, PyAny>>,
+        params: Option<&Bound<'py, PyAny>>,
+        return_truncated: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let wi = vectors_in("wi", wi)?;
+        let wo = vectors_in("wo", wo)?;
+        let keys = keys_in(keys)?;
+        let n = check_pairs(py, &wi, &wo, keys.as_ref())?;
+        let params = params_in(params, n)?;
+        let mut f = VecOut::new("Bsdf.eval_pdf", wi.layout(), n)?;
+        let mut se = VecOut::new("Bsdf.eval_pdf", wi.layout(), n)?;
+        let mut pdf: Vec<f32> = zeros("Bsdf.eval_pdf", n)?;
+        let cut = {
+            let (wiv, wov) = (wi.vectors(), wo.vectors());
+            let k = keys
+                .as_ref()
+                .map(|k| k.as_slice().expect("checked contiguous"));
+            let out = (f.as_mut(), se.as_mut());
+            let p = &mut pdf[..];
+            let walks = self
+                .inner
+                .samples_per_eval()
+                .saturating_add(self.pdf_walks_at_most());
+            self.run(py, &params, n, walks, |a| a.eval_pdf(wiv, wov, k, out, p))?
+        };
+        let result = (f.into_py(py)?, se.into_py(py)?, pdf.into_pyarray(py));
         counted(py, result, return_truncated.then_some(cut))
     }
 

@@ -704,3 +704,66 @@ def test_max_events_sets_the_walks_limit(materials):
             Bsdf.from_path(path, max_events=bad)
     with pytest.raises(TypeError, match="max_events = 1.5"):
         Bsdf.from_path(path, max_events=1.5)
+
+
+@pytest.mark.parametrize(
+    "material,pdf_samples,max_events",
+    [("coated_copper.toml", None, None), ("scattering_slab.toml", "adaptive", None),
+     ("scattering_slab.toml", None, 3), ("three_interfaces.toml", 4, None)],
+)
+def test_eval_pdf_is_eval_then_pdf_bit_for_bit(materials, material, pdf_samples, max_events):
+    # eval_pdf (one library call) returns (f, stderr, pdf): bit for bit eval's
+    # (f, stderr) and pdf's numbers, in both layouts, keyed or not, under the
+    # lobe pdf and walked ones; its truncated count is eval's.
+    rng = np.random.default_rng(11)
+    extra = {} if max_events is None else {"max_events": max_events}
+    bsdf = Bsdf.from_path(materials / material, samples=8, seed=4, pdf_samples=pdf_samples, **extra)
+    wi = fixed_directions(29, rng, 0.3)
+    wo = fixed_directions(29, rng, 0.3)
+    keys = rng.integers(0, 2**63, size=29, dtype=np.uint64)
+    want_pdf = bsdf.pdf(wi, wo)
+    assert np.any(want_pdf > 0)
+    for k in (None, keys):
+        (f, se), cut = bsdf.eval(wi, wo, k, return_truncated=True)
+        got = bsdf.eval_pdf(wi, wo, k)
+        assert len(got) == 3 and got[2].dtype == np.float32 and got[2].shape == (29,)
+        np.testing.assert_array_equal(got[0], f)
+        np.testing.assert_array_equal(got[1], se)
+        np.testing.assert_array_equal(got[2], want_pdf)
+        assert [g.view(np.uint32).tolist() for g in got] == [
+            x.view(np.uint32).tolist() for x in (f, se, want_pdf)]
+        (f2, se2, p2), cut2 = bsdf.eval_pdf(wi, wo, k, return_truncated=True)
+        assert cut2 == cut and (cut > 0) == (max_events is not None)
+        np.testing.assert_array_equal(f2, f)
+        np.testing.assert_array_equal(p2, want_pdf)
+        fs, ses, ps = bsdf.eval_pdf(soa(wi), soa(wo), k)
+        assert isinstance(fs, tuple) and len(fs) == 3
+        np.testing.assert_array_equal(aos(fs), f)
+        np.testing.assert_array_equal(aos(ses), se)
+        np.testing.assert_array_equal(ps, want_pdf)
+
+
+def test_eval_pdf_errors_name_the_argument():
+    b = bsdf()
+    with pytest.raises(ValueError) as e:
+        b.eval_pdf(GOOD, np.zeros((3, 4), np.float32))
+    assert "wo must have shape (N, 3); got shape (3, 4)" in str(e.value)
+    with pytest.raises(TypeError, match="wi must have dtype float32; got float64"):
+        b.eval_pdf(np.zeros((3, 3)), GOOD)
+    with pytest.raises(ValueError, match="wo has 2 entries for 3 queries"):
+        b.eval_pdf(GOOD, GOOD[:2])
+    with pytest.raises(QueryError) as e:
+        b.eval_pdf(GOOD, GOOD, np.arange(2, dtype=np.uint64))
+    assert "keys has 2 entries for 3 queries" in str(e.value) and e.value.index is None
+    with pytest.raises(TypeError, match="keys must have dtype uint64; got int64"):
+        b.eval_pdf(GOOD, GOOD, np.arange(3))
+    wi = GOOD.copy()
+    wi[1, 0] = np.nan
+    for w in (wi, soa(wi)):
+        with pytest.raises(QueryError) as e:
+            b.eval_pdf(w, GOOD)
+        assert str(e.value) == "query 1: wi = [NaN, 0, 0.8] is not a direction: components must be finite"
+        assert e.value.index == 1
+    e3 = np.zeros((0, 3), np.float32)
+    f, se, p = b.eval_pdf(e3, e3)
+    assert f.shape == (0, 3) and se.shape == (0, 3) and p.shape == (0,) and p.dtype == np.float32

@@ -102,6 +102,19 @@ def test_params_bit_identical_to_the_materials(transport):
                 np.testing.assert_array_equal(got[k], want[0])
 
     pdf = base.pdf(wi, wo, params=p)
+    # eval_pdf: eval's and pdf's numbers in one call, per query too (rows
+    # written in place, and rows that are materials: an IOR column).
+    iors = {"layers[0].interface.ior": np.float32([1.3, 1.5, 1.45, 1.7, 1.33, 1.6])}
+    for pp in (p, dict(p, **iors)):
+        want_pdf = base.pdf(wi, wo, params=pp)
+        for k_arg in (None, keys):
+            fe, se_e = base.eval(wi, wo, k_arg, params=pp)
+            got = base.eval_pdf(wi, wo, k_arg, params=pp)
+            for g, w in zip(got, (fe, se_e, want_pdf)):
+                np.testing.assert_array_equal(g, w)
+            got = base.eval_pdf(soa(wi), soa(wo), k_arg, params=pp)
+            np.testing.assert_array_equal(np.stack(got[0], axis=1), fe)
+            np.testing.assert_array_equal(got[2], want_pdf)
     pu, pu_se = base.pdf_unbiased(wi, wo, 8, params=p)
     for k, b in enumerate(ones):
         np.testing.assert_array_equal(pdf[k], b.pdf(rows(wi, k), rows(wo, k))[0])
@@ -140,6 +153,7 @@ def call(method, p):
     b = Bsdf.from_toml(toml())
     return {
         "eval": lambda: b.eval(GOOD, GOOD, params=p),
+        "eval_pdf": lambda: b.eval_pdf(GOOD, GOOD, params=p),
         "sample": lambda: b.sample(GOOD, params=p),
         "pdf": lambda: b.pdf(GOOD, GOOD, params=p),
         "pdf_unbiased": lambda: b.pdf_unbiased(GOOD, GOOD, 4, params=p),
@@ -147,7 +161,7 @@ def call(method, p):
     }[method]()
 
 
-METHODS = ["eval", "sample", "pdf", "pdf_unbiased", "albedo"]
+METHODS = ["eval", "eval_pdf", "sample", "pdf", "pdf_unbiased", "albedo"]
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -197,6 +211,7 @@ def test_an_empty_batch_checks_its_params_against_the_material(method):
     e3, e1, e13 = np.zeros((0, 3), np.float32), np.zeros(0, np.float32), np.zeros((0, 3), np.float32)
     run = {
         "eval": lambda p: b.eval(e3, e3, params=p),
+        "eval_pdf": lambda p: b.eval_pdf(e3, e3, params=p),
         "sample": lambda p: b.sample(e3, params=p),
         "pdf": lambda p: b.pdf(e3, e3, params=p),
         "pdf_unbiased": lambda p: b.pdf_unbiased(e3, e3, 4, params=p),

@@ -653,10 +653,12 @@ void strata_bsdf_free(struct StrataBsdf *b);
  * Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for the
  * batch's `n` queries with the BSDF's walk count: reads `wi`, `wo`, `keys`
  * and `columns`, writes `f`, `stderr` (if given), `pdf` (if given: the
- * approximate pdf of each pair, as `strata_pdf`, for a light sample's MIS
- * in the same call) and `truncated` (if given). On an error nothing is
- * written and the message names the query index and the field (`"query 3:
- * wi = [NaN, 0, 1] is not a direction: components must be finite"`).
+ * approximate pdf of each pair, bit for bit what `strata_pdf` gives, for a
+ * light sample's MIS; one library call, `eval_pdf_into`, checks and
+ * normalizes the directions once for both) and `truncated` (if given). On
+ * an error nothing is written and the message names the query index and
+ * the field (`"query 3: wi = [NaN, 0, 1] is not a direction: components
+ * must be finite"`).
  *
  * # Safety
  * `b` is NULL or live; `batch` is NULL or a descriptor whose arrays hold

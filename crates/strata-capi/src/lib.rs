@@ -1134,6 +1134,23 @@ impl Target<'_> {
         })?)
     }
 
+    /// `eval` and `pdf` of the same pairs in one library call (directions
+    /// checked and normalized once), the numbers of the two calls.
+    fn eval_pdf(
+        &self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Option<&[u64]>,
+        f: VectorsMut,
+        se: Option<VectorsMut>,
+        pdf: &mut [f32],
+    ) -> Result<u64, Failure> {
+        Ok((match self {
+            Target::Own(b) => b.eval_pdf_into(wi, wo, keys, f, se, pdf),
+            Target::PerQuery(m) => m.eval_pdf_into(wi, wo, keys, f, se, pdf),
+        })?)
+    }
+
     fn sample(&self, wi: Vectors, keys: Option<&[u64]>, out: SampleOut) -> Result<(), Failure> {
         Ok((match (self, out) {
             (Target::Own(b), SampleOut::Records(out)) => b.sample_records(wi, keys, out),
@@ -1618,10 +1635,12 @@ unsafe fn begin<'a>(
 /// Evaluates `f(wi[k], wo[k])` (without the cosine, no delta lobes) for the
 /// batch's `n` queries with the BSDF's walk count: reads `wi`, `wo`, `keys`
 /// and `columns`, writes `f`, `stderr` (if given), `pdf` (if given: the
-/// approximate pdf of each pair, as `strata_pdf`, for a light sample's MIS
-/// in the same call) and `truncated` (if given). On an error nothing is
-/// written and the message names the query index and the field (`"query 3:
-/// wi = [NaN, 0, 1] is not a direction: components must be finite"`).
+/// approximate pdf of each pair, bit for bit what `strata_pdf` gives, for a
+/// light sample's MIS; one library call, `eval_pdf_into`, checks and
+/// normalizes the directions once for both) and `truncated` (if given). On
+/// an error nothing is written and the message names the query index and
+/// the field (`"query 3: wi = [NaN, 0, 1] is not a direction: components
+/// must be finite"`).
 ///
 /// # Safety
 /// `b` is NULL or live; `batch` is NULL or a descriptor whose arrays hold
@@ -1646,10 +1665,13 @@ pub unsafe extern "C" fn strata_eval(b: *const StrataBsdf, batch: *const StrataB
             let f =
                 d.f.write("f", d.n)?
                     .ok_or_else(|| Failure::new(STRATA_ERR_NULL, "f is NULL"))?;
-            let cut = target.eval(wi, wo, d.keys()?, f, d.stderr.write("stderr", d.n)?)?;
-            if !d.pdf.is_null() {
-                target.pdf(wi, wo, output("pdf", d.pdf, 1, d.n)?)?;
-            }
+            let (keys, se) = (d.keys()?, d.stderr.write("stderr", d.n)?);
+            let cut = if d.pdf.is_null() {
+                target.eval(wi, wo, keys, f, se)?
+            } else {
+                let pdf = output("pdf", d.pdf, 1, d.n)?;
+                target.eval_pdf(wi, wo, keys, f, se, pdf)?
+            };
             d.count(cut)
         }
     })

@@ -95,7 +95,7 @@ class Bsdf:
         (bit for bit, same seed and keys); an invalid row raises QueryError
         naming the query, the path and the value.
 
-        return_truncated=True (eval, pdf_unbiased, albedo): returns (result, truncated),
+        return_truncated=True (eval, eval_pdf, pdf_unbiased, albedo): returns (result, truncated),
         truncated the number of walks the limit of events (max_events) ended in the
         call, summed over the batch; 0 when none did."""
     @overload
@@ -108,6 +108,29 @@ class Bsdf:
         params: Params = None,
         return_truncated: Literal[True],
     ) -> Tuple[Tuple[Vectors, Vectors], int]: ...
+    @overload
+    def eval_pdf(
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[False] = False,
+    ) -> Tuple[Vectors, Vectors, F32]:
+        """(f, stderr, pdf): eval and pdf of the same pairs in one call, bit for bit
+        eval(wi, wo, keys) and pdf(wi, wo) (a light sample's value and its MIS density).
+        return_truncated=True: ((f, stderr, pdf), truncated), as for eval."""
+    @overload
+    def eval_pdf(
+        self,
+        wi: Vectors,
+        wo: Vectors,
+        keys: Keys = None,
+        *,
+        params: Params = None,
+        return_truncated: Literal[True],
+    ) -> Tuple[Tuple[Vectors, Vectors, F32], int]: ...
     def sample(
         self, wi: Vectors, keys: Keys = None, *, params: Params = None
     ) -> Tuple[Vectors, Vectors, F32, npt.NDArray[np.uint32]]:

@@ -482,9 +482,11 @@ def _make_class():
                 a, b = np.array([wi], np.float32), np.array([w], np.float32)
                 params = self._params_at(si, active, 1)
                 t1 = time.perf_counter()
-                if method != "pdf":
+                if method == "eval_pdf":  # one call: eval's and pdf's numbers
+                    f, _, p = bsdf.eval_pdf(a, b, params=params)
+                elif method == "eval":
                     f, _ = bsdf.eval(a, b, params=params)
-                if method != "eval":
+                else:
                     p = bsdf.pdf(a, b, params=params)
                 t_strata = time.perf_counter() - t1
                 if method != "pdf":
@@ -561,11 +563,16 @@ def _make_class():
             off = None if ok.all() else ~ok
             value = pdf = None
             t_strata = 0.0
+            p = None
+            if query and method != "pdf":
+                t1 = time.perf_counter()
+                if method == "eval_pdf":  # one call: eval's and pdf's numbers
+                    f, _, p = bsdf.eval_pdf(wi, w, params=params)
+                else:
+                    f, _ = bsdf.eval(wi, w, params=params)
+                t_strata += time.perf_counter() - t1
             if method in ("eval", "eval_pdf"):
                 if query:
-                    t1 = time.perf_counter()
-                    f, _ = bsdf.eval(wi, w, params=params)
-                    t_strata += time.perf_counter() - t1
                     # Mitsuba's eval includes |cos wo|: in place, on
                     # strata's arrays (the plugin's own).
                     cos = np.abs(w[2])
@@ -578,9 +585,10 @@ def _make_class():
                 value = h.color_out(f)
             if method in ("pdf", "eval_pdf"):
                 if query:
-                    t1 = time.perf_counter()
-                    p = bsdf.pdf(wi, w, params=params)
-                    t_strata += time.perf_counter() - t1
+                    if p is None:
+                        t1 = time.perf_counter()
+                        p = bsdf.pdf(wi, w, params=params)
+                        t_strata += time.perf_counter() - t1
                     if off is not None:
                         p[off] = 0
                 else:

@@ -189,6 +189,147 @@ fn eval_is_the_rust_apis_bit_for_bit_in_both_layouts() {
     }
 }
 
+/// An eval given `pdf` (one library call, `eval_pdf_into`) answers bit for
+/// bit what the eval without it and `strata_pdf` answer, and what the Rust
+/// API's `eval_into` and `pdf_into` answer: in both layouts, keyed or not,
+/// with or without `stderr`, under the lobe pdf and walked pdfs; its
+/// `truncated` is the eval's count (a limit of events that ends walks).
+#[test]
+fn an_eval_with_pdf_is_eval_then_pdf_bit_for_bit() {
+    let cases = [
+        (COATED_COPPER, 64, 7, 0, 0),
+        (GLASS, 1, 11, 4, 0),
+        (SCATTERING_SLAB, 16, 4, 0, 3),
+    ];
+    for (text, samples, seed, pdf_samples, max_events) in cases {
+        let c = Capi::toml(text, samples, seed);
+        let mut r = rust(text, samples, seed);
+        // SAFETY: `c.0` is a live BSDF used by this thread only.
+        unsafe {
+            if pdf_samples > 0 {
+                assert_eq!(strata_bsdf_set_pdf_samples(c.0, pdf_samples), STRATA_OK);
+                r = r.pdf_samples(pdf_samples);
+            }
+            if max_events > 0 {
+                assert_eq!(strata_bsdf_set_max_events(c.0, max_events), STRATA_OK);
+                r = r.max_events(max_events);
+            }
+        }
+        let wi = directions(N, 31, true);
+        let wo = directions(N, 32, true);
+        let (wi_f, wo_f) = (flat(&wi), flat(&wo));
+        let (wis, wos) = (soa(&wi), soa(&wo));
+        let keys: Vec<u64> = (0..N as u64).map(|k| k * 131 + 9).collect();
+        for keyed in [false, true] {
+            let k = keyed.then_some(&keys[..]);
+            let kp = if keyed { keys.as_ptr() } else { null() };
+            // The Rust API's two calls.
+            let (mut want_f, mut want_se) = (vec![[0.0f32; 3]; N], vec![[0.0f32; 3]; N]);
+            let want_cut = r
+                .eval_into(
+                    Vectors::Aos(&wi),
+                    Vectors::Aos(&wo),
+                    k,
+                    VectorsMut::Aos(&mut want_f),
+                    Some(VectorsMut::Aos(&mut want_se)),
+                )
+                .unwrap();
+            let mut want_pdf = vec![0.0f32; N];
+            r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want_pdf)
+                .unwrap();
+            let (want_f, want_se) = (flat(&want_f), flat(&want_se));
+            assert!(want_pdf.iter().any(|&p| p > 0.0), "a nonzero pdf");
+            assert_eq!(max_events > 0, want_cut > 0, "walks ended by the limit");
+
+            // The C ABI's two calls.
+            let (mut f2, mut p2) = (vec![0.0f32; 3 * N], vec![0.0f32; N]);
+            let eval = StrataBatch {
+                n: N,
+                wi: aos(&wi_f),
+                wo: aos(&wo_f),
+                keys: kp,
+                f: aos_out(&mut f2),
+                ..Default::default()
+            };
+            let pdf = StrataBatch {
+                n: N,
+                wi: aos(&wi_f),
+                wo: aos(&wo_f),
+                pdf: p2.as_mut_ptr(),
+                ..Default::default()
+            };
+            // SAFETY: every array holds 3 N floats (N keys, N pdfs).
+            unsafe {
+                assert_eq!(strata_eval(c.0, &eval), STRATA_OK, "{}", last_error());
+                assert_eq!(strata_pdf(c.0, &pdf), STRATA_OK, "{}", last_error());
+            }
+            assert_eq!(bits(&f2), bits(&want_f));
+            assert_eq!(bits(&p2), bits(&want_pdf));
+
+            // One call, AoS, with and without the standard errors.
+            for with_se in [true, false] {
+                let (mut f, mut se, mut p) =
+                    (vec![-1.0f32; 3 * N], vec![-1.0f32; 3 * N], vec![-1.0f32; N]);
+                let mut cut = u64::MAX;
+                let batch = StrataBatch {
+                    n: N,
+                    wi: aos(&wi_f),
+                    wo: aos(&wo_f),
+                    keys: kp,
+                    f: aos_out(&mut f),
+                    stderr: if with_se {
+                        aos_out(&mut se)
+                    } else {
+                        Default::default()
+                    },
+                    pdf: p.as_mut_ptr(),
+                    truncated: &mut cut,
+                    ..Default::default()
+                };
+                // SAFETY: every array holds 3 N floats (N keys, N pdfs).
+                let status = unsafe { strata_eval(c.0, &batch) };
+                assert_eq!(status, STRATA_OK, "{}", last_error());
+                assert_eq!(bits(&f), bits(&want_f), "{keyed} {with_se}");
+                assert_eq!(bits(&p), bits(&want_pdf), "{keyed} {with_se}");
+                if with_se {
+                    assert_eq!(bits(&se), bits(&want_se));
+                } else {
+                    assert!(se.iter().all(|&x| x == -1.0));
+                }
+                assert_eq!(cut, want_cut, "the eval's count");
+            }
+
+            // One call, SoA.
+            let mut fs = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
+            let mut ses = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
+            let mut p = vec![0.0f32; N];
+            let batch = StrataBatch {
+                n: N,
+                wi: soa3(&wis),
+                wo: soa3(&wos),
+                keys: kp,
+                f: soa3_out(&mut fs),
+                stderr: soa3_out(&mut ses),
+                pdf: p.as_mut_ptr(),
+                ..Default::default()
+            };
+            // SAFETY: every array holds N elements.
+            let status = unsafe { strata_eval(c.0, &batch) };
+            assert_eq!(status, STRATA_OK, "{}", last_error());
+            assert_eq!(bits(&p), bits(&want_pdf));
+            let (want_fs, want_ses) = (soa(&triples(&want_f)), soa(&triples(&want_se)));
+            for ch in 0..3 {
+                assert_eq!(bits(&fs[ch]), bits(&want_fs[ch]));
+                assert_eq!(bits(&ses[ch]), bits(&want_ses[ch]));
+            }
+        }
+    }
+}
+
+fn triples(v: &[f32]) -> Vec<[f32; 3]> {
+    v.chunks(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
 #[test]
 fn sample_is_the_rust_apis_bit_for_bit_in_both_layouts() {
     for (text, seed) in [(COATED_COPPER, 3), (GLASS, 4)] {

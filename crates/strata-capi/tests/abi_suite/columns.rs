@@ -440,6 +440,106 @@ fn the_soa_column_calls_give_the_aos_numbers() {
     }
 }
 
+/// An eval given `pdf` with columns (one library call, `PerQuery`'s
+/// `eval_pdf_into`) answers bit for bit what the eval without it and
+/// `strata_pdf` answer with the same columns, in both layouts, keyed or
+/// not: rows written in place (`textured`) and rows that are materials (an
+/// IOR column as well).
+#[test]
+fn an_eval_with_pdf_is_eval_then_pdf_with_columns() {
+    let r = rows();
+    let mut with_ior: Vec<(&str, usize, Vec<f32>)> = vec![(
+        "layers[0].interface.ior",
+        1,
+        (0..N).map(|k| 1.3 + 0.07 * k as f32).collect(),
+    )];
+    with_ior.push((
+        "layers[1].interface.roughness",
+        1,
+        r.iter().map(|q| q.3).collect(),
+    ));
+    let b = Capi::toml(&template());
+    let (wi, wo) = directions(4);
+    let soa = |v: &[f32]| [0, 1, 2].map(|c| (0..N).map(|k| v[3 * k + c]).collect::<Vec<f32>>());
+    let (wis, wos) = (soa(&wi), soa(&wo));
+    let keys: Vec<u64> = (0..N as u64).map(|k| 40 + 3 * k).collect();
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let ok = |s: i32| assert_eq!(s, STRATA_OK, "{}", last_error());
+    for owned in [textured(), Owned::new(&with_ior)] {
+        let cols = owned.columns();
+        for keyed in [false, true] {
+            let base = StrataBatch {
+                n: N,
+                keys: if keyed { keys.as_ptr() } else { null() },
+                columns: cols.as_ptr(),
+                ncolumns: cols.len(),
+                ..Default::default()
+            };
+            // The two calls.
+            let (mut f, mut se, mut pdf) =
+                (vec![0.0f32; 3 * N], vec![0.0f32; 3 * N], vec![0.0f32; N]);
+            let eval = StrataBatch {
+                wi: aos(&wi),
+                wo: aos(&wo),
+                f: aos_out(&mut f),
+                stderr: aos_out(&mut se),
+                ..base
+            };
+            let pdfs = StrataBatch {
+                wi: aos(&wi),
+                wo: aos(&wo),
+                pdf: pdf.as_mut_ptr(),
+                keys: null(),
+                ..base
+            };
+            // SAFETY: every array holds 3 N floats (N keys, N pdfs); the
+            // columns N rows.
+            unsafe {
+                ok(strata_eval(b.0, &eval));
+                ok(strata_pdf(b.0, &pdfs));
+            }
+            assert!(f.iter().any(|&x| x > 0.0) && pdf.iter().any(|&p| p > 0.0));
+
+            // One call, AoS.
+            let (mut f1, mut se1, mut p1) =
+                (vec![-1.0f32; 3 * N], vec![-1.0f32; 3 * N], vec![-1.0f32; N]);
+            let batch = StrataBatch {
+                wi: aos(&wi),
+                wo: aos(&wo),
+                f: aos_out(&mut f1),
+                stderr: aos_out(&mut se1),
+                pdf: p1.as_mut_ptr(),
+                ..base
+            };
+            // SAFETY: as above.
+            ok(unsafe { strata_eval(b.0, &batch) });
+            assert_eq!(bits(&f1), bits(&f), "f keyed={keyed}");
+            assert_eq!(bits(&se1), bits(&se), "stderr keyed={keyed}");
+            assert_eq!(bits(&p1), bits(&pdf), "pdf keyed={keyed}");
+
+            // One call, SoA.
+            let mut fs = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
+            let mut ses = [vec![0.0f32; N], vec![0.0; N], vec![0.0; N]];
+            let mut ps = vec![0.0f32; N];
+            let batch = StrataBatch {
+                wi: soa3(&wis),
+                wo: soa3(&wos),
+                f: soa3_out(&mut fs),
+                stderr: soa3_out(&mut ses),
+                pdf: ps.as_mut_ptr(),
+                ..base
+            };
+            // SAFETY: every array holds N elements; the columns N rows.
+            ok(unsafe { strata_eval(b.0, &batch) });
+            assert_eq!(bits(&ps), bits(&pdf));
+            for ch in 0..3 {
+                assert_eq!(bits(&fs[ch]), bits(&soa(&f)[ch]));
+                assert_eq!(bits(&ses[ch]), bits(&soa(&se)[ch]));
+            }
+        }
+    }
+}
+
 /// Runs `strata_eval` on 3 queries with `cols`: the status and the
 /// message, checking that `f` was not written.
 fn eval_with(b: &Capi, cols: *const StrataColumn, ncolumns: usize) -> (i32, String) {

@@ -255,6 +255,162 @@ fn bad_directions_name_the_query_and_argument_and_write_nothing() {
     assert!(f.iter().all(|&x| x > 0.0));
 }
 
+/// An eval given `pdf` fails as the eval without it fails, with the same
+/// message, and writes neither `f`, `stderr`, `pdf` nor `truncated`: a NaN
+/// or zero direction (with and without columns), a NULL array, a pdf that
+/// is misaligned or overlaps `f`.
+#[test]
+fn an_eval_with_pdf_fails_as_eval_and_writes_nothing() {
+    let b = good();
+    let mut wi = [0.0f32, 0.0, 1.0].repeat(5);
+    let mut wo = [0.3f32, 0.0, 0.9].repeat(5);
+    let (mut f, mut se, mut pdf) = (vec![-7.0f32; 15], vec![-7.0f32; 15], vec![-7.0f32; 5]);
+    let mut cut = 9u64;
+    let thickness = CString::new("layers[0].medium.thickness").unwrap();
+    let values = [0.1f32, 0.2, 0.3, 0.4, 0.5];
+    let column = [StrataColumn {
+        path: thickness.as_ptr(),
+        width: 1,
+        values: values.as_ptr(),
+    }];
+    let untouched = |f: &[f32], se: &[f32], pdf: &[f32], cut: u64| {
+        assert!(
+            f.iter().chain(se).chain(pdf).all(|&x| x == -7.0),
+            "nothing written"
+        );
+        assert_eq!(cut, 9, "nothing written");
+    };
+    // The message of the eval without pdf, then the eval with it: the same
+    // status and message, nothing written.
+    let both = |batch: StrataBatch, pdf: *mut f32, status: i32, want: &str| {
+        // SAFETY: the batches hold 5 queries' arrays (or fail before reading).
+        let plain = unsafe { strata_eval(b.0, &batch) };
+        assert_eq!((plain, last_error()), (status, want.to_owned()));
+        let with_pdf = StrataBatch { pdf, ..batch };
+        // SAFETY: as above; `pdf` holds 5 floats.
+        let s = unsafe { strata_eval(b.0, &with_pdf) };
+        assert_eq!((s, last_error()), (status, want.to_owned()));
+    };
+    wi[3 * 3] = f32::NAN;
+    for cols in [false, true] {
+        let batch = StrataBatch {
+            truncated: &mut cut,
+            columns: if cols { column.as_ptr() } else { null() },
+            ncolumns: usize::from(cols),
+            ..eval_of(5, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), se.as_mut_ptr())
+        };
+        both(
+            batch,
+            pdf.as_mut_ptr(),
+            STRATA_ERR_INVALID_ARGUMENT,
+            "strata_eval: query 3: wi = [NaN, 0, 1] is not a direction: components must be finite",
+        );
+        untouched(&f, &se, &pdf, cut);
+    }
+    wi[3 * 3] = 0.0;
+    wo[3..6].copy_from_slice(&[0.0, 0.0, 0.0]);
+    let batch = StrataBatch {
+        truncated: &mut cut,
+        ..eval_of(5, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), se.as_mut_ptr())
+    };
+    both(
+        batch,
+        pdf.as_mut_ptr(),
+        STRATA_ERR_INVALID_ARGUMENT,
+        "strata_eval: query 1: wo = [0, 0, 0] is not a direction: it has zero length",
+    );
+    untouched(&f, &se, &pdf, cut);
+    wo[3..6].copy_from_slice(&[0.3, 0.0, 0.9]);
+
+    let good_batch = StrataBatch {
+        truncated: &mut cut,
+        ..eval_of(5, wi.as_ptr(), wo.as_ptr(), f.as_mut_ptr(), se.as_mut_ptr())
+    };
+    let p = pdf.as_mut_ptr();
+    let none = StrataVectors::default();
+    both(
+        StrataBatch {
+            wo: none,
+            ..good_batch
+        },
+        p,
+        STRATA_ERR_NULL,
+        "strata_eval: wo is NULL (n = 5): set wo.xyz, or wo.x, .y and .z",
+    );
+    both(
+        StrataBatch {
+            f: StrataVectorsOut::default(),
+            ..good_batch
+        },
+        p,
+        STRATA_ERR_NULL,
+        "strata_eval: f is NULL (n = 5): set f.xyz, or f.x, .y and .z",
+    );
+    // SAFETY: NULL is reported, not read.
+    let s = unsafe {
+        strata_eval(
+            null(),
+            &StrataBatch {
+                pdf: p,
+                ..good_batch
+            },
+        )
+    };
+    assert_eq!(
+        (s, last_error()),
+        (STRATA_ERR_NULL, "strata_eval: b is NULL".to_owned())
+    );
+    untouched(&f, &se, &pdf, cut);
+
+    // The pdf array itself: misaligned, overlapping f.
+    let mut bytes = [0u32; 8];
+    let odd = bytes
+        .as_mut_ptr()
+        .cast::<u8>()
+        .wrapping_add(1)
+        .cast::<f32>();
+    let batch = StrataBatch {
+        pdf: odd,
+        ..good_batch
+    };
+    // SAFETY: the call fails on the alignment before writing.
+    let s = unsafe { strata_eval(b.0, &batch) };
+    assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
+    let e = last_error();
+    assert!(
+        e.starts_with("strata_eval: pdf = 0x") && e.ends_with("is not aligned to 4 bytes"),
+        "{e}"
+    );
+    let batch = StrataBatch {
+        pdf: f.as_mut_ptr().wrapping_add(10),
+        ..good_batch
+    };
+    // SAFETY: the call fails on the overlap before writing.
+    let s = unsafe { strata_eval(b.0, &batch) };
+    assert_eq!(s, STRATA_ERR_INVALID_ARGUMENT);
+    assert!(
+        last_error().contains("f.xyz and pdf overlap"),
+        "{}",
+        last_error()
+    );
+    untouched(&f, &se, &pdf, cut);
+    assert!(bytes.iter().all(|&x| x == 0));
+
+    // And the good call writes all three.
+    // SAFETY: every array holds 5 queries'.
+    let s = unsafe {
+        strata_eval(
+            b.0,
+            &StrataBatch {
+                pdf: p,
+                ..good_batch
+            },
+        )
+    };
+    assert_eq!(s, STRATA_OK, "{}", last_error());
+    assert!(f.iter().chain(&pdf).all(|&x| x > 0.0) && cut == 0);
+}
+
 #[test]
 fn null_arrays_are_errors_naming_them_unless_n_is_zero() {
     let b = good();
