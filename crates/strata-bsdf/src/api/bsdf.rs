@@ -89,6 +89,17 @@ impl Engine {
     }
 }
 
+impl Engine {
+    /// The name `FromStr` takes: `auto`, `scalar` or `wavefront`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Engine::Auto => "auto",
+            Engine::Scalar => "scalar",
+            Engine::Wavefront => "wavefront",
+        }
+    }
+}
+
 impl std::str::FromStr for Engine {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
@@ -134,12 +145,12 @@ pub struct LayeredBsdf {
     scalar: ScalarEngine<f32>,
     pub(super) wave: Wavefront<DefaultWide>,
     pub(super) settings: Settings,
-    engine: Engine,
+    pub(super) engine: Engine,
     pub(super) samples: u64,
     pub(super) pdf_walks: PdfWalks,
     pub(super) seed: u64,
     transport: Transport,
-    eval_start: EvalStart,
+    pub(super) eval_start: EvalStart,
     pub(super) estimator: Estimator,
     /// A coat over a layer over a Lambertian base: its paths without a
     /// collision in the layer ([`CoatLambertian::unscattered`]), the whole
@@ -256,6 +267,26 @@ impl LayeredBsdf {
             && self.estimator == other.estimator
             && self.transport == other.transport
             && self.threads.same(&other.threads)
+    }
+
+    /// The same stack and configuration under walk settings `settings`.
+    pub(super) fn with_settings_of(self, settings: Settings) -> Self {
+        self.rebuilt(self.stack().clone(), settings)
+    }
+
+    /// Its thread setting as [`crate::Config::threads`] gives it.
+    pub(super) fn threads_setting(&self) -> Option<usize> {
+        match &self.threads {
+            Threads::Current => None,
+            Threads::Calling => Some(1),
+            Threads::Pool(p) => Some(p.threads()),
+        }
+    }
+
+    /// Its large batches on rayon's current pool (the default).
+    pub(super) fn on_current_pool(mut self) -> Self {
+        self.threads = Threads::Current;
+        self
     }
 
     fn rebuilt(&self, stack: LayerStack, settings: Settings) -> Self {

@@ -8,6 +8,8 @@
 //!
 //! * `bsdf`: [`LayeredBsdf`] and its single and batch queries (the core
 //!   the other files' batch forms call).
+//! * `config`: how a BSDF answers apart from its stack, as one value with
+//!   one text form.
 //! * `error`: what can be wrong with a query, and which one.
 //! * `transport`: radiance or importance, for light that crosses the stack.
 //! * `strategy`: which estimator answers `eval`, and from which side.
@@ -19,6 +21,7 @@
 
 mod bsdf;
 mod columns;
+mod config;
 mod error;
 mod materials;
 mod param_sets;
@@ -32,6 +35,7 @@ pub use columns::{
     Column, ColumnsError, PerQuery, CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS,
     MAX_QUERIES,
 };
+pub use config::{Config, ConfigError, CONFIG_KEYS};
 pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };

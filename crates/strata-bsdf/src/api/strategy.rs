@@ -38,6 +38,16 @@ impl EvalStart {
     }
 }
 
+impl EvalStart {
+    /// The name `FromStr` takes: `normal` or `wi`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EvalStart::Normal => "normal",
+            EvalStart::Wi => "wi",
+        }
+    }
+}
+
 impl std::str::FromStr for EvalStart {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

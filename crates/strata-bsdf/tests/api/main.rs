@@ -10,6 +10,7 @@ mod common;
 
 mod api_embedding;
 mod bounded_walks;
+mod config;
 mod layered_settings;
 mod material_set;
 mod material_spectra;
