@@ -155,13 +155,16 @@ fn what_config_prints_configure_reads_back() {
     assert_eq!(d.answers(), c.answers());
 }
 
+/// Calls of `strata_bsdf_set_*` on a BSDF: the lowest status.
+type Setters = fn(*mut StrataBsdf) -> i32;
+
 /// Each setting by `strata_bsdf_configure` against its `strata_bsdf_set_*`
 /// call, on a stack where each of them matters.
 #[test]
 fn a_configured_bsdf_answers_what_the_setters_make() {
     // SAFETY (every call below): the BSDFs are live and used by this thread
     // only.
-    let setters: [(&str, fn(*mut StrataBsdf) -> i32); 4] = [
+    let setters: [(&str, Setters); 4] = [
         (
             "transport=importance estimator=uni max_events=40 pdf_walks=4",
             |b| unsafe {
