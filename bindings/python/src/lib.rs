@@ -955,6 +955,33 @@ impl Bsdf {
         })
     }
 
+    /// The same material with `settings` applied: `key=value` pairs
+    /// separated by whitespace, the library's configuration text (the keys
+    /// and values of `config`; a key not given keeps its value), as the C
+    /// ABI's `strata_bsdf_configure` and the CLI's `--config` read it. A new
+    /// `Bsdf`, as `with_transport`: a `Bsdf` is immutable, so that threads
+    /// may share it. Raises ValueError naming the key and the value
+    /// (`rr_threshold=2: expected a number from 0.001 to 1`).
+    fn configure(&self, settings: &str) -> PyResult<Self> {
+        let mut config = self.inner.config();
+        config
+            .apply(settings)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let inner = self.inner.clone().with_config(&config).map_err(|e| {
+            let threads = config.get("threads").unwrap_or_default();
+            PyValueError::new_err(format!("threads={threads}: {e}"))
+        })?;
+        Ok(Bsdf { inner })
+    }
+
+    /// Every setting as `key=value` pairs, in a fixed order (`samples=1
+    /// pdf_walks=lobes seed=0 transport=radiance ...`): text that `configure`
+    /// reads back to the same settings.
+    #[getter]
+    fn config(&self) -> String {
+        self.inner.config().to_string()
+    }
+
     /// The limit of events per walk.
     #[getter]
     fn max_events(&self) -> u32 {

@@ -767,3 +767,95 @@ def test_eval_pdf_errors_name_the_argument():
     e3 = np.zeros((0, 3), np.float32)
     f, se, p = b.eval_pdf(e3, e3)
     assert f.shape == (0, 3) and se.shape == (0, 3) and p.shape == (0,) and p.dtype == np.float32
+
+
+CONFIG_KEYS = ["samples", "pdf_walks", "seed", "transport", "eval_start", "estimator", "engine", "threads",
+               "max_events", "rr_start", "rr_threshold", "max_scatter_order", "mis"]
+
+
+def test_configure_reads_back_what_config_prints(materials):
+    # config prints every setting as key=value pairs in a fixed order;
+    # configure returns a new Bsdf with the pairs given (the rest kept) and
+    # reads back what config prints.
+    b = Bsdf.from_path(materials / "coated_copper.toml", samples=16, seed=5)
+    text = b.config
+    assert [p.split("=")[0] for p in text.split()] == CONFIG_KEYS
+    assert text.startswith("samples=16 pdf_walks=lobes seed=5 transport=radiance ")
+    settings = ("samples=3 pdf_walks=adaptive seed=7 transport=importance eval_start=wi estimator=uni "
+                "engine=scalar threads=1 max_events=50 rr_start=2 rr_threshold=0.25 max_scatter_order=4 mis=false")
+    c = b.configure(settings)
+    assert isinstance(c, Bsdf) and c is not b
+    assert c.config == settings
+    assert b.config == text, "configure leaves the Bsdf it is called on as it was"
+    assert (c.samples, c.seed, c.transport, c.estimator, c.max_events, c.pdf_samples) == (
+        3, 7, "importance", "uni", 50, "adaptive")
+    d = b.configure("  seed=8\n\tthreads=current ")
+    assert d.config == text.replace("seed=5", "seed=8")
+    again = Bsdf.from_path(materials / "coated_copper.toml").configure(c.config)
+    assert again.configure("").config == c.config
+    wi = fixed_directions(9, np.random.default_rng(2), 0.3)
+    wo = fixed_directions(9, np.random.default_rng(3), 0.3)
+    assert again.eval(wi, wo)[0].view(np.uint32).tolist() == c.eval(wi, wo)[0].view(np.uint32).tolist()
+
+
+def bits_of(*arrays):
+    return [np.ascontiguousarray(a).view(np.uint32).tolist() for a in arrays]
+
+
+@pytest.mark.parametrize("material", ["scattering_slab.toml", "coated_copper.toml", "glass"])
+def test_configure_answers_what_the_keyword_arguments_and_with_calls_make(materials, material):
+    # Each setting by configure against the same one by from_path's keyword
+    # arguments and the with_* copies: the same answers bit for bit.
+    def load(**kw):
+        if material == "glass":
+            return Bsdf.from_toml(GLASS, **kw)
+        return Bsdf.from_path(materials / material, **kw)
+
+    rng = np.random.default_rng(17)
+    wi = fixed_directions(21, rng, 0.3)
+    wo = fixed_directions(21, rng, 0.3)
+
+    def answers(b):
+        f, se = b.eval(wi, wo)
+        wo_s, weight, pdf_s, flags = b.sample(wi)
+        return bits_of(f, se, b.pdf(wi, wo), wo_s, weight, pdf_s) + [flags.tolist()]
+
+    plain = answers(load(samples=8, seed=3))
+    for kw, settings in [
+        (dict(transport="importance", estimator="uni", max_events=40, pdf_samples=4),
+         "transport=importance estimator=uni max_events=40 pdf_walks=4"),
+        (dict(estimator="bidir", pdf_samples=(8, 64, 0.15)), "estimator=bidir pdf_walks=8,64,0.15"),
+        (dict(pdf_samples="tight", transport="radiance"), "pdf_walks=tight transport=radiance"),
+    ]:
+        by_kwargs = load(samples=8, seed=3, **kw)
+        configured = load(samples=8, seed=3).configure(settings)
+        assert configured.config == by_kwargs.config, settings
+        got = answers(configured)
+        assert got == answers(by_kwargs), settings
+        if settings.startswith("transport=importance"):
+            assert got != plain
+    chained = load(samples=8, seed=3).with_transport("importance").with_estimator("uni")
+    configured = load().configure("samples=8 seed=3 transport=importance estimator=uni")
+    assert answers(configured) == answers(chained)
+
+
+def test_a_setting_configure_does_not_take_is_a_value_error_naming_key_and_value():
+    b = Bsdf.from_toml(GLASS, samples=4, seed=2).configure("transport=importance max_events=99")
+    text = b.config
+    for settings, message in [
+        ("rr_threshold=2", "rr_threshold=2: expected a number from 0.001 to 1"),
+        ("seed=9 samples=0", "samples=0: expected a whole number from 1 to 1099511627776"),
+        ("colour=red", "colour=red: unknown setting (known: samples, pdf_walks, "),
+        ("estimator=best", "estimator=best: "),
+        ("threads=0", "threads=0: "),
+        ("pdf_walks=1,2", "pdf_walks=1,2: "),
+        ("seed=1 mis", "mis=: expected key=value"),
+    ]:
+        with pytest.raises(ValueError) as e:
+            b.configure(settings)
+        assert str(e.value).startswith(message), (settings, str(e.value))
+        assert b.config == text
+    with pytest.raises(TypeError):
+        b.configure(3)
+    with pytest.raises(AttributeError):
+        b.config = "seed=1"

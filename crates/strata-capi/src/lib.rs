@@ -5,6 +5,11 @@
 //! Link `libstrata_capi.a` (with `-lpthread -ldl -lm`) or
 //! `libstrata_capi.so`. docs/embedding.md has the guide.
 //!
+//! A BSDF's settings (walks per eval, seed, transport, estimator, walk
+//! limits, threads, ...) are text in the library's
+//! [`Config`](strata_bsdf::Config) form: `strata_bsdf_configure` applies
+//! `key=value` pairs and `strata_bsdf_config` prints them all.
+//!
 //! Every function returns a status: [`STRATA_OK`] (0) or a negative
 //! `STRATA_ERR_*` code, and then [`strata_last_error`] says what was wrong,
 //! naming the argument and, in a batch, the query index. Nothing unwinds
@@ -52,9 +57,11 @@ pub const STRATA_ERR_NULL: i32 = -1;
 /// infinite or of zero length (the message names the query index and the
 /// argument), a walk count of 0 or above 2^40, an unknown transport mode, a
 /// batch too large to address, a misaligned or overlapping array, text
-/// that is not UTF-8, or a bad `StrataColumn` (a width other than 1 or 3, a
-/// path that is not settable or not in the material, a NaN or infinite
-/// value, a value of the wrong shape for its field).
+/// that is not UTF-8, a setting `strata_bsdf_configure` does not take (the
+/// message names the key and the value), a buffer too small for
+/// `strata_bsdf_config`'s text, or a bad `StrataColumn` (a width other than
+/// 1 or 3, a path that is not settable or not in the material, a NaN or
+/// infinite value, a value of the wrong shape for its field).
 pub const STRATA_ERR_INVALID_ARGUMENT: i32 = -2;
 /// The material text is malformed or describes an invalid stack, or a
 /// query's `StrataColumn` values make an invalid material (the message names
@@ -126,7 +133,8 @@ const _: () = {
 /// with `strata_bsdf_from_toml`, `_from_json` or `_from_path`, free it with
 /// `strata_bsdf_free`. It is immutable once configured: any number of threads
 /// may call the batch functions on one `StrataBsdf` at the same time
-/// (`strata_bsdf_set_transport` must not run concurrently with them).
+/// (`strata_bsdf_configure` and the `strata_bsdf_set_*` calls must not run
+/// concurrently with them).
 pub struct StrataBsdf {
     inner: LayeredBsdf,
 }
@@ -667,8 +675,10 @@ pub unsafe extern "C" fn strata_bsdf_from_path(
 
 /// Sets what flows from `wi` to `wo`: `STRATA_TRANSPORT_RADIANCE` (0, the
 /// default) or `STRATA_TRANSPORT_IMPORTANCE` (1). It changes transmission
-/// between exteriors of different IOR only. Configure a BSDF before sharing
-/// it: this call must not run while another thread uses `b`.
+/// between exteriors of different IOR only. `strata_bsdf_configure` is the
+/// general form (`"transport=importance"`); this call stays for the ABI.
+/// Configure a BSDF before sharing it: this call must not run while another
+/// thread uses `b`.
 ///
 /// # Safety
 /// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
@@ -698,8 +708,9 @@ pub unsafe extern "C" fn strata_bsdf_set_transport(b: *mut StrataBsdf, mode: u32
 /// a closed form where the stack has one, the bidirectional estimator on
 /// stacks of three interfaces or more and rough coats over smooth or near-specular conductors (without optically thick scattering layers), the unidirectional one elsewhere),
 /// `STRATA_ESTIMATOR_UNIDIRECTIONAL` (1) or `STRATA_ESTIMATOR_BIDIRECTIONAL`
-/// (2). Configure a BSDF before sharing it: this call must not run while
-/// another thread uses `b`.
+/// (2). `strata_bsdf_configure` is the general form (`"estimator=uni"`,
+/// `auto`, `bidir`); this call stays for the ABI. Configure a BSDF before
+/// sharing it: this call must not run while another thread uses `b`.
 ///
 /// # Safety
 /// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
@@ -733,7 +744,8 @@ pub unsafe extern "C" fn strata_bsdf_set_estimator(b: *mut StrataBsdf, estimator
 /// `n` density walks (docs/method.md §6 compares them;
 /// `strata_bsdf_set_pdf_walks` sets an adaptive rule).
 /// Every `n` is valid. (The Rust API's `pdf_samples(0)` is one walk; here 0
-/// names the rule.)
+/// names the rule.) `strata_bsdf_configure` is the general form
+/// (`"pdf_walks=lobes"`, `"pdf_walks=16"`); this call stays for the ABI.
 /// Configure a BSDF before sharing it: this call must not run while another
 /// thread uses `b`.
 ///
@@ -761,8 +773,9 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_samples(b: *mut StrataBsdf, n: u32)
 /// and bounds the time of a walk on any stack; a bidirectional
 /// walk's subpaths end at its square root. Any other `n` is
 /// `STRATA_ERR_INVALID_ARGUMENT`, naming it, and leaves the BSDF as it was.
-/// Configure a BSDF before sharing it: this call must not run while another
-/// thread uses `b`.
+/// `strata_bsdf_configure` is the general form (`"max_events=4096"`); this
+/// call stays for the ABI. Configure a BSDF before sharing it: this call
+/// must not run while another thread uses `b`.
 ///
 /// # Safety
 /// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
@@ -795,8 +808,10 @@ pub unsafe extern "C" fn strata_bsdf_set_max_events(b: *mut StrataBsdf, n: u32) 
 /// every direction for about twice the walks (docs/method.md §6). A pilot
 /// under 2, a `max` under `pilot`, or a `rel_stderr` that is not a positive
 /// finite number is `STRATA_ERR_INVALID_ARGUMENT`, naming the argument and its
-/// value, and leaves the BSDF as it was. Configure a BSDF before sharing
-/// it: this call must not run while another thread uses `b`.
+/// value, and leaves the BSDF as it was. `strata_bsdf_configure` is the
+/// general form (`"pdf_walks=8,64,0.15"`, `adaptive`, `tight`); this call
+/// stays for the ABI. Configure a BSDF before sharing it: this call must not
+/// run while another thread uses `b`.
 ///
 /// # Safety
 /// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
@@ -826,8 +841,10 @@ pub unsafe extern "C" fn strata_bsdf_set_pdf_walks(
 /// and `threads = 1` builds no pool: every batch runs on the calling thread,
 /// allocation-free once that thread is warm; results never depend on it. A large batch runs on the pool while its
 /// caller waits, so a pool of its own bounds how many cores a BSDF's batches
-/// use; calls from several threads share it. Configure a BSDF before sharing
-/// it: this call must not run while another thread uses `b`. Safe across
+/// use; calls from several threads share it. `strata_bsdf_configure` is the
+/// general form (`"threads=4"`, or `"threads=current"` for the shared pool;
+/// there 0 is not a count); this call stays for the ABI. Configure a BSDF
+/// before sharing it: this call must not run while another thread uses `b`. Safe across
 /// `fork()`: in a forked child, the batches that ran on a pool in the parent
 /// (its own or the default one) run on a pool of the same size built for the
 /// child, with the parent's results.
@@ -845,6 +862,102 @@ pub unsafe extern "C" fn strata_bsdf_set_threads(b: *mut StrataBsdf, threads: us
             .clone()
             .threads(threads)
             .map_err(|e| Failure::invalid(e.to_string()))?;
+        Ok(())
+    })
+}
+
+/// Applies `settings`, NUL-terminated UTF-8 text of `key=value` pairs
+/// separated by whitespace (`"samples=64 transport=importance
+/// max_events=4096"`), the library's `Config` text form: the keys are
+/// `samples`, `pdf_walks`, `seed`, `transport`, `eval_start`, `estimator`,
+/// `engine`, `threads`, `max_events`, `rr_start`, `rr_threshold`,
+/// `max_scatter_order` and `mis` (docs/embedding.md lists their values),
+/// and a key not given keeps its value. It is the general form of the
+/// `strata_bsdf_set_*` calls, giving the same BSDF bit for bit, and reads
+/// what `strata_bsdf_config` prints. An unknown key or a value out of its
+/// range is `STRATA_ERR_INVALID_ARGUMENT`, the message naming the key and the
+/// value (`"strata_bsdf_configure: rr_threshold=2: expected a number from
+/// 0.001 to 1"`), and leaves the BSDF as it was. Configure a BSDF before
+/// sharing it: this call must not run while another thread uses `b`.
+///
+/// # Safety
+/// `b` is NULL or a live pointer from `strata_bsdf_from_*` that no other
+/// thread uses during the call; `settings` is NULL or a NUL-terminated
+/// string.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_configure(b: *mut StrataBsdf, settings: *const c_char) -> i32 {
+    guard("strata_bsdf_configure", || {
+        // SAFETY: the caller guarantees that a non-NULL `b` is live and not
+        // used by another thread.
+        let b = unsafe { bsdf_mut(b)? };
+        // SAFETY: the caller guarantees a non-NULL `settings` is
+        // NUL-terminated.
+        let settings = unsafe { text("settings", settings)? };
+        let mut config = b.config();
+        config
+            .apply(settings)
+            .map_err(|e| Failure::invalid(e.to_string()))?;
+        *b = b.clone().with_config(&config).map_err(|e| {
+            let threads = config.get("threads").unwrap_or_default();
+            Failure::invalid(format!("threads={threads}: {e}"))
+        })?;
+        Ok(())
+    })
+}
+
+/// Prints the BSDF's configuration, every key of `strata_bsdf_configure`
+/// in its order (`"samples=64 pdf_walks=lobes seed=0 ..."`, text that
+/// `strata_bsdf_configure` reads back to the same configuration), into
+/// `buf`: `len` bytes, NUL-terminated. If `needed` is not NULL, `*needed` is
+/// set to the bytes the text takes with its NUL, whatever happens after the
+/// NULL check of `b`. `buf` = NULL with `len` = 0 only asks the size. Unlike
+/// `snprintf`, a `len` under that size writes the empty string (if `len` >
+/// 0) and is `STRATA_ERR_INVALID_ARGUMENT`, naming both sizes: a truncated
+/// configuration could read back as a different one.
+///
+/// # Safety
+/// `b` is NULL or live; `buf` is NULL or writable for `len` bytes; `needed`
+/// is NULL or points to a writable `size_t`.
+#[no_mangle]
+pub unsafe extern "C" fn strata_bsdf_config(
+    b: *const StrataBsdf,
+    buf: *mut c_char,
+    len: usize,
+    needed: *mut usize,
+) -> i32 {
+    guard("strata_bsdf_config", || {
+        // SAFETY: the caller guarantees `b` is NULL or live.
+        let text = unsafe { bsdf_ref(b)? }.config().to_string();
+        let size = text.len() + 1;
+        if !needed.is_null() {
+            // SAFETY: `needed` is non-NULL and the caller guarantees it is
+            // writable.
+            unsafe { needed.write(size) };
+        }
+        if buf.is_null() {
+            return match len {
+                0 => Ok(()),
+                _ => Err(Failure::new(
+                    STRATA_ERR_NULL,
+                    format!("buf is NULL (len = {len})"),
+                )),
+            };
+        }
+        if len < size {
+            if len > 0 {
+                // SAFETY: `buf` is non-NULL and writable for `len` > 0 bytes.
+                unsafe { buf.write(0) };
+            }
+            return Err(Failure::invalid(format!(
+                "len = {len} is too small: the configuration takes {size} bytes"
+            )));
+        }
+        // SAFETY: `buf` is non-NULL and writable for `len` ≥ `size` bytes;
+        // `text` is a separate allocation, so they do not overlap.
+        unsafe {
+            std::ptr::copy_nonoverlapping(text.as_ptr().cast::<c_char>(), buf, text.len());
+            buf.add(text.len()).write(0);
+        }
         Ok(())
     })
 }

@@ -126,10 +126,13 @@ pub fn run(mut args: Args) -> Result<(), String> {
     // A rule where a number is needed is an error before any output.
     args.unbiased_pdf_walks = args.unbiased_walks()?;
     let bsdf = bsdf
+        .samples(args.samples)
         .seed(args.seed)
         .estimator(args.estimator)
         .eval_start(args.eval_start);
     let bsdf = args.engine.apply(bsdf)?;
+    // `--config` may have set the walks per query.
+    args.samples = bsdf.samples_per_eval();
     let stdin = std::io::stdin();
     // From a file, lines are read in chunks of CHUNK. From anything else (a
     // pipe, a terminal) the lines that have arrived are answered, and the

@@ -124,7 +124,7 @@ pub fn stdout_failure(e: std::io::Error) -> Result<(), String> {
 }
 
 /// The engine flags shared by `eval`, `albedo` and `sample`.
-#[derive(clap::Args, Clone, Copy, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct EngineArgs {
     /// Engine: the SIMD wavefront (default), the scalar reference, or auto
     /// (the scalar engine for calls of fewer walks than the wavefront has
@@ -146,20 +146,40 @@ pub struct EngineArgs {
     /// walk's subpaths end at its square root).
     #[arg(long, value_parser = max_events)]
     pub max_events: Option<u64>,
+    /// Any of the BSDF's settings as `key=value` pairs separated by spaces,
+    /// the library's configuration text, as C's `strata_bsdf_configure` and
+    /// Python's `Bsdf.configure` read it: samples, pdf_walks, seed,
+    /// transport, eval_start, estimator, engine, threads, max_events,
+    /// rr_start, rr_threshold, max_scatter_order, mis (e.g. `--config
+    /// "transport=importance rr_threshold=0.1"`). Applied after the other
+    /// flags, so it overrides them.
+    #[arg(long, value_name = "SETTINGS")]
+    pub config: Option<String>,
 }
 
 impl EngineArgs {
-    /// Applies the flags to a BSDF.
-    pub fn apply(self, bsdf: strata_bsdf::LayeredBsdf) -> Result<strata_bsdf::LayeredBsdf, String> {
+    /// Applies the flags to a BSDF, `--config` last.
+    pub fn apply(
+        &self,
+        bsdf: strata_bsdf::LayeredBsdf,
+    ) -> Result<strata_bsdf::LayeredBsdf, String> {
         let mut bsdf = bsdf.engine(self.engine).transport(self.transport);
         if let Some(n) = self.max_events {
             bsdf = bsdf.max_events(n as u32);
         }
-        match self.threads {
-            Some(n) => bsdf
+        if let Some(n) = self.threads {
+            bsdf = bsdf
                 .threads(n as usize)
-                .map_err(|e| format!("--threads {n}: {e}")),
-            None => Ok(bsdf),
+                .map_err(|e| format!("--threads {n}: {e}"))?;
         }
+        let Some(text) = &self.config else {
+            return Ok(bsdf);
+        };
+        let mut config = bsdf.config();
+        config.apply(text).map_err(|e| format!("--config: {e}"))?;
+        bsdf.with_config(&config).map_err(|e| {
+            let threads = config.get("threads").unwrap_or_default();
+            format!("--config: threads={threads}: {e}")
+        })
     }
 }

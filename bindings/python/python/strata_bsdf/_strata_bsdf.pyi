@@ -79,6 +79,14 @@ class Bsdf:
     ) -> Bsdf: ...
     def with_transport(self, transport: Transport) -> Bsdf: ...
     def with_estimator(self, estimator: Estimator) -> Bsdf: ...
+    def configure(self, settings: str) -> Bsdf:
+        """A new Bsdf with `settings` ("key=value ..." pairs, the keys of
+        `config`) applied; this one is unchanged. Raises ValueError naming the
+        key and the value."""
+    @property
+    def config(self) -> str:
+        """Every setting as "key=value" pairs in a fixed order: text that
+        `configure` reads back."""
     @overload
     def eval(
         self,

@@ -397,6 +397,52 @@ int main(void) {
     expect("not UTF-8", strata_bsdf_from_toml("description = \"\xff\"\n", 16, 0, &m),
            STRATA_ERR_INVALID_ARGUMENT, "not UTF-8", NULL);
 
+    /* ---- settings as text */
+    size_t needed = 0;
+    expect("config size", strata_bsdf_config(b, NULL, 0, &needed), STRATA_OK, NULL, NULL);
+    char text[512], small[8] = "xxxxxxx";
+    checks++;
+    if (needed < 2 || needed > sizeof text) {
+        failures++;
+        fprintf(stderr, "FAIL: config needs %zu bytes\n", needed);
+        needed = sizeof text;
+    }
+    expect("config", strata_bsdf_config(b, text, sizeof text, NULL), STRATA_OK, NULL, NULL);
+    checks++;
+    if (strlen(text) + 1 != needed || strstr(text, "samples=16 ") != text) {
+        failures++;
+        fprintf(stderr, "FAIL: config printed \"%s\" (%zu bytes)\n", text, needed);
+    }
+    expect("config too small", strata_bsdf_config(b, small, sizeof small, NULL),
+           STRATA_ERR_INVALID_ARGUMENT, "len = 8 is too small", NULL);
+    checks++;
+    if (small[0] != '\0' || small[1] != 'x') {
+        failures++;
+        fprintf(stderr, "FAIL: a buffer too small is not the empty string\n");
+    }
+    expect("config NULL buf", strata_bsdf_config(b, NULL, 8, NULL), STRATA_ERR_NULL,
+           "buf is NULL", NULL);
+    expect("configure", strata_bsdf_configure(b, "seed=3 transport=radiance"), STRATA_OK,
+           NULL, NULL);
+    expect("configure bad value", strata_bsdf_configure(b, "seed=4 rr_threshold=2"),
+           STRATA_ERR_INVALID_ARGUMENT, "strata_bsdf_configure: rr_threshold=2: ", NULL);
+    expect("configure unknown key", strata_bsdf_configure(b, "colour=red"),
+           STRATA_ERR_INVALID_ARGUMENT, "colour=red: unknown setting", NULL);
+    expect("configure not UTF-8", strata_bsdf_configure(b, "seed=\xff"),
+           STRATA_ERR_INVALID_ARGUMENT, "settings is not UTF-8", NULL);
+    expect("configure NULL", strata_bsdf_configure(b, NULL), STRATA_ERR_NULL,
+           "settings is NULL", NULL);
+    expect("configure NULL b", strata_bsdf_configure(NULL, "seed=1"), STRATA_ERR_NULL,
+           "b is NULL", NULL);
+    char after[512];
+    expect("config after", strata_bsdf_config(b, after, sizeof after, NULL), STRATA_OK, NULL,
+           NULL);
+    checks++;
+    if (strcmp(after, text) != 0) {
+        failures++;
+        fprintf(stderr, "FAIL: failed configures changed \"%s\" to \"%s\"\n", text, after);
+    }
+
     strata_bsdf_free(b);
     printf("abuse: %d passed, %d failed\n", checks - failures, failures);
     return failures == 0 ? 0 : 1;

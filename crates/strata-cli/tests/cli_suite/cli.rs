@@ -1443,6 +1443,122 @@ fn max_events_limits_the_walks() {
     }
 }
 
+/// `--config` takes the library's configuration text and is applied after
+/// the other flags: each setting prints what its flag prints, bit for bit,
+/// in `eval`, `sample` and `albedo`; it overrides a flag; a setting the
+/// library does not take fails with the library's message, naming the key
+/// and the value.
+#[test]
+fn config_sets_what_the_flags_set() {
+    let p = scratch("config").join("glass.toml");
+    std::fs::write(
+        &p,
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.3 }\n",
+    )
+    .unwrap();
+    let m = p.to_str().unwrap();
+    let q = "{\"wi\":[0.5,0,0.8660254],\"wo\":[-0.3,0.1,-0.9486833]}\n\
+             {\"wi\":[0.3,0,-0.9539392],\"wo\":[-0.5,0,0.8660254]}\n";
+    let slab = example("scattering_slab.toml");
+    let eval = |material: &str, extra: &[&str]| {
+        let args = [&["eval", "--material", material][..], extra].concat();
+        assert_ok(&run(&args, q))
+    };
+    for (material, flags, config) in [
+        (
+            m,
+            &["--transport", "importance"][..],
+            "transport=importance",
+        ),
+        (
+            &slab,
+            &["--samples", "64", "--seed", "3", "--estimator", "bidir"],
+            "samples=64 seed=3 estimator=bidir",
+        ),
+        (
+            &slab,
+            &[
+                "--eval-start",
+                "wi",
+                "--max-events",
+                "4",
+                "--pdf-samples",
+                "4",
+            ],
+            "eval_start=wi max_events=4 pdf_walks=4",
+        ),
+    ] {
+        let by_flags = eval(material, flags);
+        assert_ne!(
+            by_flags,
+            eval(material, &[]),
+            "{flags:?} changes the answers"
+        );
+        assert_eq!(eval(material, &["--config", config]), by_flags, "{config}");
+    }
+    assert_eq!(
+        eval(
+            m,
+            &[
+                "--transport",
+                "importance",
+                "--config",
+                "transport=radiance"
+            ]
+        ),
+        eval(m, &[]),
+        "--config overrides the flag"
+    );
+    let sample = |extra: &[&str]| {
+        let args = [
+            &[
+                "sample",
+                "--material",
+                m,
+                "--wi",
+                "0.3,0,0.9",
+                "--count",
+                "40",
+            ][..],
+            extra,
+        ]
+        .concat();
+        assert_ok(&run(&args, ""))
+    };
+    assert_eq!(
+        sample(&["--config", "transport=importance seed=5"]),
+        sample(&["--transport", "importance", "--seed", "5"])
+    );
+    let albedo = |extra: &[&str]| albedo_at_40(&slab, "4000", extra);
+    assert_eq!(
+        albedo(&["--config", "max_events=3"]),
+        albedo(&["--max-events", "3"])
+    );
+    for (config, message) in [
+        (
+            "rr_threshold=2",
+            "--config: rr_threshold=2: expected a number from 0.001 to 1",
+        ),
+        ("colour=red", "--config: colour=red: unknown setting"),
+        (
+            "seed=1 threads=0",
+            "--config: threads=0: expected a whole number",
+        ),
+    ] {
+        for command in ["eval", "sample", "albedo"] {
+            let args = match command {
+                "eval" => vec!["eval", "--material", m],
+                "sample" => vec!["sample", "--material", m, "--wi", "0,0,1", "--count", "1"],
+                _ => vec!["albedo", "--material", m, "--theta", "0"],
+            };
+            let args = [&args[..], &["--config", config]].concat();
+            let out = run(&args, q);
+            assert_fails_with(&out, &[message]);
+            assert!(out.stdout.is_empty(), "{command} --config {config}");
+        }
+    }
+}
+
 /// Where the limit of events ends walks, the JSON line says how many
 /// (`"truncated"`): on a lossless slab of optical depth 1e4 every walk that
 /// leaves has weight 1, so `R + T` is the fraction the limit did not end.
