@@ -24,9 +24,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 use pyo3::IntoPyObjectExt;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, MaterialError as StackMaterialError, PdfWalks, PerQuery, SetError, SetPath,
-    Transport, Vectors, VectorsMut, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Bsdf as Answers, Column, ColumnsError, Estimator,
+    EvalBuffers, LayerStack, LayeredBsdf, MaterialError as StackMaterialError, PdfWalks, PerQuery,
+    Queries, SampleBuffers, SetError, SetPath, Transport, Vectors, VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -315,6 +315,7 @@ fn plainly_directions(v: &Vectors<'_>) -> bool {
                 && x.len() == z.len()
                 && x.iter().zip(*y).zip(*z).all(|((&x, &y), &z)| ok(x, y, z))
         }
+        Vectors::Vec3(v) => v.iter().all(|v| ok(v.x, v.y, v.z)),
     }
 }
 
@@ -441,14 +442,6 @@ fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Par
     Ok(out)
 }
 
-/// What answers a batch: the BSDF's own material, or one material per
-/// query (its own with query `k`'s `params` row, [`PerQuery`]: built a
-/// bounded chunk at a time; boxed, as it carries its table's state).
-enum Answerer<'a> {
-    Own(&'a LayeredBsdf),
-    PerQuery(Box<PerQuery<'a>>),
-}
-
 /// Why a call with `params` did not run.
 enum CallError {
     /// Boxed: a `SetError` makes it large, and errors are rare.
@@ -507,88 +500,6 @@ fn columns_err(py: Python<'_>, e: ColumnsError, columns: &[Column<'_>]) -> PyErr
     }
 }
 
-/// The batch calls, on either kind of answerer: the library's slice calls
-/// of the BSDF, or of its per-query materials (keyed as the BSDF's own, so
-/// that query `k` answers what a BSDF of its material does).
-impl Answerer<'_> {
-    fn eval(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        keys: Option<&[u64]>,
-        f: VectorsMut,
-        se: VectorsMut,
-    ) -> Result<u64, BatchError> {
-        match self {
-            Answerer::Own(b) => b.eval_into(wi, wo, keys, f, Some(se)),
-            Answerer::PerQuery(m) => m.eval_into(wi, wo, keys, f, Some(se)),
-        }
-    }
-
-    fn eval_pdf(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        keys: Option<&[u64]>,
-        (f, se): (VectorsMut, VectorsMut),
-        pdf: &mut [f32],
-    ) -> Result<u64, BatchError> {
-        match self {
-            Answerer::Own(b) => b.eval_pdf_into(wi, wo, keys, f, Some(se), pdf),
-            Answerer::PerQuery(m) => m.eval_pdf_into(wi, wo, keys, f, Some(se), pdf),
-        }
-    }
-
-    fn sample(
-        &self,
-        wi: Vectors,
-        keys: Option<&[u64]>,
-        wo: VectorsMut,
-        weight: VectorsMut,
-        pdf: &mut [f32],
-        flags: &mut [u32],
-    ) -> Result<(), BatchError> {
-        match self {
-            Answerer::Own(b) => b.sample_into(wi, keys, wo, weight, pdf, flags),
-            Answerer::PerQuery(m) => m.sample_into(wi, keys, wo, weight, pdf, flags),
-        }
-    }
-
-    fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), BatchError> {
-        match self {
-            Answerer::Own(b) => b.pdf_into(wi, wo, pdf),
-            Answerer::PerQuery(m) => m.pdf_into(wi, wo, pdf),
-        }
-    }
-
-    fn pdf_unbiased(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        samples: u64,
-        pdf: &mut [f32],
-        stderr: &mut [f32],
-    ) -> Result<u64, BatchError> {
-        match self {
-            Answerer::Own(b) => b.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
-            Answerer::PerQuery(m) => m.pdf_unbiased_into(wi, wo, samples, pdf, stderr),
-        }
-    }
-
-    fn albedo(
-        &self,
-        wi: Vectors,
-        n: u64,
-        keys: Option<&[u64]>,
-        out: &mut [AlbedoRecord],
-    ) -> Result<u64, BatchError> {
-        match self {
-            Answerer::Own(b) => b.albedo_records(wi, n, keys, out),
-            Answerer::PerQuery(m) => m.albedo_records(wi, n, keys, out),
-        }
-    }
-}
-
 /// A batch method's result, or `(result, truncated)` if the caller asked for
 /// the count of walks the limit of events ended (`return_truncated=True`).
 fn counted<'py>(
@@ -626,7 +537,7 @@ impl Bsdf {
         params: &[Param<'_>],
         n: usize,
         walks: u64,
-        call: impl FnOnce(&Answerer<'_>) -> Result<R, BatchError> + Send,
+        call: impl FnOnce(&dyn Answers) -> Result<R, BatchError> + Send,
     ) -> PyResult<R> {
         let columns: Vec<Column<'_>> = params
             .iter()
@@ -638,16 +549,14 @@ impl Bsdf {
             .collect();
         let bsdf = &self.inner;
         let work = || {
-            let answerer = if columns.is_empty() {
-                Answerer::Own(bsdf)
-            } else {
-                // A bounded chunk of rows' materials at a time (equal rows
-                // of a chunk share one): memory bounded whatever `n`.
-                let q = PerQuery::new(bsdf, n, &columns)
-                    .map_err(|e| CallError::Columns(Box::new(e)))?;
-                Answerer::PerQuery(Box::new(q))
-            };
-            Ok(call(&answerer)?)
+            if columns.is_empty() {
+                return Ok(call(bsdf)?);
+            }
+            // A bounded chunk of rows' materials at a time (equal rows of a
+            // chunk share one): memory bounded whatever `n`.
+            let q =
+                PerQuery::new(bsdf, n, &columns).map_err(|e| CallError::Columns(Box::new(e)))?;
+            Ok(call(&q)?)
         };
         let small = (n as u64).saturating_mul(walks) <= KEEP_GIL_WALKS;
         let result: Result<R, CallError> = if small { work() } else { py.detach(work) };
@@ -1079,12 +988,20 @@ impl Bsdf {
         let mut se = VecOut::new("Bsdf.eval", wi.layout(), n)?;
         let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
-            let k = keys
+            let keys = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (fm, sm) = (f.as_mut(), se.as_mut());
             self.run(py, &params, n, self.inner.samples_per_eval(), |a| {
-                a.eval(wiv, wov, k, fm, sm)
+                let q = Queries {
+                    keys,
+                    ..Queries::pairs(wiv, wov)
+                };
+                let mut out = EvalBuffers {
+                    f: fm,
+                    stderr: Some(sm),
+                };
+                a.eval_into(&q, &mut |k, e| out.put(k, e))
             })?
         };
         let result = (f.into_py(py)?, se.into_py(py)?);
@@ -1116,16 +1033,25 @@ impl Bsdf {
         let mut pdf: Vec<f32> = zeros("Bsdf.eval_pdf", n)?;
         let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
-            let k = keys
+            let keys = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
-            let out = (f.as_mut(), se.as_mut());
+            let mut out = EvalBuffers {
+                f: f.as_mut(),
+                stderr: Some(se.as_mut()),
+            };
             let p = &mut pdf[..];
             let walks = self
                 .inner
                 .samples_per_eval()
                 .saturating_add(self.pdf_walks_at_most());
-            self.run(py, &params, n, walks, |a| a.eval_pdf(wiv, wov, k, out, p))?
+            self.run(py, &params, n, walks, |a| {
+                let q = Queries {
+                    keys,
+                    ..Queries::pairs(wiv, wov)
+                };
+                a.eval_pdf_into(&q, &mut |k, e| out.put(k, e), &mut |k, x| p[k] = x)
+            })?
         };
         let result = (f.into_py(py)?, se.into_py(py)?, pdf.into_pyarray(py));
         counted(py, result, return_truncated.then_some(cut))
@@ -1163,13 +1089,21 @@ impl Bsdf {
         let mut flags: Vec<u32> = zeros("Bsdf.sample", n)?;
         {
             let wiv = wi.vectors();
-            let k = keys
+            let keys = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
-            let (wom, wm) = (wo.as_mut(), weight.as_mut());
-            let (p, fl) = (&mut pdf[..], &mut flags[..]);
+            let mut out = SampleBuffers {
+                wo: wo.as_mut(),
+                weight: weight.as_mut(),
+                pdf: &mut pdf[..],
+                flags: &mut flags[..],
+            };
             self.run(py, &params, n, self.pdf_walks_at_most(), |a| {
-                a.sample(wiv, k, wom, wm, p, fl)
+                let q = Queries {
+                    keys,
+                    ..Queries::directions(wiv)
+                };
+                a.sample_into(&q, &mut |k, s| out.put(k, s))
             })?;
         }
         Ok((
@@ -1200,7 +1134,9 @@ impl Bsdf {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
             let walks = self.pdf_walks_at_most();
-            self.run(py, &params, n, walks, |a| a.pdf(wiv, wov, p))?;
+            self.run(py, &params, n, walks, |a| {
+                a.pdf_into(&Queries::pairs(wiv, wov), &mut |k, x| p[k] = x)
+            })?;
         }
         Ok(pdf.into_pyarray(py))
     }
@@ -1230,7 +1166,11 @@ impl Bsdf {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
             self.run(py, &params, n, samples, |a| {
-                a.pdf_unbiased(wiv, wov, samples, p, s)
+                let q = Queries::pairs(wiv, wov).walks(samples);
+                a.pdf_unbiased_into(&q, &mut |k, e| {
+                    p[k] = e.value as f32;
+                    s[k] = e.stderr as f32;
+                })
             })?
         };
         let result = (pdf.into_pyarray(py), stderr.into_pyarray(py));
@@ -1260,11 +1200,18 @@ impl Bsdf {
         let mut rec: Vec<AlbedoRecord> = zeros("Bsdf.albedo", m)?;
         let cut = {
             let wiv = wi.vectors();
-            let k = keys
+            let keys = keys
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let out = &mut rec[..];
-            self.run(py, &params, m, n, |a| a.albedo(wiv, n, k, out))?
+            self.run(py, &params, m, n, |a| {
+                let q = Queries {
+                    keys,
+                    ..Queries::directions(wiv)
+                }
+                .walks(n);
+                a.albedo_into(&q, &mut |k, x| out[k] = AlbedoRecord::of(x))
+            })?
         };
         let layout = wi.layout();
         let mut outs = [

@@ -17,7 +17,7 @@ use std::hint::black_box;
 use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};
 use strata_bsdf::lane::F32x8;
-use strata_bsdf::{Engine, LayeredBsdf, PdfKind, PdfWalks, Settings};
+use strata_bsdf::{Bsdf, Engine, LayeredBsdf, PdfKind, PdfWalks, Queries, Settings};
 
 const QUERIES: usize = 16;
 const SAMPLES: u64 = 256;
@@ -119,7 +119,7 @@ fn small_batches(c: &mut Criterion) {
             let wis: Vec<Vec3> = (0..n)
                 .map(|i| Vec3::new(0.05 * i as f32, 0.1, 0.9).normalize())
                 .collect();
-            let pairs: Vec<(Vec3, Vec3)> = wis.iter().map(|&w| (w, wo)).collect();
+            let wos = vec![wo; n];
             let keys: Vec<u64> = (0..n as u64).collect();
             for (label, bsdf) in engines(&stack, 2) {
                 let mut k = 0u64;
@@ -127,11 +127,11 @@ fn small_batches(c: &mut Criterion) {
                     b.iter(|| {
                         k += 1;
                         let idx = vec![k; n];
-                        black_box(bsdf.sample_batch_keyed(&wis, &keys, &idx).unwrap())
+                        black_box(samples(&bsdf, &wis, &keys, &idx))
                     })
                 });
                 g.bench_function(BenchmarkId::new(format!("pdf{n}"), label), |b| {
-                    b.iter(|| black_box(bsdf.pdf_batch(&pairs).unwrap()))
+                    b.iter(|| black_box(pdfs(&bsdf, &wis, &wos)))
                 });
             }
         }
@@ -201,9 +201,12 @@ fn vertices(c: &mut Criterion) {
                 b.iter(|| {
                     k += 1;
                     let idx = vec![k; QUERIES];
-                    let s = bsdf.sample_batch_keyed(&wis, &keys, &idx).unwrap();
-                    let f = bsdf.eval_batch(&pairs).unwrap();
-                    black_box((s, f, bsdf.pdf_batch(&pairs).unwrap()))
+                    let s = samples(&bsdf, &wis, &keys, &idx);
+                    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
+                    let mut f = 0.0;
+                    let q = Queries::pairs(&wi, &wo);
+                    bsdf.eval_into(&q, &mut |_, e| f += e.value[0]).unwrap();
+                    black_box((s, f, pdfs(&bsdf, &wi, &wo)))
                 })
             });
         }
@@ -217,3 +220,20 @@ criterion_group! {
     targets = estimators, single_queries, small_batches, density_walks, vertices
 }
 criterion_main!(benches);
+
+/// The samples of a batch (how many were not absorbed).
+fn samples(bsdf: &LayeredBsdf, wis: &[Vec3], keys: &[u64], index: &[u64]) -> usize {
+    let q = Queries::directions(wis).keys(keys).indices(index);
+    let mut n = 0;
+    bsdf.sample_into(&q, &mut |_, s| n += usize::from(s.is_some()))
+        .unwrap();
+    n
+}
+
+/// The sum of a batch's pdfs.
+fn pdfs(bsdf: &LayeredBsdf, wi: &[Vec3], wo: &[Vec3]) -> f32 {
+    let mut sum = 0.0;
+    bsdf.pdf_into(&Queries::pairs(wi, wo), &mut |_, p| sum += p)
+        .unwrap();
+    sum
+}

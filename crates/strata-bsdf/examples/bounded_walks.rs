@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 use std::time::Instant;
-use strata_bsdf::{Estimator, LayerStack, LayeredBsdf};
+use strata_bsdf::{Bsdf, Estimate, Estimator, LayerStack, LayeredBsdf, PdfEstimate, Queries};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let toml = include_str!("../tests/data/lossless_slab_tau_1e4.toml");
@@ -27,17 +27,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("max_events {}", bsdf.settings().max_events);
     for estimator in [Estimator::Bidirectional, Estimator::Unidirectional] {
         let t = Instant::now();
-        let e = bsdf
-            .clone()
-            .estimator(estimator)
-            .eval_batch_keyed(&pairs, 16, &keys)?;
+        let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
+        let q = Queries::pairs(&wi, &wo).keys(&keys).walks(16);
+        let mut e = vec![Estimate::default(); pairs.len()];
+        let b = bsdf.clone().estimator(estimator);
+        b.eval_into(&q, &mut |k, x| e[k] = *x)?;
         let mean = e.iter().map(|e| e.value[0]).sum::<f64>() / e.len() as f64;
         let s = t.elapsed().as_secs_f64();
         let cut: u64 = e.iter().map(|e| e.truncated).sum();
         println!("eval {estimator:?}: {s:.2} s, mean f {mean:.4}, {cut} walks cut");
     }
     let t = Instant::now();
-    let p = bsdf.pdf_unbiased_batch(&pairs, 16)?;
+    let (wi, wo): (Vec<Vec3>, Vec<Vec3>) = pairs.iter().copied().unzip();
+    let mut p = vec![PdfEstimate::default(); pairs.len()];
+    bsdf.pdf_unbiased_into(&Queries::pairs(&wi, &wo).walks(16), &mut |k, x| p[k] = *x)?;
     let mean = p.iter().map(|p| p.value).sum::<f64>() / p.len() as f64;
     let s = t.elapsed().as_secs_f64();
     let cut: u64 = p.iter().map(|p| p.truncated).sum();

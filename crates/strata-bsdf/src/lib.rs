@@ -78,10 +78,10 @@ pub mod rng;
 pub mod stack;
 
 pub use api::{
-    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Config, ConfigError, Direction,
-    Engine, Estimator, EvalRecord, EvalStart, LayeredBsdf, Materials, ParamSets, PerQuery,
-    QueryError, Sample, SampleFlags, SampleRecord, SetsError, ThreadsError, Transport, Vectors,
-    VectorsMut, CONFIG_KEYS, MAX_QUERIES, MAX_THREADS, MAX_WALKS,
+    check_walks, AlbedoRecord, BatchError, Bsdf, Column, ColumnsError, Config, ConfigError,
+    Direction, Engine, Estimator, EvalBuffers, EvalRecord, EvalStart, LayeredBsdf, Materials,
+    PerQuery, Queries, QueryError, Sample, SampleBuffers, SampleFlags, SampleRecord, ThreadsError,
+    Transport, Vectors, VectorsMut, CONFIG_KEYS, MAX_QUERIES, MAX_THREADS, MAX_WALKS,
 };
 pub use api::{CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS};
 pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};

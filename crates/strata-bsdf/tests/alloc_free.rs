@@ -5,6 +5,10 @@
 //! has set up the thread's buffers. Parallel batches allocate inside rayon
 //! (docs/embedding.md).
 
+#[path = "common/batches.rs"]
+#[allow(dead_code)]
+mod batches;
+use batches::{Batches, Buffers};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use strata_bsdf::{
@@ -79,7 +83,7 @@ fn slice_calls_allocate_nothing() {
             let (mut so, mut sw) = ([[0.0f32; 3]; 3], [[0.0f32; 3]; 3]);
             let (mut sp, mut sf) = ([0.0f32; 3], [0u32; 3]);
             let mut run = || {
-                b.eval_into(
+                b.eval_buffers(
                     Vectors::Aos(&wi),
                     Vectors::Aos(&wo),
                     None,
@@ -95,7 +99,7 @@ fn slice_calls_allocate_nothing() {
                 )
                 .unwrap();
                 b.sample_records(Vectors::Aos(&wi), None, &mut s).unwrap();
-                b.sample_into(
+                b.sample_buffers(
                     Vectors::Aos(&wi),
                     Some(&[4, 5, 6]),
                     VectorsMut::Aos(&mut so),
@@ -104,9 +108,9 @@ fn slice_calls_allocate_nothing() {
                     &mut sf,
                 )
                 .unwrap();
-                b.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut p)
+                b.pdf_buffers(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut p)
                     .unwrap();
-                b.eval_pdf_into(
+                b.eval_pdf_buffers(
                     Vectors::Aos(&wi),
                     Vectors::Aos(&wo),
                     Some(&[7, 8, 9]),
@@ -133,7 +137,7 @@ fn slice_calls_allocate_nothing() {
     let mut one = || {
         b.sample_records(Vectors::Aos(&wi[..1]), Some(&[9]), &mut s)
             .unwrap();
-        b.pdf_into(Vectors::Aos(&wi[..1]), Vectors::Aos(&wo[..1]), &mut p)
+        b.pdf_buffers(Vectors::Aos(&wi[..1]), Vectors::Aos(&wo[..1]), &mut p)
             .unwrap();
     };
     one();
@@ -180,7 +184,7 @@ fn slice_calls_allocate_nothing() {
             let mut calls = |m: usize| {
                 [
                     allocations(|| {
-                        b.eval_into(
+                        b.eval_buffers(
                             Vectors::Aos(&wi[..m]),
                             Vectors::Aos(&wo[..m]),
                             None,
@@ -203,7 +207,7 @@ fn slice_calls_allocate_nothing() {
                             .unwrap()
                     }),
                     allocations(|| {
-                        b.sample_into(
+                        b.sample_buffers(
                             Vectors::Aos(&wi[..m]),
                             Some(&keys[..m]),
                             VectorsMut::Aos(&mut so[..m]),
@@ -218,11 +222,11 @@ fn slice_calls_allocate_nothing() {
                             .unwrap();
                     }),
                     allocations(|| {
-                        b.pdf_into(Vectors::Aos(&wi[..m]), Vectors::Aos(&wo[..m]), &mut pd[..m])
+                        b.pdf_buffers(Vectors::Aos(&wi[..m]), Vectors::Aos(&wo[..m]), &mut pd[..m])
                             .unwrap()
                     }),
                     allocations(|| {
-                        b.eval_pdf_into(
+                        b.eval_pdf_buffers(
                             Vectors::Aos(&wi[..m]),
                             Vectors::Aos(&wo[..m]),
                             Some(&keys[..m]),
@@ -286,7 +290,7 @@ fn slice_calls_allocate_nothing() {
     let mut f = vec![[0.0f32; 3]; 4096];
     let mut eval = |n: usize| {
         allocations(|| {
-            b.eval_into(
+            b.eval_buffers(
                 Vectors::Aos(&wi4[..n]),
                 Vectors::Aos(&wo4[..n]),
                 None,

@@ -42,9 +42,9 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::thread::AccessError;
 use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
-    check_walks, AlbedoRecord, BatchError, Column, ColumnsError, Estimator, LayerStack,
-    LayeredBsdf, PdfWalks, PerQuery, QueryError, SampleRecord, SetError, SetPath, Transport,
-    Vectors, VectorsMut,
+    check_walks, AlbedoRecord, BatchError, Bsdf, Column, ColumnsError, Estimate, Estimator,
+    EvalBuffers, LayerStack, LayeredBsdf, PdfWalks, PerQuery, Queries, QueryError, SampleBuffers,
+    SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -1167,12 +1167,16 @@ impl Columns<'_> {
         disjoint(&spans)
     }
 
-    /// What the call's `n` queries run on: `bsdf` itself without columns,
-    /// else one material per query (every row checked first: the error
-    /// names the query, the path and the value).
-    fn target<'b>(&'b self, bsdf: &'b LayeredBsdf, n: usize) -> Result<Target<'b>, Failure> {
+    /// The per-query rows the call's `n` queries run on: none without
+    /// columns, else one material per query (every row checked first: the
+    /// error names the query, the path and the value).
+    fn rows<'b>(
+        &'b self,
+        bsdf: &'b LayeredBsdf,
+        n: usize,
+    ) -> Result<Option<PerQuery<'b>>, Failure> {
         if self.paths.is_empty() {
-            return Ok(Target::Own(bsdf));
+            return Ok(None);
         }
         let columns: Vec<Column> = (self.paths.iter().zip(&self.widths).zip(&self.values))
             .map(|((path, &width), values)| Column {
@@ -1182,7 +1186,7 @@ impl Columns<'_> {
             })
             .collect();
         match PerQuery::new(bsdf, n, &columns) {
-            Ok(m) => Ok(Target::PerQuery(Box::new(m))),
+            Ok(m) => Ok(Some(m)),
             // A fault of the whole column (its path, its width): named as
             // the argument it is.
             Err(ColumnsError::Column { column, error }) => {
@@ -1207,120 +1211,11 @@ impl Columns<'_> {
     }
 }
 
-/// What a batch runs on.
-enum Target<'a> {
-    /// The BSDF's own parameters: its slice calls.
-    Own(&'a LayeredBsdf),
-    /// Per-query rows (query `k` on row `k`), with the BSDF's configuration,
-    /// a bounded chunk at a time.
-    PerQuery(Box<PerQuery<'a>>),
-}
-
-/// Where samples go.
-enum SampleOut<'a> {
-    /// One record per query.
-    Records(&'a mut [SampleRecord]),
-    /// Component arrays.
-    Soa {
-        wo: VectorsMut<'a>,
-        weight: VectorsMut<'a>,
-        pdf: &'a mut [f32],
-        flags: &'a mut [u32],
-    },
-}
-
-// Both kinds of target run the library's slice calls: the BSDF's own, or
-// `PerQuery`'s with query `k` on its own row (keyed and indexed as the own
-// ones are, so that query `k` answers what a BSDF of its material does).
-impl Target<'_> {
-    fn eval(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        keys: Option<&[u64]>,
-        f: VectorsMut,
-        se: Option<VectorsMut>,
-    ) -> Result<u64, Failure> {
-        Ok((match self {
-            Target::Own(b) => b.eval_into(wi, wo, keys, f, se),
-            Target::PerQuery(m) => m.eval_into(wi, wo, keys, f, se),
-        })?)
-    }
-
-    /// `eval` and `pdf` of the same pairs in one library call (directions
-    /// checked and normalized once), the numbers of the two calls.
-    fn eval_pdf(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        keys: Option<&[u64]>,
-        f: VectorsMut,
-        se: Option<VectorsMut>,
-        pdf: &mut [f32],
-    ) -> Result<u64, Failure> {
-        Ok((match self {
-            Target::Own(b) => b.eval_pdf_into(wi, wo, keys, f, se, pdf),
-            Target::PerQuery(m) => m.eval_pdf_into(wi, wo, keys, f, se, pdf),
-        })?)
-    }
-
-    fn sample(&self, wi: Vectors, keys: Option<&[u64]>, out: SampleOut) -> Result<(), Failure> {
-        Ok((match (self, out) {
-            (Target::Own(b), SampleOut::Records(out)) => b.sample_records(wi, keys, out),
-            (Target::PerQuery(m), SampleOut::Records(out)) => m.sample_records(wi, keys, out),
-            (
-                Target::Own(b),
-                SampleOut::Soa {
-                    wo,
-                    weight,
-                    pdf,
-                    flags,
-                },
-            ) => b.sample_into(wi, keys, wo, weight, pdf, flags),
-            (
-                Target::PerQuery(m),
-                SampleOut::Soa {
-                    wo,
-                    weight,
-                    pdf,
-                    flags,
-                },
-            ) => m.sample_into(wi, keys, wo, weight, pdf, flags),
-        })?)
-    }
-
-    fn pdf(&self, wi: Vectors, wo: Vectors, pdf: &mut [f32]) -> Result<(), Failure> {
-        Ok((match self {
-            Target::Own(b) => b.pdf_into(wi, wo, pdf),
-            Target::PerQuery(m) => m.pdf_into(wi, wo, pdf),
-        })?)
-    }
-
-    fn pdf_unbiased(
-        &self,
-        wi: Vectors,
-        wo: Vectors,
-        walks: u64,
-        pdf: &mut [f32],
-        stderr: &mut [f32],
-    ) -> Result<u64, Failure> {
-        Ok((match self {
-            Target::Own(b) => b.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
-            Target::PerQuery(m) => m.pdf_unbiased_into(wi, wo, walks, pdf, stderr),
-        })?)
-    }
-
-    fn albedo(
-        &self,
-        wi: Vectors,
-        walks: u64,
-        keys: Option<&[u64]>,
-        out: &mut [AlbedoRecord],
-    ) -> Result<u64, Failure> {
-        Ok((match self {
-            Target::Own(b) => b.albedo_records(wi, walks, keys, out),
-            Target::PerQuery(m) => m.albedo_records(wi, walks, keys, out),
-        })?)
+/// What a call's queries run on: the BSDF, or its per-query rows.
+fn answers<'a>(bsdf: &'a LayeredBsdf, rows: &'a Option<PerQuery<'a>>) -> &'a dyn Bsdf {
+    match rows {
+        Some(rows) => rows,
+        None => bsdf,
     }
 }
 
@@ -1329,8 +1224,8 @@ impl Target<'_> {
 // One call per verb, each taking a `StrataBatch`: `begin` checks the BSDF,
 // the descriptor and the fields the verb does not read, `StrataBatch::spans`
 // every array (NULL, alignment, size, overlap), and the body makes slices of
-// them and runs the library's slice call on a `Target`: the BSDF's own
-// parameters, or one material per query from the descriptor's columns.
+// them and runs the library's batch call (`strata_bsdf::Bsdf`) on the BSDF,
+// or on one material per query from the descriptor's columns.
 
 /// The 3-vectors of a batch that a call reads (directions), in one of two
 /// layouts: `xyz`, `3 n` floats `x, y, z` per query (an array of
@@ -1769,7 +1664,8 @@ pub unsafe extern "C" fn strata_eval(b: *const StrataBsdf, batch: *const StrataB
         // SAFETY: as above; `checked` verifies every array before the body
         // makes slices of them.
         let cols = unsafe { d.checked(&["wo", "f"])? };
-        let target = cols.target(bsdf, d.n)?;
+        let rows = cols.rows(bsdf, d.n)?;
+        let answers = answers(bsdf, &rows);
         // SAFETY: the arrays were checked by `checked` (outputs disjoint
         // from every other array) and hold what `StrataBatch` says.
         unsafe {
@@ -1778,12 +1674,20 @@ pub unsafe extern "C" fn strata_eval(b: *const StrataBsdf, batch: *const StrataB
             let f =
                 d.f.write("f", d.n)?
                     .ok_or_else(|| Failure::new(STRATA_ERR_NULL, "f is NULL"))?;
-            let (keys, se) = (d.keys()?, d.stderr.write("stderr", d.n)?);
+            let (keys, stderr) = (d.keys()?, d.stderr.write("stderr", d.n)?);
+            let q = Queries {
+                keys,
+                ..Queries::pairs(wi, wo)
+            };
+            let mut out = EvalBuffers { f, stderr };
+            let evals = &mut |k, e: &Estimate| out.put(k, e);
             let cut = if d.pdf.is_null() {
-                target.eval(wi, wo, keys, f, se)?
+                answers.eval_into(&q, evals)?
             } else {
+                // Both in one library call: the directions are checked and
+                // normalized once.
                 let pdf = output("pdf", d.pdf, 1, d.n)?;
-                target.eval_pdf(wi, wo, keys, f, se, pdf)?
+                answers.eval_pdf_into(&q, evals, &mut |k, p| pdf[k] = p)?
             };
             d.count(cut)
         }
@@ -1827,23 +1731,34 @@ pub unsafe extern "C" fn strata_sample(b: *const StrataBsdf, batch: *const Strat
         };
         // SAFETY: as in `strata_eval`.
         let cols = unsafe { d.checked(required)? };
-        let target = cols.target(bsdf, d.n)?;
+        let rows = cols.rows(bsdf, d.n)?;
+        let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`. `StrataSample` has the layout of
         // `SampleRecord` (asserted at compile time), so records may be
         // written as those.
         unsafe {
             let (wi, _) = d.directions()?;
             let n = d.n;
-            let out = match (d.sampled.write("sampled", n)?, d.weight.write("weight", n)?) {
-                (Some(wo), Some(weight)) => SampleOut::Soa {
-                    wo,
-                    weight,
-                    pdf: output("pdf", d.pdf, 1, n)?,
-                    flags: output("flags", d.flags, 1, n)?,
-                },
-                _ => SampleOut::Records(output("sample", d.sample.cast::<SampleRecord>(), 1, n)?),
+            let q = Queries {
+                keys: d.keys()?,
+                ..Queries::directions(wi)
             };
-            target.sample(wi, d.keys()?, out)
+            match (d.sampled.write("sampled", n)?, d.weight.write("weight", n)?) {
+                (Some(wo), Some(weight)) => {
+                    let mut out = SampleBuffers {
+                        wo,
+                        weight,
+                        pdf: output("pdf", d.pdf, 1, n)?,
+                        flags: output("flags", d.flags, 1, n)?,
+                    };
+                    answers.sample_into(&q, &mut |k, s| out.put(k, s))?;
+                }
+                _ => {
+                    let out = output("sample", d.sample.cast::<SampleRecord>(), 1, n)?;
+                    answers.sample_into(&q, &mut |k, s| out[k] = SampleRecord::of(s))?;
+                }
+            }
+            Ok(())
         }
     })
 }
@@ -1864,12 +1779,14 @@ pub unsafe extern "C" fn strata_pdf(b: *const StrataBsdf, batch: *const StrataBa
         };
         // SAFETY: as in `strata_eval`.
         let cols = unsafe { d.checked(&["wo", "pdf"])? };
-        let target = cols.target(bsdf, d.n)?;
+        let rows = cols.rows(bsdf, d.n)?;
+        let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`.
         unsafe {
             let (wi, wo) = d.directions()?;
             let wo = wo.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wo is NULL"))?;
-            target.pdf(wi, wo, output("pdf", d.pdf, 1, d.n)?)
+            let pdf = output("pdf", d.pdf, 1, d.n)?;
+            Ok(answers.pdf_into(&Queries::pairs(wi, wo), &mut |k, p| pdf[k] = p)?)
         }
     })
 }
@@ -1895,14 +1812,19 @@ pub unsafe extern "C" fn strata_pdf_unbiased(
         walk_count("walks", d.walks)?;
         // SAFETY: as in `strata_eval`.
         let cols = unsafe { d.checked(&["wo", "pdf", "pdf_stderr"])? };
-        let target = cols.target(bsdf, d.n)?;
+        let rows = cols.rows(bsdf, d.n)?;
+        let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`.
         unsafe {
             let (wi, wo) = d.directions()?;
             let wo = wo.ok_or_else(|| Failure::new(STRATA_ERR_NULL, "wo is NULL"))?;
             let pdf = output("pdf", d.pdf, 1, d.n)?;
             let se = output("pdf_stderr", d.pdf_stderr, 1, d.n)?;
-            let cut = target.pdf_unbiased(wi, wo, d.walks, pdf, se)?;
+            let q = Queries::pairs(wi, wo).walks(d.walks);
+            let cut = answers.pdf_unbiased_into(&q, &mut |k, e| {
+                pdf[k] = e.value as f32;
+                se[k] = e.stderr as f32;
+            })?;
             d.count(cut)
         }
     })
@@ -1925,13 +1847,19 @@ pub unsafe extern "C" fn strata_albedo(b: *const StrataBsdf, batch: *const Strat
         walk_count("walks", d.walks)?;
         // SAFETY: as in `strata_eval`.
         let cols = unsafe { d.checked(&["albedo"])? };
-        let target = cols.target(bsdf, d.n)?;
+        let rows = cols.rows(bsdf, d.n)?;
+        let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`. `StrataAlbedo` has the layout of
         // `AlbedoRecord` (asserted at compile time).
         unsafe {
             let (wi, _) = d.directions()?;
             let out = output("albedo", d.albedo.cast::<AlbedoRecord>(), 1, d.n)?;
-            let cut = target.albedo(wi, d.walks, d.keys()?, out)?;
+            let q = Queries {
+                keys: d.keys()?,
+                ..Queries::directions(wi)
+            }
+            .walks(d.walks);
+            let cut = answers.albedo_into(&q, &mut |k, a| out[k] = AlbedoRecord::of(a))?;
             d.count(cut)
         }
     })

@@ -22,7 +22,9 @@ use strata_bsdf::estimator::scalar::ScalarEngine;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Stats, Wavefront};
 use strata_bsdf::lane::{F32x16, F32x8, Wide};
 use strata_bsdf::stack::{InterfaceDesc, Roughness, Spectrum};
-use strata_bsdf::{Engine, Estimator, EvalStart, LayerStack, LayeredBsdf, Materials, Settings};
+use strata_bsdf::{
+    Bsdf, Engine, Estimator, EvalStart, LayerStack, LayeredBsdf, Materials, Queries, Settings,
+};
 
 /// Arguments of `strata bench`.
 #[derive(clap::Args)]
@@ -396,6 +398,7 @@ fn bench_mixed(
         }
     }
     let keys: Vec<u64> = (0..pairs.len() as u64).collect();
+    let (wi, wo): (Vec<glam::Vec3>, Vec<glam::Vec3>) = pairs.iter().copied().unzip();
     let name = format!("mixed ({m} shapes)");
     let mut ms = Vec::new();
     let mut threads = vec![1];
@@ -410,11 +413,14 @@ fn bench_mixed(
             .threads(t)
             .map_err(|e| e.to_string())?;
         let mats = Materials::new(&template, stacks.iter().map(|(_, st)| st.clone()));
-        let (material, pairs, keys) = (&material, &pairs, &keys);
-        let n = args.samples;
+        let q = Queries::pairs(&wi, &wo)
+            .keys(&keys)
+            .rows(&material)
+            .walks(args.samples);
         ms.push(Measurement::new("wavefront-mixed", t, move || {
-            let e = mats.eval_batch_keyed(material, pairs, n, keys);
-            std::hint::black_box(e.map(|e| e.len()).unwrap_or(0));
+            let mut sum = 0.0;
+            let e = mats.eval_into(&q, &mut |_, e| sum += e.value[0]);
+            std::hint::black_box((e.is_ok(), sum));
             None
         }));
     }
@@ -434,7 +440,7 @@ fn bench_mixed(
 }
 
 /// Time to build one parameter set: `LayerStack::new` of a variant's
-/// description and its entry in [`strata_bsdf::ParamSets`], per set, from
+/// description and its row of [`Materials`] (of one shape), per set, from
 /// a thousand sets of `stack`.
 fn set_build_cost(stack: &LayerStack) -> (f64, f64) {
     let n = 1000u64;
@@ -446,7 +452,8 @@ fn set_build_cost(stack: &LayerStack) -> (f64, f64) {
     let validate = t.elapsed().as_secs_f64() / n as f64;
     let bsdf = LayeredBsdf::new(stack.clone());
     let t = Instant::now();
-    let sets = bsdf.param_sets(stacks).expect("variants keep the shape");
+    let sets = Materials::new(&bsdf, stacks);
+    assert_eq!(sets.shapes(), 1, "variants keep the shape");
     std::hint::black_box(sets.len());
     (validate, t.elapsed().as_secs_f64() / n as f64)
 }
@@ -514,7 +521,7 @@ pub fn run(args: Args) -> Result<(), String> {
             let (validate, add) = set_build_cost(st);
             let _ = writeln!(
                 text,
-                "  {name:<24} LayerStack::new {:.2} us, param_sets {:.2} us",
+                "  {name:<24} LayerStack::new {:.2} us, a set (a row of Materials) {:.2} us",
                 validate * 1e6,
                 add * 1e6
             );

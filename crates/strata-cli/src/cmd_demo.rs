@@ -18,7 +18,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::time::Instant;
-use strata_bsdf::{Estimate, LayerStack, LayeredBsdf};
+use strata_bsdf::{Bsdf, Estimate, LayerStack, LayeredBsdf, Queries};
 
 /// Arguments of `strata demo`.
 #[derive(clap::Args)]
@@ -279,9 +279,10 @@ fn answer(
         } => {
             let (name, b) = &bsdfs[m];
             let (wi, wo) = (wi_dir(theta), wo_dir(psi));
-            let e = b
-                .eval_with(wi, wo, n, q)
-                .map_err(|e| format!("{name}: {e}"))?;
+            let (wis, wos, keys) = ([wi], [wo], [q]);
+            let batch = Queries::pairs(&wis[..], &wos[..]).keys(&keys).walks(n);
+            let mut e = Estimate::default();
+            (b.eval_into(&batch, &mut |_, x| e = *x)).map_err(|e| format!("{name}: {e}"))?;
             let p = b.pdf(wi, wo).map_err(|e| format!("{name}: {e}"))?;
             Ok(Answer::Eval(e, p))
         }

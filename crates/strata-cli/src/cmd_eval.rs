@@ -31,7 +31,7 @@ use std::collections::HashMap;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 use strata_bsdf::query::parse_query_line_set;
-use strata_bsdf::{LayerStack, LayeredBsdf, Materials, PdfKind};
+use strata_bsdf::{Bsdf, Estimate, LayerStack, LayeredBsdf, Materials, PdfKind, Queries};
 
 /// Arguments of `strata eval`.
 #[derive(clap::Args)]
@@ -243,15 +243,10 @@ fn answer(
     if sets.stacks.len() > 1 {
         // Some lines set values of their own: one batch over the materials.
         let mats = Materials::new(bsdf, sets.stacks.iter().cloned());
-        return answer_with(
-            &Batch::Mixed(&mats, &sets.material),
-            args,
-            pairs,
-            lines_of,
-            out,
-        );
+        let rows = Some(&sets.material[..]);
+        return answer_with(&mats, rows, args, pairs, lines_of, out);
     }
-    answer_with(&Batch::One(bsdf), args, pairs, lines_of, out)
+    answer_with(bsdf, None, args, pairs, lines_of, out)
 }
 
 /// The materials of a chunk: the file's (0) and each distinct set's.
@@ -298,15 +293,11 @@ impl Variants {
     }
 }
 
-/// What answers a chunk: the file's material alone, or materials per query.
-enum Batch<'a> {
-    One(&'a LayeredBsdf),
-    Mixed(&'a Materials, &'a [u32]),
-}
-
-/// [`answer`] on `batch`.
+/// [`answer`] on the file's material alone, or on materials with each
+/// line's row.
 fn answer_with(
-    batch: &Batch,
+    answers: &dyn Bsdf,
+    rows: Option<&[u32]>,
     args: &Args,
     pairs: &[(glam::Vec3, glam::Vec3)],
     lines_of: &[usize],
@@ -319,36 +310,26 @@ fn answer_with(
             None => format!("--{}", e.error),
         })
     };
-    let keys: Vec<u64> = pairs
-        .iter()
-        .map(|&(a, b)| strata_bsdf::api::direction_key(a, b))
-        .collect();
-    let f = match batch {
-        Batch::One(b) => b.eval_batch_keyed(pairs, args.samples, &keys),
-        Batch::Mixed(m, of) => m.eval_batch_keyed(of, pairs, args.samples, &keys),
+    let (wi, wo): (Vec<glam::Vec3>, Vec<glam::Vec3>) = pairs.iter().copied().unzip();
+    let q = Queries {
+        rows,
+        ..Queries::pairs(&wi, &wo).walks(args.samples)
+    };
+    let mut f = vec![Estimate::default(); pairs.len()];
+    answers.eval_into(&q, &mut |k, e| f[k] = *e).map_err(fail)?;
+    let mut p = vec![(0.0, None, 0); pairs.len()];
+    match args.pdf {
+        PdfKind::Approximate => answers.pdf_into(&q, &mut |k, x| p[k] = (x, None, 0)),
+        PdfKind::Unbiased => {
+            let q = q.walks(args.unbiased_pdf_walks);
+            answers
+                .pdf_unbiased_into(&q, &mut |k, e| {
+                    p[k] = (e.value as f32, Some(e.stderr as f32), e.truncated)
+                })
+                .map(|_| ())
+        }
     }
     .map_err(fail)?;
-    let p: Vec<(f32, Option<f32>, u64)> = match args.pdf {
-        PdfKind::Approximate => match batch {
-            Batch::One(b) => b.pdf_batch(pairs),
-            Batch::Mixed(m, of) => m.pdf_batch(of, pairs),
-        }
-        .map_err(fail)?
-        .into_iter()
-        .map(|p| (p, None, 0))
-        .collect(),
-        PdfKind::Unbiased => {
-            let n = args.unbiased_pdf_walks;
-            match batch {
-                Batch::One(b) => b.pdf_unbiased_batch(pairs, n),
-                Batch::Mixed(m, of) => m.pdf_unbiased_batch(of, pairs, n),
-            }
-            .map_err(fail)?
-            .into_iter()
-            .map(|p| (p.value as f32, Some(p.stderr as f32), p.truncated))
-            .collect()
-        }
-    };
     for (e, (pdf, pdf_stderr, pdf_cut)) in f.iter().zip(p) {
         let line = Answer {
             f: e.value,

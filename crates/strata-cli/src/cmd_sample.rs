@@ -10,7 +10,7 @@ use crate::common::{load_material, parse_vec3, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
-use strata_bsdf::LayeredBsdf;
+use strata_bsdf::{Bsdf, LayeredBsdf, Queries};
 
 /// Arguments of `strata sample`.
 #[derive(clap::Args)]
@@ -79,9 +79,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut first = 0;
     while first < args.count {
         let n = CHUNK.min(args.count - first);
-        let index: Vec<u64> = (first..first + n).collect();
-        let samples = bsdf
-            .sample_batch(&vec![wi; n as usize], &index)
+        let (index, wis): (Vec<u64>, Vec<_>) = (first..first + n).map(|k| (k, wi)).unzip();
+        let mut samples = vec![None; n as usize];
+        let q = Queries::directions(&wis).indices(&index);
+        (bsdf.sample_into(&q, &mut |k, s| samples[k] = s.copied()))
             .map_err(|e| format!("--wi {}: {}", args.wi, e.error))?;
         first += n;
         for s in samples {

@@ -16,7 +16,7 @@
 //!   in half its time.
 
 use std::time::Instant;
-use strata_bsdf::{Engine, Estimator, EvalStart, LayerStack, LayeredBsdf};
+use strata_bsdf::{Bsdf, Engine, Estimate, Estimator, EvalStart, LayerStack, LayeredBsdf, Queries};
 
 const VALUES: &str = include_str!("../data/pbrt-v4/values_f.csv");
 /// The timing file used, and the machine it was measured on.
@@ -234,10 +234,11 @@ pub fn compare(
         let mut est = None;
         for r in 0..reps.max(1) {
             let key = strata_bsdf::api::direction_key(wi, wo) ^ r as u64;
+            let (wis, wos, keys) = ([wi], [wo], [key]);
+            let q = Queries::pairs(&wis[..], &wos[..]).keys(&keys).walks(walks);
+            let mut e = Estimate::default();
             let t = Instant::now();
-            let e = bsdf
-                .eval_with(wi, wo, walks, key)
-                .map_err(|e| e.to_string())?;
+            (bsdf.eval_into(&q, &mut |_, x| e = *x)).map_err(|e| e.to_string())?;
             best = best.min(t.elapsed().as_secs_f64());
             est.get_or_insert(e);
         }

@@ -22,7 +22,10 @@ use crate::pbrt::{self, Config};
 use glam::Vec3;
 use std::f64::consts::PI;
 use strata_bsdf::stack::SetPath;
-use strata_bsdf::{Column, LayerStack, LayeredBsdf, PerQuery, Transport, Vectors, VectorsMut};
+use strata_bsdf::{
+    Bsdf, Column, Estimate, LayerStack, LayeredBsdf, PerQuery, Queries, SampleBuffers, Transport,
+    Vectors, VectorsMut,
+};
 
 const DATA: &str = include_str!("../data/pbrt-v4/vertex.csv");
 
@@ -274,28 +277,33 @@ impl Batch {
             table += thread_cpu_ns() - t0;
             Ok(Some(per))
         };
-        let wi = || Vectors::from_flat(&self.wi).expect("3 floats a vertex");
-        let light = || Vectors::from_flat(&self.light).expect("3 floats a vertex");
+        let wi = Vectors::from_flat(&self.wi).expect("3 floats a vertex");
+        let light = Vectors::from_flat(&self.light).expect("3 floats a vertex");
         let per = on()?;
         let t0 = thread_cpu_ns();
-        let (wo, weight) = (flat_mut(&mut self.wo), flat_mut(&mut self.weight));
-        let (pdf, flags) = (&mut self.pdf, &mut self.flags);
-        match &per {
-            None => bsdf.sample_into(wi(), Some(&self.keys), wo, weight, pdf, flags),
-            Some(p) => p.sample_into(wi(), Some(&self.keys), wo, weight, pdf, flags),
-        }
-        .map_err(e)?;
+        let mut out = SampleBuffers {
+            wo: flat_mut(&mut self.wo),
+            weight: flat_mut(&mut self.weight),
+            pdf: &mut self.pdf,
+            flags: &mut self.flags,
+        };
+        let q = Queries::directions(wi).keys(&self.keys);
+        let answers: &dyn Bsdf = per.as_ref().map_or(bsdf, |p| p as &dyn Bsdf);
+        answers
+            .sample_into(&q, &mut |k, s| out.put(k, s))
+            .map_err(e)?;
         let sample = thread_cpu_ns() - t0;
         drop(per);
         let per = on()?;
         let t0 = thread_cpu_ns();
-        let (f, keys) = (flat_mut(&mut self.f), Some(&self.light_keys[..]));
+        let mut f = flat_mut(&mut self.f);
         let light_pdf = &mut self.light_pdf;
-        match &per {
-            None => bsdf.eval_pdf_into(wi(), light(), keys, f, None, light_pdf),
-            Some(p) => p.eval_pdf_into(wi(), light(), keys, f, None, light_pdf),
-        }
-        .map_err(e)?;
+        let q = Queries::pairs(wi, light).keys(&self.light_keys);
+        let answers: &dyn Bsdf = per.as_ref().map_or(bsdf, |p| p as &dyn Bsdf);
+        let evals = &mut |k, e: &Estimate| f.set(k, e.value.map(|v| v as f32));
+        answers
+            .eval_pdf_into(&q, evals, &mut |k, p| light_pdf[k] = p)
+            .map_err(e)?;
         let light = thread_cpu_ns() - t0;
         drop(per);
         for (n, d) in ns.iter_mut().zip([table, sample, light]) {

@@ -3,7 +3,8 @@
 
 use super::error::{check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS};
 use super::param_sets::Per;
-use super::strategy::{Estimator, EvalStart};
+use super::plan::{control_variate_for, rough_entry, EvalRoute};
+use super::strategy::{Engine, Estimator, EvalStart};
 use super::transport::Transport;
 use crate::estimator::closed_form::SmoothCoatLambertian;
 use crate::estimator::coat_lambertian::CoatLambertian;
@@ -14,7 +15,6 @@ use crate::estimator::wavefront::{
     with_kept, DefaultWide, Plan, Wavefront, PDF_CHUNK, SERIAL_WALKS,
 };
 use crate::estimator::{Albedo, Estimate, Settings, WalkSample};
-use crate::lane::Lane;
 use crate::rng::{mix64, Stream, WalkRng};
 use crate::stack::{LayerStack, Shape};
 use glam::Vec3;
@@ -45,87 +45,18 @@ pub struct Sample {
     pub specular: bool,
 }
 
-/// Which engine answers a query. The scalar and the wavefront engine give the
-/// same results for the same seeds (walk by walk, bit for bit: they run the
-/// same f32 operations; tested); `Auto` gives one of theirs.
-///
-/// The wavefront engine pays a fixed setup cost per call (preparing the
-/// queries and a wave), which its lanes repay many times over on a batch, or
-/// on an `eval` of many walks, but not on a call of fewer walks than it has
-/// lanes (a single `sample`'s walk): there the scalar engine is the cheaper
-/// one (docs/performance.md, *criterion*).
-/// [`Engine::Auto`], the default, picks per call. Calls of at most
-/// [`SERIAL_WALKS`] walks (pdf batches of at most [`PDF_CHUNK`] queries) run
-/// on the calling thread on either engine, with or without
-/// [`LayeredBsdf::threads`].
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Engine {
-    /// Per call: the scalar engine for calls of fewer walks (queries × walks
-    /// per query) than the wavefront has lanes, the wavefront otherwise. A
-    /// pdf counts the walks of its first round twice (a density walk costs
-    /// several eval walks), so a single `pdf` of the default walks runs on
-    /// the wavefront.
-    #[default]
-    Auto,
-    /// The scalar reference: one walk at a time.
-    Scalar,
-    /// The SIMD wavefront engine: walks in lanes, batches over threads.
-    Wavefront,
-}
-
-impl Engine {
-    /// The engine that answers a call of `queries` queries of `walks` walks
-    /// each: `Scalar` or `Wavefront`, never `Auto`.
-    pub fn resolve(self, queries: usize, walks: u64) -> Engine {
-        match self {
-            Engine::Auto
-                if (queries as u64).saturating_mul(walks) < <DefaultWide as Lane>::LANES as u64 =>
-            {
-                Engine::Scalar
-            }
-            Engine::Auto => Engine::Wavefront,
-            e => e,
-        }
-    }
-}
-
-impl Engine {
-    /// The name `FromStr` takes: `auto`, `scalar` or `wavefront`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Engine::Auto => "auto",
-            Engine::Scalar => "scalar",
-            Engine::Wavefront => "wavefront",
-        }
-    }
-}
-
-impl std::str::FromStr for Engine {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(Engine::Auto),
-            "scalar" => Ok(Engine::Scalar),
-            "wavefront" => Ok(Engine::Wavefront),
-            _ => Err(format!(
-                "unknown engine {s:?} (expected auto, scalar or wavefront)"
-            )),
-        }
-    }
-}
-
 /// A layered BSDF ready to query.
 ///
 /// Every query is deterministic: its random streams are seeded from the
 /// BSDF's seed and a query key. The plain methods derive the key from the
 /// directions' bits (so the same `(wi, wo)` always gives the same answer,
 /// alone or in a batch, on either engine; the two engines agree bit for
-/// bit, and [`Engine::Auto`] picks one by the size of the call); the
-/// `_keyed` variants take the keys explicitly, so that a renderer can draw
-/// fresh noise per call.
+/// bit, and [`Engine::Auto`] picks one by the size of the call); a batch
+/// ([`Bsdf`](super::Bsdf), [`Queries`](super::Queries)) may take the keys
+/// explicitly, so that a renderer can draw fresh noise per call.
 ///
 /// ```
-/// use strata_bsdf::{Engine, LayeredBsdf, LayerStack};
+/// use strata_bsdf::{Bsdf, Engine, Estimate, LayeredBsdf, LayerStack, Queries};
 /// use glam::Vec3;
 /// let stack = LayerStack::from_toml_str(r#"
 ///     [[layers]]
@@ -134,10 +65,12 @@ impl std::str::FromStr for Engine {
 ///     interface = { kind = "diffuse", albedo = 0.8 }
 /// "#).unwrap();
 /// let bsdf = LayeredBsdf::new(stack).samples(512);
-/// let pairs = [(Vec3::Z, Vec3::new(0.5, 0.0, 0.8)), (Vec3::new(0.3, 0.0, 0.9), Vec3::Z)];
-/// let batch = bsdf.eval_batch(&pairs).unwrap();
+/// let wi = [Vec3::Z, Vec3::new(0.3, 0.0, 0.9)];
+/// let wo = [Vec3::new(0.5, 0.0, 0.8), Vec3::Z];
+/// let mut batch = [Estimate::default(); 2];
+/// bsdf.eval_into(&Queries::pairs(&wi[..], &wo[..]), &mut |k, e| batch[k] = *e).unwrap();
 /// // A batch answers exactly what single queries answer, on either engine.
-/// let single = bsdf.clone().engine(Engine::Scalar).eval(pairs[1].0, pairs[1].1).unwrap();
+/// let single = bsdf.clone().engine(Engine::Scalar).eval(wi[1], wo[1]).unwrap();
 /// assert_eq!(batch[1].value, single.value);
 /// ```
 #[derive(Clone, Debug)]
@@ -160,6 +93,9 @@ pub struct LayeredBsdf {
     threads: Threads,
     /// The stack's shape, which parameter sets must have.
     pub(super) shape: Shape,
+    /// How the stack's evals pick their estimator (decided when the
+    /// stack or the estimator is set).
+    route: EvalRoute,
     /// Whether the interface that walks from above (`[0]`) and from below
     /// (`[1]`) enter is rough (`EvalStart::Normal`'s side of a reflected
     /// pair): an opaque stack lit from below is mirrored, so both are its
@@ -220,6 +156,7 @@ impl LayeredBsdf {
             coat,
             threads: Threads::Current,
             rough_entry: rough_entry(&stack),
+            route: Estimator::default().route(&stack),
             shape: stack.shape(),
         }
     }
@@ -367,6 +304,7 @@ impl LayeredBsdf {
     #[must_use]
     pub fn estimator(mut self, estimator: Estimator) -> Self {
         self.estimator = estimator;
+        self.route = estimator.route(self.stack());
         // The engines' walks leave out what the control variate holds only
         // for `Auto`; `Unidirectional` keeps the plain walks.
         let on = self.control_variate_for(self.stack());
@@ -385,14 +323,14 @@ impl LayeredBsdf {
     /// Whether `eval` runs the bidirectional estimator (the estimator is
     /// [`Estimator::Bidirectional`], or `Auto` on a stack where it pays).
     pub fn bidirectional(&self) -> bool {
-        self.estimator.is_bidirectional_for(self.stack())
+        self.route.bidirectional()
     }
 
     /// Whether query `k`'s eval, from `a` to `b`, runs the bidirectional
     /// estimator: by its own stack and directions.
     pub(super) fn bidirectional_in(&self, per: Per, k: usize, a: Pt, b: Pt) -> bool {
         match per.0 {
-            None => self.estimator.is_bidirectional_at(self.stack(), a, b),
+            None => self.route.bidirectional_at(a, b),
             Some((p, s)) => p.route[s[k] as usize].bidirectional_at(a, b),
         }
     }
@@ -572,39 +510,31 @@ impl LayeredBsdf {
 
     // ------------------------------------------------------------ single queries
 
-    /// `f(wi, wo)` (without the cosine) with its standard error.
+    /// `f(wi, wo)` (without the cosine) with its standard error, from
+    /// `samples()` walks keyed by the directions' bits.
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Result<Estimate, QueryError> {
-        self.eval_with(wi, wo, self.samples, direction_key(wi, wo))
-    }
-
-    /// `f(wi, wo)` from `samples` walks with query key `query`.
-    pub fn eval_with(
-        &self,
-        wi: Vec3,
-        wo: Vec3,
-        samples: u64,
-        query: u64,
-    ) -> Result<Estimate, QueryError> {
         let pair = (
             Direction::new("wi", wi)?.get(),
             Direction::new("wo", wo)?.get(),
         );
-        check_walks("samples", samples)?;
-        Ok(self.eval_validated(Per::OWN, &[pair], samples, &[query])[0])
+        check_walks("samples", self.samples)?;
+        let key = direction_key(wi, wo);
+        Ok(self.eval_validated(Per::OWN, &[pair], self.samples, &[key])[0])
     }
 
     /// Samples an outgoing direction for light from `wi`; `None` if the walk
     /// was absorbed. `sample_index` selects the random stream (the key is
     /// the direction's bits).
     pub fn sample(&self, wi: Vec3, sample_index: u64) -> Result<Option<Sample>, QueryError> {
-        Ok(self
-            .sample_batch_keyed(&[wi], &[direction_key(wi, wi)], &[sample_index])
-            .map_err(|e| e.error)?[0])
+        let key = direction_key(wi, wi);
+        let s = self.sample_checked(Per::OWN, &[wi], &[key], &[sample_index]);
+        Ok(s.map_err(|e| e.error)?[0])
     }
 
     /// The approximate pdf of `wo` for `sample(wi)` (see [`crate::estimator::pdf`]).
     pub fn pdf(&self, wi: Vec3, wo: Vec3) -> Result<f32, QueryError> {
-        Ok(self.pdf_batch(&[(wi, wo)]).map_err(|e| e.error)?[0])
+        let pairs = directions2(&[(wi, wo)]).map_err(|e| e.error)?;
+        Ok(self.pdf_validated(Per::OWN, &pairs)[0])
     }
 
     /// The unbiased pdf of `wo` for `sample(wi)`: the density of
@@ -617,88 +547,15 @@ impl LayeredBsdf {
         wo: Vec3,
         samples: u64,
     ) -> Result<PdfEstimate, QueryError> {
-        Ok(self
-            .pdf_unbiased_batch(&[(wi, wo)], samples)
-            .map_err(|e| e.error)?[0])
+        let e = self.pdf_unbiased_checked(Per::OWN, &[(wi, wo)], samples);
+        Ok(e.map_err(|e| e.error)?[0])
     }
 
     /// Reflected and transmitted fractions of light from `wi`, from `n` walks.
     pub fn albedo(&self, wi: Vec3, n: u64) -> Result<Albedo, QueryError> {
-        Ok(self
-            .albedo_batch_keyed(&[wi], n, &[direction_key(wi, wi)])
-            .map_err(|e| e.error)?[0])
-    }
-
-    // ------------------------------------------------------------------ batches
-
-    /// `f(wi, wo)` for every pair, `samples()` walks each; query keys from
-    /// the directions (the same answers as [`LayeredBsdf::eval`]).
-    pub fn eval_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<Estimate>, BatchError> {
-        self.eval_batch_keyed(pairs, self.samples, &pair_keys(pairs))
-    }
-
-    /// `f(wi, wo)` for every pair with `samples` walks and explicit keys.
-    pub fn eval_batch_keyed(
-        &self,
-        pairs: &[(Vec3, Vec3)],
-        samples: u64,
-        keys: &[u64],
-    ) -> Result<Vec<Estimate>, BatchError> {
-        self.eval_checked(Per::OWN, pairs, samples, keys)
-    }
-
-    /// One sampled direction per incident direction; `sample_index[k]`
-    /// selects query `k`'s random stream; keys from the directions.
-    pub fn sample_batch(
-        &self,
-        wis: &[Vec3],
-        sample_index: &[u64],
-    ) -> Result<Vec<Option<Sample>>, BatchError> {
-        self.sample_batch_keyed(wis, &dir_keys(wis), sample_index)
-    }
-
-    /// [`LayeredBsdf::sample_batch`] with explicit keys: query `k` draws
-    /// from the stream `(seed, keys[k], sample_index[k])`.
-    pub fn sample_batch_keyed(
-        &self,
-        wis: &[Vec3],
-        keys: &[u64],
-        sample_index: &[u64],
-    ) -> Result<Vec<Option<Sample>>, BatchError> {
-        self.sample_checked(Per::OWN, wis, keys, sample_index)
-    }
-
-    /// The approximate pdf for every pair. A pdf takes no caller keys: it
-    /// is keyed by the normalized directions, so it is a function of the two
-    /// directions (and the seed), and the number [`Sample::pdf`] carries is
-    /// the one a later `pdf` call gives, whatever the length of the vectors.
-    pub fn pdf_batch(&self, pairs: &[(Vec3, Vec3)]) -> Result<Vec<f32>, BatchError> {
-        Ok(self.pdf_validated(Per::OWN, &directions2(pairs)?))
-    }
-
-    /// [`LayeredBsdf::pdf_unbiased`] for every pair.
-    pub fn pdf_unbiased_batch(
-        &self,
-        pairs: &[(Vec3, Vec3)],
-        samples: u64,
-    ) -> Result<Vec<PdfEstimate>, BatchError> {
-        self.pdf_unbiased_checked(Per::OWN, pairs, samples)
-    }
-
-    /// Directional albedo of every incident direction, `n` walks each; keys
-    /// from the directions.
-    pub fn albedo_batch(&self, wis: &[Vec3], n: u64) -> Result<Vec<Albedo>, BatchError> {
-        self.albedo_batch_keyed(wis, n, &dir_keys(wis))
-    }
-
-    /// [`LayeredBsdf::albedo_batch`] with explicit keys.
-    pub fn albedo_batch_keyed(
-        &self,
-        wis: &[Vec3],
-        n: u64,
-        keys: &[u64],
-    ) -> Result<Vec<Albedo>, BatchError> {
-        self.albedo_checked(Per::OWN, wis, n, keys)
+        let key = direction_key(wi, wi);
+        let a = self.albedo_checked(Per::OWN, &[wi], n, &[key]);
+        Ok(a.map_err(|e| e.error)?[0])
     }
 
     // ------------------------------------ the batch calls' checks, for any `per`
@@ -812,7 +669,7 @@ impl LayeredBsdf {
             None
         } else if self.without_walks().is_some() {
             Some(Route::WithoutWalks)
-        } else if !self.estimator.is_bidirectional_for(self.stack()) {
+        } else if !self.route.bidirectional() {
             Some(Route::Unidirectional)
         } else {
             None
@@ -1460,13 +1317,6 @@ fn directions1(wis: &[Vec3]) -> Result<Vec<[f64; 3]>, BatchError> {
 /// A validated direction.
 type Pt = [f64; 3];
 
-/// `Estimator::Auto` uses the control variate where it pays
-/// (`CoatLambertian::control_variate_pays`); `Unidirectional` keeps the
-/// plain walks.
-fn control_variate_for(estimator: Estimator, stack: &LayerStack, settings: &Settings) -> bool {
-    estimator == Estimator::Auto && CoatLambertian::control_variate_pays(stack, settings)
-}
-
 /// A validated `(wi, wo)` pair.
 pub(super) type Pair = ([f64; 3], [f64; 3]);
 
@@ -1489,32 +1339,10 @@ pub(super) fn directions2(pairs: &[(Vec3, Vec3)]) -> Result<Vec<Pair>, BatchErro
         .collect()
 }
 
-/// The keys of unkeyed eval and pdf batches: each pair's directions.
-pub(super) fn pair_keys(pairs: &[(Vec3, Vec3)]) -> Vec<u64> {
-    pairs.iter().map(|&(a, b)| direction_key(a, b)).collect()
-}
-
-/// The keys of unkeyed sample and albedo batches: each direction.
-pub(super) fn dir_keys(wis: &[Vec3]) -> Vec<u64> {
-    wis.iter().map(|&a| direction_key(a, a)).collect()
-}
-
 /// The key of a pdf query: the bits of the normalized directions in f32.
 pub(super) fn pdf_key(a: [f64; 3], b: [f64; 3]) -> u64 {
     let f32s = |d: [f64; 3]| Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
     direction_key(f32s(a), f32s(b))
-}
-
-/// Whether the interface walks enter from above and from below is rough
-/// ([`LayeredBsdf::swaps`]).
-fn rough_entry(stack: &LayerStack) -> [bool; 2] {
-    let top = !stack.interface(0).smooth;
-    let below = if stack.transmissive() {
-        !stack.interface(stack.len() - 1).smooth
-    } else {
-        top
-    };
-    [top, below]
 }
 
 /// A query key from the bits of two directions.

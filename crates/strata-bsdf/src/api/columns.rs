@@ -285,7 +285,7 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// allocated as any Rust value; the chunk bounds how many exist at once.)
 ///
 /// ```
-/// use strata_bsdf::{Column, LayerStack, LayeredBsdf, PerQuery, Vectors, VectorsMut};
+/// use strata_bsdf::{Bsdf, Column, LayerStack, LayeredBsdf, PerQuery, Queries};
 /// let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(
 ///     "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5 }\n\
 ///      medium = { thickness = 1, sigma_t = 0.5 }\n\
@@ -295,9 +295,9 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// let thickness = [0.1, 0.5, 2.0];
 /// let q = PerQuery::new(&bsdf, 3, &[Column { path: &path, width: 1, values: &thickness }]).unwrap();
 /// let wi = [[0.0, 0.0, 1.0]; 3];
-/// let mut f = [[0.0f32; 3]; 3];
-/// q.eval_into(Vectors::Aos(&wi), Vectors::Aos(&wi), None, VectorsMut::Aos(&mut f), None).unwrap();
-/// assert!(f.iter().all(|v| v[0] > 0.0));
+/// let mut f = [0.0; 3];
+/// q.eval_into(&Queries::pairs(&wi[..], &wi[..]), &mut |k, e| f[k] = e.value[0]).unwrap();
+/// assert!(f.iter().all(|&v| v > 0.0));
 /// ```
 #[derive(Clone, Debug)]
 pub struct PerQuery<'a> {

@@ -1,9 +1,9 @@
 //! A BSDF's configuration as one value with one text form, so that every
 //! front end (the CLI, C, Python) reads and prints settings the same way.
 
-use super::bsdf::{Engine, LayeredBsdf};
+use super::bsdf::LayeredBsdf;
 use super::error::{ThreadsError, MAX_THREADS, MAX_WALKS};
-use super::strategy::{Estimator, EvalStart};
+use super::strategy::{Engine, Estimator, EvalStart};
 use super::transport::Transport;
 use crate::estimator::events::{MAX_CAP, MIN_RR_THRESHOLD};
 use crate::estimator::pdf::PdfWalks;

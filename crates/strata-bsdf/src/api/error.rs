@@ -57,6 +57,9 @@ pub enum QueryError {
         /// The number of materials.
         materials: usize,
     },
+    /// Rows given to a table whose query `k` is on row `k` (per-query
+    /// columns).
+    RowsNotTaken,
     /// The call's working memory could not be allocated (the allocator
     /// refused: the process is out of memory or address space).
     OutOfMemory {
@@ -106,6 +109,10 @@ impl fmt::Display for QueryError {
                 f,
                 "material = {value}: there are {materials} materials (0 to {})",
                 materials.saturating_sub(1)
+            ),
+            QueryError::RowsNotTaken => write!(
+                f,
+                "rows: a table of per-query columns answers query k on its row k; give no rows"
             ),
             QueryError::OutOfMemory { call, bytes } => write!(
                 f,

@@ -153,21 +153,9 @@ impl Materials {
             .collect())
     }
 
-    /// `f(wi, wo)` of every pair on its material, the template's samples
-    /// each; keys from the directions.
-    pub fn eval_batch(
-        &self,
-        material: &[u32],
-        pairs: &[(Vec3, Vec3)],
-    ) -> Result<Vec<Estimate>, BatchError> {
-        lengths("material", material.len(), pairs.len())?;
-        self.split(material, |b, ps, ids, set| {
-            b.eval_batch_sets(ps, set, &pick(pairs, ids))
-        })
-    }
-
-    /// [`Materials::eval_batch`] with `samples` walks and explicit keys.
-    pub fn eval_batch_keyed(
+    /// `f(wi, wo)` of every pair on its material, from `samples` walks with
+    /// explicit keys.
+    pub(super) fn eval_batch_keyed(
         &self,
         material: &[u32],
         pairs: &[(Vec3, Vec3)],
@@ -182,23 +170,9 @@ impl Materials {
         })
     }
 
-    /// One sample per incident direction on its material; keys from the
-    /// directions, `sample_index[k]` selects query `k`'s stream.
-    pub fn sample_batch(
-        &self,
-        material: &[u32],
-        wis: &[Vec3],
-        sample_index: &[u64],
-    ) -> Result<Vec<Option<Sample>>, BatchError> {
-        lengths("material", material.len(), wis.len())?;
-        lengths("sample_index", sample_index.len(), wis.len())?;
-        self.split(material, |b, ps, ids, set| {
-            b.sample_batch_sets(ps, set, &pick(wis, ids), &pick(sample_index, ids))
-        })
-    }
-
-    /// [`Materials::sample_batch`] with explicit keys.
-    pub fn sample_batch_keyed(
+    /// One sample per incident direction on its material, from the stream
+    /// `(keys[k], sample_index[k])`.
+    pub(super) fn sample_batch_keyed(
         &self,
         material: &[u32],
         wis: &[Vec3],
@@ -215,7 +189,7 @@ impl Materials {
     }
 
     /// The approximate pdf of every pair on its material.
-    pub fn pdf_batch(
+    pub(super) fn pdf_batch(
         &self,
         material: &[u32],
         pairs: &[(Vec3, Vec3)],
@@ -228,7 +202,7 @@ impl Materials {
 
     /// The unbiased pdf of every pair on its material, `samples` density
     /// walks each.
-    pub fn pdf_unbiased_batch(
+    pub(super) fn pdf_unbiased_batch(
         &self,
         material: &[u32],
         pairs: &[(Vec3, Vec3)],
@@ -242,7 +216,7 @@ impl Materials {
 
     /// The directional albedo of every incident direction on its material,
     /// `n` walks each, with explicit keys.
-    pub fn albedo_batch_keyed(
+    pub(super) fn albedo_batch_keyed(
         &self,
         material: &[u32],
         wis: &[Vec3],

@@ -12,25 +12,33 @@
 //!   one text form.
 //! * `error`: what can be wrong with a query, and which one.
 //! * `transport`: radiance or importance, for light that crosses the stack.
-//! * `strategy`: which estimator answers `eval`, and from which side.
-//! * `param_sets`, `sets`: per-query parameter sets, and the batch calls
-//!   that take them; `materials`: batches that mix shapes; `columns`: a
-//!   query's own numbers by column.
-//! * [`slices`]: the batch forms over flat slices a renderer keeps (SoA or
-//!   AoS), writing into the caller's buffers, and `#[repr(C)]` records.
+//! * `strategy`: the choices of estimator and start side a caller makes;
+//!   `plan`: the automatic ones (`Auto`), each rule with its constants,
+//!   decided once per row.
+//! * `queries`: one batch of queries ([`Queries`]) and the verbs that
+//!   answer it ([`Bsdf`]); `batch`: those verbs for a BSDF, for
+//!   [`Materials`] and for [`PerQuery`].
+//! * `vectors`: the flat buffers a renderer keeps (SoA, AoS or `Vec3`), and
+//!   `#[repr(C)]` records.
+//! * `param_sets`, `sets`: the numbers of many stacks of one shape, which
+//!   a table's rows become; `materials`: tables of materials of any shapes;
+//!   `columns`: a query's own numbers by column.
 
+mod batch;
 mod bsdf;
 mod columns;
 mod config;
 mod error;
 mod materials;
 mod param_sets;
+mod plan;
+mod queries;
 mod sets;
-pub mod slices;
 mod strategy;
 mod transport;
+mod vectors;
 
-pub use bsdf::{direction_key, Engine, LayeredBsdf, Sample};
+pub use bsdf::{direction_key, LayeredBsdf, Sample};
 pub use columns::{
     Column, ColumnsError, PerQuery, CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS,
     MAX_QUERIES,
@@ -40,7 +48,11 @@ pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };
 pub use materials::Materials;
-pub use param_sets::{ParamSets, SetsError};
-pub use slices::{AlbedoRecord, EvalRecord, SampleFlags, SampleRecord, Vectors, VectorsMut};
-pub use strategy::{Estimator, EvalStart, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA};
+pub use plan::{BOOSTED_CV_MAX_DEPTH, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA, ROUGH_CV_MIN_BASE};
+pub use queries::{Bsdf, Queries};
+pub use strategy::{Engine, Estimator, EvalStart};
 pub use transport::Transport;
+pub use vectors::{
+    AlbedoRecord, EvalBuffers, EvalRecord, SampleBuffers, SampleFlags, SampleRecord, Vectors,
+    VectorsMut,
+};

@@ -1,7 +1,8 @@
 //! Parameter sets of a BSDF's shape ([`ParamSets`]), and which one each
 //! query of a call has ([`Per`]).
 
-use super::strategy::{Estimator, EvalRoute};
+use super::plan::EvalRoute;
+use super::strategy::Estimator;
 use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::wavefront::Sets;
@@ -31,7 +32,7 @@ pub struct ParamSets {
     pub(super) table: Arc<SetTable>,
     /// Per set, what is known of it without walks (where the shape is a
     /// coat over a layer over a Lambertian base, and the set's integral is
-    /// available: see [`LayeredBsdf::param_sets`]).
+    /// available: see `LayeredBsdf::build_sets`).
     pub(super) coat: Vec<Option<CoatLambertian>>,
     /// Per set, how its evals pick their estimator.
     pub(super) route: Vec<EvalRoute>,
@@ -46,13 +47,8 @@ pub(super) struct SetsMut<'a> {
 
 impl ParamSets {
     /// Number of sets.
-    pub fn len(&self) -> usize {
+    pub(super) fn len(&self) -> usize {
         self.coat.len()
-    }
-
-    /// No sets.
-    pub fn is_empty(&self) -> bool {
-        self.coat.is_empty()
     }
 
     /// Empties it, keeping its memory.
@@ -91,14 +87,6 @@ impl ParamSets {
             self.table = Arc::new(SetTable::new(self.shape.interfaces.len()));
         }
         Arc::get_mut(&mut self.table).expect("unique")
-    }
-
-    /// Set `s`'s stack.
-    ///
-    /// # Panics
-    /// If `s` is not below [`ParamSets::len`] (as a slice's index).
-    pub fn stack(&self, s: usize) -> &LayerStack {
-        &self.stacks[s]
     }
 }
 

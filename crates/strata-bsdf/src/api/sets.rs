@@ -1,15 +1,17 @@
-//! Per-query parameters: the calls that build parameter sets of a BSDF's shape
-//! (`api::param_sets`) and the batch calls that take them.
+//! The rows of a table: the parameter sets of a BSDF's shape
+//! (`api::param_sets`), and the calls that answer a batch on them.
 //!
-//! A renderer evaluates textures at every hit. A [`LayeredBsdf`] is built for
-//! a stack's *shape* ([`crate::stack::Shape`]); [`ParamSets`] holds the numbers
-//! of any stacks of that shape (built by [`LayeredBsdf::param_sets`]: it
-//! validates them and derives their lanes, with no engine rebuilt), and the
-//! `*_batch_sets` calls give each query its set by index. A query answers
-//! exactly, bit for bit, what a BSDF built from its set's stack answers,
-//! with the same settings, seed and key (`tests/api/param_sets.rs`).
+//! A [`LayeredBsdf`] is built for a stack's *shape*
+//! ([`crate::stack::Shape`]); [`ParamSets`] holds the numbers of any stacks
+//! of that shape (validated, their lanes derived, with no engine rebuilt),
+//! and the `*_batch_sets` calls give each query its set by index. A query
+//! answers exactly, bit for bit, what a BSDF built from its set's stack
+//! answers, with the same settings, seed and key: [`Materials`] groups its
+//! materials by shape into sets (`tests/api/param_sets.rs`).
+//!
+//! [`Materials`]: super::Materials
 
-use super::bsdf::{dir_keys, directions2, one_each, pair_keys, LayeredBsdf, Sample};
+use super::bsdf::{directions2, one_each, LayeredBsdf, Sample};
 use super::error::{BatchError, QueryError};
 use super::param_sets::{ParamSets, Per, Returns, SetsError, SetsMut};
 use crate::estimator::coat_lambertian::CoatLambertian;
@@ -21,21 +23,6 @@ use glam::Vec3;
 use std::sync::Arc;
 
 impl LayeredBsdf {
-    /// Parameter sets for this BSDF's batch calls: `stacks` must all have
-    /// its shape ([`LayerStack::shape`]; error otherwise, naming the set).
-    /// They hold this BSDF's settings and estimator choices (the control
-    /// variate where it pays, the closed form where the shape has one), so
-    /// a BSDF configured otherwise refuses them. Under a rough coat over a
-    /// Lambertian base, a set whose coat or layer differs from this BSDF's
-    /// integrates its own constant `R̄` (`estimator::coat_return`) the first
-    /// time `eval` needs it.
-    pub fn param_sets(
-        &self,
-        stacks: impl IntoIterator<Item = LayerStack>,
-    ) -> Result<ParamSets, SetsError> {
-        self.build_sets(stacks, Returns::Own)
-    }
-
     /// [`LayeredBsdf::param_sets`], with `returns` saying which sets may
     /// integrate a rough coat's `R̄` of their own.
     pub(super) fn build_sets(
@@ -150,20 +137,9 @@ impl LayeredBsdf {
         Ok(Per(Some((sets, set))))
     }
 
-    /// [`LayeredBsdf::eval_batch`] where query `k` has the parameters of
-    /// set `set[k]`.
-    pub fn eval_batch_sets(
-        &self,
-        sets: &ParamSets,
-        set: &[u32],
-        pairs: &[(Vec3, Vec3)],
-    ) -> Result<Vec<Estimate>, BatchError> {
-        self.eval_batch_sets_keyed(sets, set, pairs, self.samples, &pair_keys(pairs))
-    }
-
     /// [`LayeredBsdf::eval_batch_keyed`] where query `k` has the parameters
     /// of set `set[k]`.
-    pub fn eval_batch_sets_keyed(
+    pub(super) fn eval_batch_sets_keyed(
         &self,
         sets: &ParamSets,
         set: &[u32],
@@ -175,21 +151,9 @@ impl LayeredBsdf {
         self.eval_checked(per, pairs, samples, keys)
     }
 
-    /// [`LayeredBsdf::sample_batch`] where query `k` has the parameters of
-    /// set `set[k]`.
-    pub fn sample_batch_sets(
-        &self,
-        sets: &ParamSets,
-        set: &[u32],
-        wis: &[Vec3],
-        sample_index: &[u64],
-    ) -> Result<Vec<Option<Sample>>, BatchError> {
-        self.sample_batch_sets_keyed(sets, set, wis, &dir_keys(wis), sample_index)
-    }
-
     /// [`LayeredBsdf::sample_batch_keyed`] where query `k` has the
     /// parameters of set `set[k]`.
-    pub fn sample_batch_sets_keyed(
+    pub(super) fn sample_batch_sets_keyed(
         &self,
         sets: &ParamSets,
         set: &[u32],
@@ -203,7 +167,7 @@ impl LayeredBsdf {
 
     /// [`LayeredBsdf::pdf_batch`] where query `k` has the parameters of set
     /// `set[k]`.
-    pub fn pdf_batch_sets(
+    pub(super) fn pdf_batch_sets(
         &self,
         sets: &ParamSets,
         set: &[u32],
@@ -215,7 +179,7 @@ impl LayeredBsdf {
 
     /// [`LayeredBsdf::pdf_unbiased_batch`] where query `k` has the
     /// parameters of set `set[k]`.
-    pub fn pdf_unbiased_batch_sets(
+    pub(super) fn pdf_unbiased_batch_sets(
         &self,
         sets: &ParamSets,
         set: &[u32],
@@ -228,7 +192,7 @@ impl LayeredBsdf {
 
     /// [`LayeredBsdf::albedo_batch_keyed`] where query `k` has the
     /// parameters of set `set[k]`.
-    pub fn albedo_batch_sets_keyed(
+    pub(super) fn albedo_batch_sets_keyed(
         &self,
         sets: &ParamSets,
         set: &[u32],

@@ -1,4 +1,6 @@
-//! How `eval` estimates: with which estimator, and from which side.
+//! The choices a caller makes of how a BSDF answers: which estimator,
+//! from which side eval's walks start, which engine runs them (`Auto`
+//! leaves each to the plan, `api::plan`).
 
 /// Where `eval` starts its walks.
 ///
@@ -26,19 +28,6 @@ pub enum EvalStart {
 }
 
 impl EvalStart {
-    /// Whether the walks of a query start from `wo`; `rough_entry`: the
-    /// pair is reflected and the interface its walks enter is rough.
-    pub(crate) fn swaps(self, wi_z: f64, wo_z: f64, rough_entry: bool) -> bool {
-        self == EvalStart::Normal
-            && if rough_entry {
-                wo_z.abs() < wi_z.abs()
-            } else {
-                wo_z.abs() > wi_z.abs()
-            }
-    }
-}
-
-impl EvalStart {
     /// The name `FromStr` takes: `normal` or `wi`.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -58,21 +47,6 @@ impl std::str::FromStr for EvalStart {
         }
     }
 }
-
-/// The largest roughness (GGX or Beckmann α) of a near-specular coat and
-/// conductor for which `Estimator::Auto` runs the bidirectional estimator
-/// on a two-interface stack ([`Estimator::bidirectional_pays`]): it sits
-/// where docs/results.md measured the bidirectional estimator's advantage
-/// fading on near-specular coats over conductors, so that `Auto` takes it
-/// only where it clearly wins.
-pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
-
-/// The largest optical depth of a scattering layer for which
-/// `Estimator::Auto` runs the bidirectional estimator
-/// ([`Estimator::bidirectional_pays`]): it won at 0.5 on three interfaces
-/// and lost by far at 8 and 10, where its walks, whose cost grows with the
-/// cube of their length, are long (docs/results.md).
-pub const MAX_OPTICAL_DEPTH: f64 = 1.0;
 
 /// Which estimator answers `eval`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -105,98 +79,6 @@ pub enum Estimator {
 }
 
 impl Estimator {
-    /// Whether `Auto` answers `stack`'s eval with the bidirectional
-    /// estimator, on stacks whose scattering layers are all optically thin
-    /// (optical depth at most [`MAX_OPTICAL_DEPTH`] in every channel):
-    /// * on stacks of three interfaces or more, where vertices below the
-    ///   exit's layer reach the viewer only through continuations in the
-    ///   unidirectional estimator;
-    /// * on a rough coat over a smooth conductor, and on a near-specular
-    ///   rough coat over a rough conductor (both roughnesses at most
-    ///   [`NEAR_SPECULAR_ALPHA`]): there the unidirectional estimator can
-    ///   connect to the viewer only by evaluating the coat's lobe at
-    ///   directions the walk drew from another narrow lobe (or a mirror),
-    ///   and is heavy-tailed (its standard errors then understate its
-    ///   error); the bidirectional one also draws that connection from the
-    ///   viewer's side. Over a smooth conductor under pbrt-v4's rough coat
-    ///   (α 0.1) it is far more efficient over pbrt-v4's direction pairs
-    ///   (docs/performance.md, *Against pbrt-v4*); at the specular peak
-    ///   the unidirectional walks still win, and `Auto` keeps them there
-    ///   ([`Estimator::is_bidirectional_at`]).
-    ///
-    /// Measured with `strata converge` on the wavefront engine, one thread
-    /// (docs/results.md, *Which estimator wins*). It is decided query by
-    /// query, on the query's own stack (a parameter set's, so that a set
-    /// answers what its material file answers); a batch whose sets fall on
-    /// both sides of the rule runs as two batches.
-    pub fn bidirectional_pays(stack: &crate::stack::LayerStack) -> bool {
-        use crate::stack::InterfaceKind;
-        // A bidirectional walk's cost grows with the cube of its length
-        // (every pair of vertices, each weight O(n)): an optically thick
-        // scattering layer makes it lose whatever the interfaces.
-        let thin = (0..stack.len().saturating_sub(1)).all(|l| {
-            stack.medium(l).is_none_or(|m| {
-                !m.scatters() || m.optical_depth().iter().all(|&t| t <= MAX_OPTICAL_DEPTH)
-            })
-        });
-        if !thin {
-            return false;
-        }
-        if stack.len() >= 3 {
-            return true;
-        }
-        if stack.len() != 2 {
-            return false;
-        }
-        let (top, base) = (stack.interface(0), stack.interface(1));
-        let near = |it: &crate::stack::Interface| {
-            !it.smooth && it.alpha[0].max(it.alpha[1]) <= NEAR_SPECULAR_ALPHA
-        };
-        let coated_conductor = top.kind == InterfaceKind::Dielectric
-            && !top.smooth
-            && base.kind == InterfaceKind::Conductor;
-        coated_conductor && (base.smooth || (near(top) && near(base)))
-    }
-
-    /// Whether this estimator answers `stack`'s eval with the
-    /// bidirectional estimator (for `Auto`, at some direction pairs: see
-    /// [`Estimator::is_bidirectional_at`]).
-    pub fn is_bidirectional_for(self, stack: &crate::stack::LayerStack) -> bool {
-        match self {
-            Estimator::Bidirectional => true,
-            Estimator::Auto => Self::bidirectional_pays(stack),
-            Estimator::Unidirectional => false,
-        }
-    }
-
-    /// Whether this estimator answers `stack`'s eval at `(wi, wo)` with the
-    /// bidirectional estimator: as [`Estimator::is_bidirectional_for`],
-    /// except that `Auto` keeps the unidirectional walks at the specular
-    /// peak of a coated conductor (the half vector of a reflected pair
-    /// within `tan θh ≤ α` of the normal, α the coat's roughness), where
-    /// the walks' continuation meets the coat's lobe head on and their
-    /// lower cost per walk wins (docs/performance.md, *Against pbrt-v4, with
-    /// the bidirectional estimator*).
-    pub fn is_bidirectional_at(
-        self,
-        stack: &crate::stack::LayerStack,
-        wi: [f64; 3],
-        wo: [f64; 3],
-    ) -> bool {
-        self.route(stack).bidirectional_at(wi, wo)
-    }
-
-    /// What decides the estimator of `stack`'s evals, taken once from its
-    /// numbers ([`Estimator::is_bidirectional_at`] at any directions).
-    pub(crate) fn route(self, stack: &crate::stack::LayerStack) -> EvalRoute {
-        let top = stack.interface(0);
-        EvalRoute {
-            bidirectional: self.is_bidirectional_for(stack),
-            peak: (self == Estimator::Auto && stack.len() < 3)
-                .then(|| top.alpha[0].max(top.alpha[1])),
-        }
-    }
-
     /// The name `FromStr` takes: `auto`, `uni` or `bidir`.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -221,34 +103,56 @@ impl std::str::FromStr for Estimator {
     }
 }
 
-/// `(wi, wo)` is a reflected pair whose half vector lies within the top
-/// interface's roughness of the normal: `tan θh ≤ α` (the larger α of an
-/// anisotropic coat).
-/// How a stack's (or a parameter set's) evals pick their estimator, decided
-/// when the stack or set is built: the walks of [`Estimator::is_bidirectional_for`],
-/// except at the specular peak where `Auto` keeps the unidirectional ones.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct EvalRoute {
-    /// The estimator is bidirectional (at some pairs).
-    bidirectional: bool,
-    /// Under `Auto` on a stack of one or two interfaces: the top's largest
-    /// alpha, within which of the normal a half vector is at the peak.
-    peak: Option<f64>,
+/// Which engine answers a query. The scalar and the wavefront engine give the
+/// same results for the same seeds (walk by walk, bit for bit: they run the
+/// same f32 operations; tested); `Auto` gives one of theirs.
+///
+/// The wavefront engine pays a fixed setup cost per call (preparing the
+/// queries and a wave), which its lanes repay many times over on a batch, or
+/// on an `eval` of many walks, but not on a call of fewer walks than it has
+/// lanes (a single `sample`'s walk): there the scalar engine is the cheaper
+/// one (docs/performance.md, *criterion*).
+/// [`Engine::Auto`], the default, picks per call. Calls of at most
+/// [`SERIAL_WALKS`](crate::estimator::wavefront::SERIAL_WALKS) walks (pdf batches of at most
+/// [`PDF_CHUNK`](crate::estimator::wavefront::PDF_CHUNK) queries) run
+/// on the calling thread on either engine, with or without
+/// [`LayeredBsdf::threads`](super::LayeredBsdf::threads).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Engine {
+    /// Per call: the scalar engine for calls of fewer walks (queries × walks
+    /// per query) than the wavefront has lanes, the wavefront otherwise. A
+    /// pdf counts the walks of its first round twice (a density walk costs
+    /// several eval walks), so a single `pdf` of the default walks runs on
+    /// the wavefront.
+    #[default]
+    Auto,
+    /// The scalar reference: one walk at a time.
+    Scalar,
+    /// The SIMD wavefront engine: walks in lanes, batches over threads.
+    Wavefront,
 }
 
-impl EvalRoute {
-    /// Whether an eval from `wi` to `wo` runs the bidirectional walks.
-    pub(crate) fn bidirectional_at(&self, wi: [f64; 3], wo: [f64; 3]) -> bool {
-        self.bidirectional && !self.peak.is_some_and(|alpha| specular_peak(alpha, wi, wo))
+impl Engine {
+    /// The name `FromStr` takes: `auto`, `scalar` or `wavefront`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Engine::Auto => "auto",
+            Engine::Scalar => "scalar",
+            Engine::Wavefront => "wavefront",
+        }
     }
 }
 
-/// The half vector of a reflected pair lies within `tan θh ≤ alpha` of the
-/// normal.
-fn specular_peak(alpha: f64, wi: [f64; 3], wo: [f64; 3]) -> bool {
-    if wi[2] * wo[2] <= 0.0 {
-        return false;
+impl std::str::FromStr for Engine {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Engine::Auto),
+            "scalar" => Ok(Engine::Scalar),
+            "wavefront" => Ok(Engine::Wavefront),
+            _ => Err(format!(
+                "unknown engine {s:?} (expected auto, scalar or wavefront)"
+            )),
+        }
     }
-    let h = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
-    (h[0] * h[0] + h[1] * h[1]).sqrt() <= alpha * h[2].abs()
 }

@@ -12,28 +12,12 @@
 
 use super::accumulate::MeanVar;
 use super::closed_form::SmoothCoatLambertian;
-use super::coat_and_base::coat_and_base;
 use super::estimate::WalkSample;
 use super::rough_coat::RoughCoatLambertian;
 use super::settings::Settings;
 use crate::rng::WalkRng;
-use crate::stack::{LayerStack, PhaseKind};
+use crate::stack::LayerStack;
 use std::sync::Arc;
-
-/// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
-/// boosted control variate ([`CoatLambertian::control_variate_pays`]).
-/// A conservative choice: the deepest measured stack inside the rule is at
-/// τ 2; a grey τ 8 one about broke even at its worst pair, and the deep
-/// example `jade` (which the other conditions leave out too) lost
-/// efficiency (docs/performance.md).
-pub const BOOSTED_CV_MAX_DEPTH: f64 = 2.0;
-
-/// The darkest base (smallest albedo of a channel) over which
-/// [`crate::Estimator::Auto`] uses the control variate under a *rough* coat
-/// ([`CoatLambertian::control_variate_pays`]). Over a darker one the series
-/// of bounces that the control variate takes out of the walks is short, and
-/// sampling `f₀` costs about what it saves (docs/performance.md).
-pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
 
 /// A coat over a layer over a Lambertian base, smooth or rough.
 #[derive(Clone, Debug)]
@@ -159,59 +143,5 @@ impl CoatLambertian {
             }
             (_, other) => other,
         }
-    }
-
-    /// Whether [`crate::Estimator::Auto`] uses the control variate on
-    /// `stack`: it has the shape ([`CoatLambertian::unscattered`]), its
-    /// medium scatters, and, under a **smooth** coat, either
-    ///
-    /// * the medium is grey (one extinction and one albedo for the three
-    ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
-    ///   Henyey–Greenstein phase function: its walks then boost their first
-    ///   collision ([`super::events::FIRST_COLLISION_BOOST`]), and every such
-    ///   stack measured a gain at the median (and at every pair but one); or
-    /// * the medium scatters little against what the base reflects,
-    ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
-    ///   single-scattering albedo `a`, base albedo `ρ`).
-    ///
-    /// Elsewhere (a chromatic albedo, a mixture of lobes, or chromatic
-    /// extinction, which the boost does not cover) the control variate
-    /// measured more variance per unit of time at some pairs: a collided
-    /// path scores about what the uncollided one it replaces would have, and
-    /// the boosted walks' longer roulette costs time; deeper grey media are
-    /// left out by choice ([`BOOSTED_CV_MAX_DEPTH`]). A mixture of a single
-    /// lobe counts as a mixture here.
-    ///
-    /// Under a **rough** coat, whose `f₀` is sampled, only where the medium
-    /// scatters little against what the base reflects (as above) over a
-    /// base no darker than [`ROUGH_CV_MIN_BASE`]: under rough coats the grey
-    /// media of the first rule lost efficiency at some pair or gained
-    /// little.
-    ///
-    /// Measured in `tests/estimators/layered_control_variate.rs`
-    /// (`control_variate_efficiency`; docs/performance.md).
-    pub fn control_variate_pays(stack: &LayerStack, settings: &Settings) -> bool {
-        // The shape of `unscattered`, without building it.
-        let Some((coat, _)) = coat_and_base(stack, settings) else {
-            return false;
-        };
-        if !coat.smooth && !RoughCoatLambertian::in_domain(coat) {
-            return false;
-        }
-        let Some(m) = stack.medium(0).filter(|m| m.scatters()) else {
-            return false;
-        };
-        let tau = m.optical_depth();
-        let rho = stack.interface(1).albedo;
-        let scatter = (0..3).map(|c| tau[c] * m.albedo[c]).fold(0.0, f64::max);
-        let base = rho.iter().copied().fold(f64::INFINITY, f64::min);
-        let little = scatter <= 0.1 * base;
-        if !stack.interface(0).smooth {
-            return little && base >= ROUGH_CV_MIN_BASE;
-        }
-        let grey = m.grey() && m.albedo.iter().all(|&a| a == m.albedo[0]);
-        let boosted_pays =
-            grey && tau[0] <= BOOSTED_CV_MAX_DEPTH && m.phase_kind() == PhaseKind::Hg;
-        boosted_pays || little
     }
 }

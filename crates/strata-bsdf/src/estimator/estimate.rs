@@ -2,7 +2,7 @@
 //! directional albedo, one walk of the sampler.
 
 /// A Monte Carlo estimate per RGB channel with its standard error.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Estimate {
     /// The mean.
     pub value: [f64; 3],
@@ -17,7 +17,7 @@ pub struct Estimate {
 }
 
 /// Directional albedo: reflected and transmitted fractions.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Albedo {
     /// Reflected fraction per channel.
     pub reflected: Estimate,

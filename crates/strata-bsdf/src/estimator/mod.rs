@@ -19,7 +19,7 @@ mod accumulate;
 pub mod bidir;
 pub mod body_return;
 pub mod closed_form;
-mod coat_and_base;
+pub(crate) mod coat_and_base;
 pub mod coat_lambertian;
 pub mod coat_return;
 pub mod density;

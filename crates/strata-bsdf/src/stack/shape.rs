@@ -8,7 +8,7 @@
 //! the same sidedness. Their IORs, roughnesses, conductor constants,
 //! albedos, thicknesses, extinctions, single-scattering albedos and phase
 //! parameters may all differ: the engines take those per query
-//! (`LayeredBsdf::eval_batch_sets`). A value that changes the shape (a
+//! (the rows of a [`Materials`](crate::Materials) table). A value that changes the shape (a
 //! roughness of 0 on a rough interface, an IOR that matches the region
 //! above, a tilted normal on an untilted interface or back, a single-scattering albedo of 0 in a scattering layer) gives a
 //! stack of another shape, which an engine of this one does not run.

@@ -9,6 +9,7 @@
 //! against the `Vec3` batches are identities of the API on both engines.
 
 use crate::common;
+use crate::common::batches::{Batches, Buffers};
 
 use common::{dir, reference, vec3};
 use glam::Vec3;
@@ -221,7 +222,7 @@ fn slice_calls_answer_what_the_batches_answer() {
             // eval: AoS, SoA and records, unkeyed and keyed.
             let want = b.eval_batch(&pairs).unwrap();
             let (mut f, mut e) = (vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n]);
-            b.eval_into(
+            b.eval_buffers(
                 Vectors::Aos(&wis),
                 Vectors::Aos(&wos),
                 None,
@@ -232,7 +233,7 @@ fn slice_calls_answer_what_the_batches_answer() {
             let mut fs = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
             {
                 let [x, y, z] = &mut fs;
-                b.eval_into(svi, svo, None, VectorsMut::Soa([x, y, z]), None)
+                b.eval_buffers(svi, svo, None, VectorsMut::Soa([x, y, z]), None)
                     .unwrap();
             }
             let mut rec = vec![EvalRecord::default(); n];
@@ -247,7 +248,7 @@ fn slice_calls_answer_what_the_batches_answer() {
             }
             let keys: Vec<u64> = (0..n as u64).map(|k| k * 7919 + 1).collect();
             let want = b.eval_batch_keyed(&pairs, 64, &keys).unwrap();
-            b.eval_into(svi, svo, Some(&keys), VectorsMut::Aos(&mut f), None)
+            b.eval_buffers(svi, svo, Some(&keys), VectorsMut::Aos(&mut f), None)
                 .unwrap();
             for k in 0..n {
                 assert_eq!(f[k], want[k].value.map(|x| x as f32));
@@ -262,7 +263,7 @@ fn slice_calls_answer_what_the_batches_answer() {
                 .unwrap();
             let (mut wo, mut wt) = (vec![[9.0f32; 3]; n], vec![[9.0f32; 3]; n]);
             let (mut pdf, mut flags) = (vec![9.0f32; n], vec![9u32; n]);
-            b.sample_into(
+            b.sample_buffers(
                 svi,
                 None,
                 VectorsMut::Aos(&mut wo),
@@ -301,7 +302,7 @@ fn slice_calls_answer_what_the_batches_answer() {
             // pdf and albedo.
             let want = b.pdf_batch(&pairs).unwrap();
             let mut p = vec![0.0f32; n];
-            b.pdf_into(svi, svo, &mut p).unwrap();
+            b.pdf_buffers(svi, svo, &mut p).unwrap();
             assert_eq!(p, want);
             let want = b.albedo_batch(&v3, 256).unwrap();
             let mut a = vec![AlbedoRecord::default(); n];
@@ -325,7 +326,7 @@ fn slice_errors_name_the_query_and_the_field() {
     bad[2] = [f32::NAN, 0.0, 1.0];
     let mut f = [[7.0f32; 3]; 4];
     let e = b
-        .eval_into(
+        .eval_buffers(
             Vectors::Aos(&good),
             Vectors::Aos(&bad),
             None,
@@ -342,7 +343,7 @@ fn slice_errors_name_the_query_and_the_field() {
 
     let zero = [[0.0f32; 3]; 4];
     let e = b
-        .pdf_into(Vectors::Aos(&zero), Vectors::Aos(&good), &mut [0.0; 4])
+        .pdf_buffers(Vectors::Aos(&zero), Vectors::Aos(&good), &mut [0.0; 4])
         .unwrap_err();
     assert_eq!(
         e.to_string(),
@@ -365,7 +366,7 @@ fn slice_errors_name_the_query_and_the_field() {
     );
 
     let e = b
-        .eval_into(
+        .eval_buffers(
             Vectors::Aos(&good),
             Vectors::Aos(&good[..3]),
             None,
@@ -403,7 +404,7 @@ fn slice_errors_name_the_query_and_the_field() {
     let (mut r, mut g) = (vec![0.0f32; 4], vec![0.0f32; 2]);
     let mut bb = vec![0.0f32; 4];
     let e = b
-        .eval_into(
+        .eval_buffers(
             Vectors::Aos(&good),
             Vectors::Aos(&good),
             None,
@@ -423,10 +424,10 @@ fn slice_errors_name_the_query_and_the_field() {
             &mut [AlbedoRecord::default(); 4],
         )
         .unwrap_err();
-    assert_eq!(e.to_string(), "n = 0: at least one walk is needed");
+    assert_eq!(e.to_string(), "walks = 0: at least one walk is needed");
 
     // Empty batches are fine and write nothing.
-    b.eval_into(
+    b.eval_buffers(
         Vectors::Aos(&[]),
         Vectors::Aos(&[]),
         None,

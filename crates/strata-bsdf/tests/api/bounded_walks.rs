@@ -5,6 +5,7 @@
 //! fraction of walks the limit did not end. `cargo run --release -p strata-bsdf --example bounded_walks` times
 //! 36 queries × 16 walks of each on one thread (docs/numerics.md).
 
+use crate::common::batches::Batches;
 use crate::common::*;
 use glam::Vec3;
 use strata_bsdf::{Estimator, LayeredBsdf};

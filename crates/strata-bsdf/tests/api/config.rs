@@ -4,6 +4,7 @@
 //! configuration answers bit for bit what the builder calls of the same
 //! settings make.
 
+use crate::common::batches::Batches;
 use crate::common::{COATED_COPPER, VARNISH_OVER_SCATTERING};
 use glam::Vec3;
 use strata_bsdf::{

@@ -1,6 +1,6 @@
-//! Per-query parameter sets (issue 15): a query of a `*_batch_sets` call
-//! answers bit for bit what a BSDF built from its set's material file
-//! answers, with the same seed and key, on both engines, for every kind of
+//! Per-query parameter sets (issue 15): a query of a table of materials of
+//! one shape (whose materials are parameter sets of one BSDF) answers bit
+//! for bit what a BSDF built from its set's material file answers, with the same seed and key, on both engines, for every kind of
 //! parameter, in batches that mix the sets; and a set's walks in such
 //! batches are its own stack's, walk by walk (the scalar engine's on each
 //! stack: `tests/parity/param_sets.rs`). (The physics of each set is the
@@ -9,6 +9,7 @@
 //! else.)
 
 use crate::common;
+use crate::common::batches::{Batches, MaterialBatches};
 use common::sets::*;
 use common::*;
 use strata_bsdf::estimator::coat_lambertian::CoatLambertian;
@@ -16,11 +17,11 @@ use strata_bsdf::estimator::params::SetTable;
 use strata_bsdf::estimator::wavefront::{Plan, Sets, Wavefront};
 use strata_bsdf::lane::F32x8;
 use strata_bsdf::{
-    BatchError, Engine, Estimator, LayerStack, LayeredBsdf, Materials, QueryError, SetsError,
-    Settings, Transport,
+    BatchError, Engine, Estimator, LayerStack, LayeredBsdf, Materials, QueryError, Settings,
+    Transport,
 };
 
-/// Every call of a `*_batch_sets` batch against the same query on a BSDF
+/// Every call of a batch on a table of one shape against the same query on a BSDF
 /// of its set's own stack, on each engine and estimator, in both transport
 /// modes (importance runs the adjoint walks of the tilted family).
 #[test]
@@ -41,7 +42,7 @@ fn a_set_answers_what_its_material_file_answers() {
                         .seed(7)
                 };
                 let bsdf = make(&stacks[0]);
-                let sets = bsdf.param_sets(stacks.clone()).unwrap();
+                let sets = Materials::new(&bsdf, stacks.clone());
                 let (pairs, set) = queries(23);
                 let keys: Vec<u64> = (0..pairs.len() as u64).map(|k| 1000 + k).collect();
                 let what = |k: usize| {
@@ -51,9 +52,7 @@ fn a_set_answers_what_its_material_file_answers() {
                     )
                 };
                 // eval
-                let got = bsdf
-                    .eval_batch_sets_keyed(&sets, &set, &pairs, 40, &keys)
-                    .unwrap();
+                let got = sets.eval_batch_keyed(&set, &pairs, 40, &keys).unwrap();
                 for (k, g) in got.iter().enumerate() {
                     let own = make(&stacks[set[k] as usize]);
                     let want = own.eval_batch_keyed(&pairs[k..k + 1], 40, &keys[k..k + 1]);
@@ -64,9 +63,7 @@ fn a_set_answers_what_its_material_file_answers() {
                 // sample (and the pdf it carries)
                 let wis: Vec<glam::Vec3> = pairs.iter().map(|p| p.0).collect();
                 let index: Vec<u64> = (0..wis.len() as u64).collect();
-                let got = bsdf
-                    .sample_batch_sets_keyed(&sets, &set, &wis, &keys, &index)
-                    .unwrap();
+                let got = sets.sample_batch_keyed(&set, &wis, &keys, &index).unwrap();
                 for (k, g) in got.iter().enumerate() {
                     let own = make(&stacks[set[k] as usize]);
                     let want = own
@@ -75,10 +72,8 @@ fn a_set_answers_what_its_material_file_answers() {
                     assert_eq!(*g, want, "sample {}", what(k));
                 }
                 // pdf, approximate and unbiased
-                let got = bsdf.pdf_batch_sets(&sets, &set, &pairs).unwrap();
-                let got_u = bsdf
-                    .pdf_unbiased_batch_sets(&sets, &set, &pairs, 6)
-                    .unwrap();
+                let got = sets.pdf_batch(&set, &pairs).unwrap();
+                let got_u = sets.pdf_unbiased_batch(&set, &pairs, 6).unwrap();
                 for k in 0..pairs.len() {
                     let own = make(&stacks[set[k] as usize]);
                     let want = own.pdf_batch(&pairs[k..k + 1]).unwrap()[0];
@@ -87,9 +82,7 @@ fn a_set_answers_what_its_material_file_answers() {
                     assert_eq!(got_u[k], want, "unbiased pdf {}", what(k));
                 }
                 // albedo
-                let got = bsdf
-                    .albedo_batch_sets_keyed(&sets, &set, &wis, 24, &keys)
-                    .unwrap();
+                let got = sets.albedo_batch_keyed(&set, &wis, 24, &keys).unwrap();
                 for (k, g) in got.iter().enumerate() {
                     let own = make(&stacks[set[k] as usize]);
                     let want = own
@@ -109,11 +102,11 @@ fn sets_change_the_answers() {
     for f in families() {
         let stacks: Vec<LayerStack> = (0..SETS).map(|v| variant(&f, v)).collect();
         let bsdf = LayeredBsdf::new(stacks[0].clone()).samples(64);
-        let sets = bsdf.param_sets(stacks.clone()).unwrap();
+        let sets = Materials::new(&bsdf, stacks.clone());
         let (pairs, _) = queries(10);
         let one = vec![1u32; pairs.len()];
         let a = bsdf.eval_batch(&pairs).unwrap();
-        let b = bsdf.eval_batch_sets(&sets, &one, &pairs).unwrap();
+        let b = sets.eval_batch(&one, &pairs).unwrap();
         let differ = a.iter().zip(&b).filter(|(x, y)| x.value != y.value).count();
         assert!(differ >= 5, "{}: only {differ} of 10 evals differ", f.name);
     }
@@ -179,9 +172,8 @@ fn sets_that_do_not_fit_are_errors() {
     let a = variant(&fam[0], 0);
     let b = variant(&fam[1], 0);
     let bsdf = LayeredBsdf::new(a.clone());
-    let e = bsdf.param_sets([a.clone(), b]).unwrap_err();
-    assert!(matches!(e, SetsError::Shape { set: 1, .. }), "{e}");
-    assert!(e.to_string().contains("parameter set 1"), "{e}");
+    // Materials of two shapes are two BSDFs, each answering its own.
+    assert_eq!(Materials::new(&bsdf, [a.clone(), b]).shapes(), 2);
     // A roughness of 0 makes a rough interface smooth: another shape.
     let r = |k: u64, lo: f64, hi: f64| {
         if k == 2 || k == 3 {
@@ -191,32 +183,30 @@ fn sets_that_do_not_fit_are_errors() {
         }
     };
     let smooth = stack(&(fam[0].toml)(&r));
-    let e = bsdf.param_sets([smooth]).map(|_| ()).unwrap_err();
-    assert!(e.to_string().contains("layer 0: interface"), "{e}");
-    let sets = bsdf.param_sets([a.clone(), a.clone()]).unwrap();
+    assert_eq!(Materials::new(&bsdf, [a.clone(), smooth]).shapes(), 2);
+    let sets = Materials::new(&bsdf, [a.clone(), a.clone()]);
+    assert_eq!(sets.shapes(), 1);
     let (pairs, _) = queries(4);
-    let e = bsdf
-        .eval_batch_sets(&sets, &[0, 1, 2, 0], &pairs)
-        .unwrap_err();
+    let e = sets.eval_batch(&[0, 1, 2, 0], &pairs).unwrap_err();
     assert_eq!(
         e,
         BatchError {
             index: Some(2),
-            error: QueryError::NoSuchSet { value: 2, sets: 2 }
+            error: QueryError::NoSuchMaterial {
+                value: 2,
+                materials: 2
+            }
         }
     );
     assert_eq!(
         e.to_string(),
-        "query 2: set = 2: there are 2 parameter sets (0 to 1)"
+        "query 2: material = 2: there are 2 materials (0 to 1)"
     );
-    let e = bsdf.eval_batch_sets(&sets, &[0, 1], &pairs).unwrap_err();
+    let e = sets.eval_batch(&[0, 1], &pairs).unwrap_err();
     assert!(
-        e.to_string().contains("set has 2 entries for 4 queries"),
+        e.to_string().contains("rows has 2 entries for 4 queries"),
         "{e}"
     );
-    let other = bsdf.clone().estimator(Estimator::Unidirectional);
-    let e = other.eval_batch_sets(&sets, &[0; 4], &pairs).unwrap_err();
-    assert_eq!(e.error, QueryError::ForeignSets);
 }
 
 /// Columns that cannot make materials are errors, never panics: a query
@@ -510,13 +500,8 @@ fn a_set_has_its_own_walk_free_form_whatever_the_bsdf_or_the_order() {
                 .unwrap()[0]
         })
         .collect();
-    // A set of the anisotropic BSDF.
-    let sets = make(&aniso).param_sets([iso.clone()]).unwrap();
-    let got = make(&aniso)
-        .eval_batch_sets_keyed(&sets, &[0; 12], &pairs, 32, &keys)
-        .unwrap();
-    assert_eq!(got, want);
-    // Materials in either order.
+    // Materials in either order: with the anisotropic first, the isotropic
+    // is a parameter set of its BSDF.
     for order in [[aniso.clone(), iso.clone()], [iso.clone(), aniso.clone()]] {
         let m = Materials::new(&make(&aniso), order.clone());
         let which = if order[0].interface(0).alpha[0] == 0.2 {

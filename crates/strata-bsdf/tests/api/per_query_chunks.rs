@@ -6,6 +6,7 @@
 //! several chunks (the default chunk of 4096 distinct rows, and chunks of
 //! 7 rows with repeated rows inside and across them).
 
+use crate::common::batches::{Buffers, MaterialBuffers};
 use crate::common::COATED_COPPER;
 use strata_bsdf::{
     AlbedoRecord, Column, Engine, LayerStack, LayeredBsdf, Materials, PerQuery, SampleRecord,
@@ -84,18 +85,18 @@ macro_rules! answers {
         let (wi, wo) = (Vectors::Aos($wi), Vectors::Aos($wo));
         let mut f = vec![[0f32; 3]; n];
         let mut se = vec![[0f32; 3]; n];
-        t.eval_into($($ids,)? wi, wo, None, VectorsMut::Aos(&mut f), Some(VectorsMut::Aos(&mut se)))
+        t.eval_buffers($($ids,)? wi, wo, None, VectorsMut::Aos(&mut f), Some(VectorsMut::Aos(&mut se)))
             .unwrap();
         let mut fk = vec![[0f32; 3]; n];
-        t.eval_into($($ids,)? wi, wo, Some($keys), VectorsMut::Aos(&mut fk), None).unwrap();
+        t.eval_buffers($($ids,)? wi, wo, Some($keys), VectorsMut::Aos(&mut fk), None).unwrap();
         let mut s = vec![SampleRecord::default(); n];
         t.sample_records($($ids,)? wi, None, &mut s).unwrap();
         let mut sk = vec![SampleRecord::default(); n];
         t.sample_records($($ids,)? wi, Some($keys), &mut sk).unwrap();
         let mut p = vec![0f32; n];
-        t.pdf_into($($ids,)? wi, wo, &mut p).unwrap();
+        t.pdf_buffers($($ids,)? wi, wo, &mut p).unwrap();
         let (mut pu, mut pus) = (vec![0f32; n], vec![0f32; n]);
-        t.pdf_unbiased_into($($ids,)? wi, wo, 2, &mut pu, &mut pus).unwrap();
+        t.pdf_unbiased_buffers($($ids,)? wi, wo, 2, &mut pu, &mut pus).unwrap();
         let mut a = vec![AlbedoRecord::default(); n];
         t.albedo_records($($ids,)? wi, 2, Some($keys), &mut a).unwrap();
         Answers {
@@ -192,7 +193,7 @@ fn chunked_per_query_checks_everything_first() {
     wi[n - 1] = [f32::NAN, 0.0, 1.0];
     let mut f = vec![[7f32; 3]; n];
     let e = q
-        .eval_into(
+        .eval_buffers(
             Vectors::Aos(&wi),
             Vectors::Aos(&wo),
             None,
@@ -203,7 +204,7 @@ fn chunked_per_query_checks_everything_first() {
     assert_eq!(e.index, Some(n - 1));
     assert!(f.iter().all(|v| *v == [7.0; 3]), "nothing written");
     let e = q
-        .eval_into(
+        .eval_buffers(
             Vectors::Aos(&wi[1..]),
             Vectors::Aos(&wo[1..]),
             None,

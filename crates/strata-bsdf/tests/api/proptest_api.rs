@@ -18,6 +18,7 @@
 //! Fixed seeds (`RngSeed::Fixed`) make the runs reproducible, and no
 //! regression files are written.
 
+use crate::common::batches::Batches;
 use glam::Vec3;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
@@ -642,7 +643,7 @@ fn keyed_batches_check_their_lengths_and_counts() {
         let e = b
             .sample_batch_keyed(&wis, &[1, 2], &[0])
             .expect_err("short index");
-        assert!(e.to_string().contains("sample_index"), "{e}");
+        assert!(e.to_string().contains("indices"), "{e}");
         let e = b
             .albedo_batch_keyed(&wis, 16, &[1, 2, 3])
             .expect_err("long keys");
@@ -661,15 +662,15 @@ fn keyed_batches_check_their_lengths_and_counts() {
             assert_eq!(
                 e.error,
                 QueryError::TooManySamples {
-                    argument: "samples",
+                    argument: "walks",
                     value: n
                 }
             );
-            assert!(e.to_string().contains(&format!("samples = {n}")), "{e}");
+            assert!(e.to_string().contains(&format!("walks = {n}")), "{e}");
             let e = b
                 .albedo_batch_keyed(&wis, n, &[1, 2])
                 .expect_err("too many");
-            assert!(e.to_string().starts_with(&format!("n = {n}")), "{e}");
+            assert!(e.to_string().starts_with(&format!("walks = {n}")), "{e}");
             assert!(matches!(
                 b.eval_with(Vec3::Z, Vec3::Z, n, 0),
                 Err(QueryError::TooManySamples { .. })
@@ -679,7 +680,7 @@ fn keyed_batches_check_their_lengths_and_counts() {
         let e = b.eval_batch_keyed(&[], 0, &[]).expect_err("no walks");
         assert_eq!(
             (e.index, e.to_string()),
-            (None, "samples = 0: at least one walk is needed".into())
+            (None, "walks = 0: at least one walk is needed".into())
         );
         assert!(matches!(
             b.albedo(Vec3::Z, 0),

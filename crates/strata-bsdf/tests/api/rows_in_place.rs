@@ -11,6 +11,7 @@
 //! A row that changes the stack's shape runs as a material and answers the
 //! same; an invalid row is the error its material file gives.
 
+use crate::common::batches::Buffers;
 use crate::common::{COATED_COPPER, VARNISH_OVER_SCATTERING};
 use serde_json::Value;
 use strata_bsdf::stack::SetPath;
@@ -108,12 +109,12 @@ fn rows_in_place_answer_their_material_files() {
             assert!(q.rows_in_place(), "{toml}");
             let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
             let mut f = vec![[0f32; 3]; n];
-            q.eval_into(a, b, Some(&keys), VectorsMut::Aos(&mut f), None)
+            q.eval_buffers(a, b, Some(&keys), VectorsMut::Aos(&mut f), None)
                 .unwrap();
             let mut s = vec![SampleRecord::default(); n];
             q.sample_records(a, Some(&keys), &mut s).unwrap();
             let mut p = vec![0f32; n];
-            q.pdf_into(a, b, &mut p).unwrap();
+            q.pdf_buffers(a, b, &mut p).unwrap();
             for k in 0..n {
                 let set: Vec<(SetPath, Value)> = (paths.iter().zip(&values))
                     .zip(&columns)
@@ -134,7 +135,7 @@ fn rows_in_place_answer_their_material_files() {
                     Vectors::Aos(&v[k..k + 1])
                 }
                 let mut want = [[0f32; 3]];
-                own.eval_into(
+                own.eval_buffers(
                     one(&wi, k),
                     one(&wo, k),
                     Some(&keys[k..k + 1]),
@@ -165,7 +166,7 @@ fn rows_in_place_answer_their_material_files() {
                 same(&[g.pdf], &[w.pdf], format!("sample pdf, {what}"));
                 assert_eq!(g.flags, w.flags, "sample flags, {what}");
                 let mut wp = [0f32];
-                own.pdf_into(one(&wi, k), one(&wo, k), &mut wp).unwrap();
+                own.pdf_buffers(one(&wi, k), one(&wo, k), &mut wp).unwrap();
                 same(&p[k..k + 1], &wp, format!("pdf, {what}"));
             }
         }
@@ -191,13 +192,13 @@ fn rows_that_leave_the_shape_or_are_invalid() {
     let wi = [[0.0f32, 0.6, 0.8]; 3];
     let mut f = [[0f32; 3]; 3];
     let dirs = Vectors::Aos(&wi);
-    q.eval_into(dirs, dirs, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+    q.eval_buffers(dirs, dirs, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
         .unwrap();
     let smooth = LayerStack::from_toml_str(&ROUGH_COAT_ABSORBER.replace("0.25", "0.0")).unwrap();
     let own = LayeredBsdf::new(smooth).samples(4).seed(5);
     let mut want = [[0f32; 3]];
     let one = Vectors::Aos(&wi[..1]);
-    own.eval_into(one, one, Some(&[2]), VectorsMut::Aos(&mut want), None)
+    own.eval_buffers(one, one, Some(&[2]), VectorsMut::Aos(&mut want), None)
         .unwrap();
     assert_eq!(f[1], want[0]);
     assert_ne!(f[0], f[1], "the smooth row is not the rough one");
@@ -235,7 +236,7 @@ fn a_kept_table_answers_only_for_its_own_columns() {
         assert!(q.rows_in_place());
         let mut f = [[0f32; 3]; 3];
         let d = Vectors::Aos(&wi);
-        q.eval_into(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+        q.eval_buffers(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
             .unwrap();
         f
     };
@@ -299,12 +300,12 @@ fn eval_pdf_is_eval_and_pdf() {
         let k = Some(&keys[..]);
         let own_apart = apart(
             &|f, e| {
-                bsdf.eval_into(a, b, k, f, Some(e)).unwrap();
+                bsdf.eval_buffers(a, b, k, f, Some(e)).unwrap();
             },
-            &|p| bsdf.pdf_into(a, b, p).unwrap(),
+            &|p| bsdf.pdf_buffers(a, b, p).unwrap(),
         );
         let own = together(&|f, e, p| {
-            bsdf.eval_pdf_into(a, b, k, f, Some(e), p).unwrap();
+            bsdf.eval_pdf_buffers(a, b, k, f, Some(e), p).unwrap();
         });
         assert_eq!(own, own_apart, "{toml}");
         for (path, values) in [(&thickness, &depths), (&ior, &iors)] {
@@ -317,12 +318,12 @@ fn eval_pdf_is_eval_and_pdf() {
             assert_eq!(q.rows_in_place(), path == &thickness);
             let rows_apart = apart(
                 &|f, e| {
-                    q.eval_into(a, b, k, f, Some(e)).unwrap();
+                    q.eval_buffers(a, b, k, f, Some(e)).unwrap();
                 },
-                &|p| q.pdf_into(a, b, p).unwrap(),
+                &|p| q.pdf_buffers(a, b, p).unwrap(),
             );
             let rows = together(&|f, e, p| {
-                q.eval_pdf_into(a, b, k, f, Some(e), p).unwrap();
+                q.eval_pdf_buffers(a, b, k, f, Some(e), p).unwrap();
             });
             assert_eq!(rows, rows_apart, "{path} of {toml}");
             assert!(rows.2.iter().all(|p| p.is_finite() && *p >= 0.0));
@@ -333,9 +334,9 @@ fn eval_pdf_is_eval_and_pdf() {
         let c = Vectors::Aos(&bad);
         let (mut f, mut p) = (vec![[-1f32; 3]; n], vec![-1f32; n]);
         let e = bsdf
-            .eval_pdf_into(a, c, k, VectorsMut::Aos(&mut f), None, &mut p)
+            .eval_pdf_buffers(a, c, k, VectorsMut::Aos(&mut f), None, &mut p)
             .unwrap_err();
-        let alone = bsdf.pdf_into(a, c, &mut vec![0.0; n]).unwrap_err();
+        let alone = bsdf.pdf_buffers(a, c, &mut vec![0.0; n]).unwrap_err();
         assert_eq!((e.index, e.to_string()), (alone.index, alone.to_string()));
         assert!(f.iter().all(|v| *v == [-1.0; 3]) && p.iter().all(|x| *x == -1.0));
     }
@@ -361,7 +362,7 @@ fn a_kept_table_of_another_shape_answers_with_its_templates_configuration() {
         assert!(q.rows_in_place());
         let mut f = [[0f32; 3]; 3];
         let d = Vectors::Aos(&wi);
-        q.eval_into(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
+        q.eval_buffers(d, d, Some(&[1, 2, 3]), VectorsMut::Aos(&mut f), None)
             .unwrap();
         f
     };

@@ -25,13 +25,14 @@
 //! answered without walks (its eval and sample go query by query over the
 //! pool; its albedo walks).
 
+use crate::common::batches::{Batches, Buffers, MaterialBatches, MaterialBuffers};
 use crate::common::threads::{in_own_process, watch, Watched};
 use crate::common::{stack, COATED_COPPER, VARNISH_OVER_SCATTERING};
 use glam::Vec3;
 use strata_bsdf::estimator::coat_return::RoughReturn;
 use strata_bsdf::{
-    AlbedoRecord, Column, Estimator, EvalRecord, LayerStack, LayeredBsdf, Materials, ParamSets,
-    PerQuery, SampleRecord, SetPath, Vectors, VectorsMut,
+    AlbedoRecord, Column, Estimator, EvalRecord, LayerStack, LayeredBsdf, Materials, PerQuery,
+    SampleRecord, SetPath, Vectors, VectorsMut,
 };
 
 /// A rough coat over an absorbing layer over a Lambertian base: answered
@@ -169,7 +170,7 @@ type Call<'a> = (&'static str, Box<dyn Fn() + Send + Sync + 'a>);
 /// parameter sets, materials and column of `case`.
 fn calls<'a>(
     b: &'a LayeredBsdf,
-    sets: &'a ParamSets,
+    sets: &'a Materials,
     mats: &'a Materials,
     path: &'a SetPath,
     x: &'a Inputs,
@@ -236,7 +237,7 @@ fn calls<'a>(
             Box::new(move || {
                 let (mut f, mut se) = (v3(), v3());
                 let out = (VectorsMut::Aos(&mut f), Some(VectorsMut::Aos(&mut se)));
-                ok(b.eval_into(wi, wo, None, out.0, out.1))
+                ok(b.eval_buffers(wi, wo, None, out.0, out.1))
             }),
         ),
         (
@@ -251,7 +252,7 @@ fn calls<'a>(
             Box::new(move || {
                 let (mut o, mut w, mut p, mut fl) = (v3(), v3(), f32s(), vec![0u32; n]);
                 let (o, w) = (VectorsMut::Aos(&mut o), VectorsMut::Aos(&mut w));
-                ok(b.sample_into(wi, None, o, w, &mut p, &mut fl))
+                ok(b.sample_buffers(wi, None, o, w, &mut p, &mut fl))
             }),
         ),
         (
@@ -263,11 +264,11 @@ fn calls<'a>(
         ),
         (
             "pdf_into",
-            Box::new(move || ok(b.pdf_into(wi, wo, &mut f32s()))),
+            Box::new(move || ok(b.pdf_buffers(wi, wo, &mut f32s()))),
         ),
         (
             "pdf_unbiased_into",
-            Box::new(move || ok(b.pdf_unbiased_into(wi, wo, WALKS, &mut f32s(), &mut f32s()))),
+            Box::new(move || ok(b.pdf_unbiased_buffers(wi, wo, WALKS, &mut f32s(), &mut f32s()))),
         ),
         (
             "albedo_records",
@@ -289,49 +290,34 @@ fn calls<'a>(
             "albedo",
             Box::new(move || used(b.albedo(one.0, many).unwrap())),
         ),
-        // Parameter sets.
+        // Materials of one shape: the parameter sets of one BSDF.
         (
-            "eval_batch_sets",
-            Box::new(move || used(b.eval_batch_sets(sets, set, pairs).unwrap())),
+            "Materials of one shape (its sets)::eval_batch",
+            Box::new(move || used(sets.eval_batch(set, pairs).unwrap())),
         ),
         (
-            "eval_batch_sets_keyed",
-            Box::new(move || {
-                used(
-                    b.eval_batch_sets_keyed(sets, set, pairs, samples, keys)
-                        .unwrap(),
-                )
-            }),
+            "Materials of one shape (its sets)::eval_batch_keyed",
+            Box::new(move || used(sets.eval_batch_keyed(set, pairs, samples, keys).unwrap())),
         ),
         (
-            "sample_batch_sets",
-            Box::new(move || used(b.sample_batch_sets(sets, set, wis, index).unwrap())),
+            "Materials of one shape (its sets)::sample_batch",
+            Box::new(move || used(sets.sample_batch(set, wis, index).unwrap())),
         ),
         (
-            "sample_batch_sets_keyed",
-            Box::new(move || {
-                used(
-                    b.sample_batch_sets_keyed(sets, set, wis, keys, index)
-                        .unwrap(),
-                )
-            }),
+            "Materials of one shape (its sets)::sample_batch_keyed",
+            Box::new(move || used(sets.sample_batch_keyed(set, wis, keys, index).unwrap())),
         ),
         (
-            "pdf_batch_sets",
-            Box::new(move || used(b.pdf_batch_sets(sets, set, pairs).unwrap())),
+            "Materials of one shape (its sets)::pdf_batch",
+            Box::new(move || used(sets.pdf_batch(set, pairs).unwrap())),
         ),
         (
-            "pdf_unbiased_batch_sets",
-            Box::new(move || used(b.pdf_unbiased_batch_sets(sets, set, pairs, WALKS).unwrap())),
+            "Materials of one shape (its sets)::pdf_unbiased_batch",
+            Box::new(move || used(sets.pdf_unbiased_batch(set, pairs, WALKS).unwrap())),
         ),
         (
-            "albedo_batch_sets_keyed",
-            Box::new(move || {
-                used(
-                    b.albedo_batch_sets_keyed(sets, set, wis, WALKS, keys)
-                        .unwrap(),
-                )
-            }),
+            "Materials of one shape (its sets)::albedo_batch_keyed",
+            Box::new(move || used(sets.albedo_batch_keyed(set, wis, WALKS, keys).unwrap())),
         ),
         // Materials of two shapes: `Vec` batches and slice calls.
         (
@@ -371,7 +357,7 @@ fn calls<'a>(
             "Materials::eval_into",
             Box::new(move || {
                 let mut f = v3();
-                ok(mats.eval_into(material, wi, wo, None, VectorsMut::Aos(&mut f), None))
+                ok(mats.eval_buffers(material, wi, wo, None, VectorsMut::Aos(&mut f), None))
             }),
         ),
         (
@@ -386,18 +372,18 @@ fn calls<'a>(
             Box::new(move || {
                 let (mut o, mut w, mut p, mut fl) = (v3(), v3(), f32s(), vec![0u32; n]);
                 let (o, w) = (VectorsMut::Aos(&mut o), VectorsMut::Aos(&mut w));
-                ok(mats.sample_into(material, wi, None, o, w, &mut p, &mut fl))
+                ok(mats.sample_buffers(material, wi, None, o, w, &mut p, &mut fl))
             }),
         ),
         (
             "Materials::pdf_unbiased_into",
             Box::new(move || {
-                ok(mats.pdf_unbiased_into(material, wi, wo, WALKS, &mut f32s(), &mut f32s()))
+                ok(mats.pdf_unbiased_buffers(material, wi, wo, WALKS, &mut f32s(), &mut f32s()))
             }),
         ),
         (
             "Materials::pdf_into",
-            Box::new(move || ok(mats.pdf_into(material, wi, wo, &mut f32s()))),
+            Box::new(move || ok(mats.pdf_buffers(material, wi, wo, &mut f32s()))),
         ),
         (
             "Materials::albedo_records",
@@ -413,7 +399,7 @@ fn calls<'a>(
             Box::new(move || {
                 let (mut f, mut se) = (v3(), v3());
                 let out = (VectorsMut::Aos(&mut f), Some(VectorsMut::Aos(&mut se)));
-                ok(column().eval_into(wi, wo, Some(keys), out.0, out.1))
+                ok(column().eval_buffers(wi, wo, Some(keys), out.0, out.1))
             }),
         ),
         (
@@ -421,7 +407,7 @@ fn calls<'a>(
             Box::new(move || {
                 let (mut o, mut w, mut p, mut fl) = (v3(), v3(), f32s(), vec![0u32; n]);
                 let (o, w) = (VectorsMut::Aos(&mut o), VectorsMut::Aos(&mut w));
-                ok(column().sample_into(wi, None, o, w, &mut p, &mut fl))
+                ok(column().sample_buffers(wi, None, o, w, &mut p, &mut fl))
             }),
         ),
         (
@@ -433,12 +419,12 @@ fn calls<'a>(
         ),
         (
             "PerQuery::pdf_into",
-            Box::new(move || ok(column().pdf_into(wi, wo, &mut f32s()))),
+            Box::new(move || ok(column().pdf_buffers(wi, wo, &mut f32s()))),
         ),
         (
             "PerQuery::pdf_unbiased_into",
             Box::new(move || {
-                ok(column().pdf_unbiased_into(wi, wo, WALKS, &mut f32s(), &mut f32s()))
+                ok(column().pdf_unbiased_buffers(wi, wo, WALKS, &mut f32s(), &mut f32s()))
             }),
         ),
         (
@@ -455,7 +441,7 @@ fn calls<'a>(
 /// Runs every call of `case` on `b` over `n` queries under the watch, and
 /// hands each call's name and report to `check`.
 fn each_call(case: &Case, b: &LayeredBsdf, n: usize, mut check: impl FnMut(&str, &Watched<()>)) {
-    let sets = b.param_sets(case.sets.clone()).unwrap();
+    let sets = Materials::new(b, case.sets.clone());
     let mats = Materials::new(b, case.materials.clone());
     let path: SetPath = case.column.0.parse().unwrap();
     let x = Inputs::new(n, case.column.1);
@@ -507,13 +493,14 @@ fn one_thread_runs_every_batch_on_the_calling_thread() {
 #[test]
 fn the_same_batches_go_parallel_on_the_current_pool() {
     // Calls that run query by query on the calling thread whatever the
-    // setting: a walk-free stack's pdfs (its sampler's density; of a
-    // `Materials`, the walks' shape's go parallel) and its single eval (one
+    // setting: a walk-free stack's pdfs (its sampler's density, of its own
+    // or of its sets; of `Materials` of two shapes, the walks' shape's go
+    // parallel) and its single eval (one
     // query's factorization), and a single pdf (one query's density walks
     // share a chunk).
     let serial = |case: &str, name: &str| {
         let walk_free = case == "rough coat without walks";
-        (walk_free && name.contains("pdf") && !name.contains("Materials"))
+        (walk_free && name.contains("pdf") && !name.starts_with("Materials::"))
             || (walk_free && name == "eval_with")
             || name == "pdf_unbiased"
     };
@@ -606,7 +593,8 @@ fn rough_table_built_on(test: &str, threads: usize) {
             "eval" => {
                 let mut f = vec![[0.0; 3]; LARGE];
                 let f = VectorsMut::Aos(&mut f);
-                rows.eval_into(wi, wo, Some(&inputs.keys), f, None).unwrap();
+                rows.eval_buffers(wi, wo, Some(&inputs.keys), f, None)
+                    .unwrap();
             }
             "sample" => {
                 let mut r = vec![SampleRecord::default(); LARGE];

@@ -177,6 +177,7 @@ pub fn assert_z(what: &str, value: f64, expected: f64, stderr: f64, k: f64, abs_
     );
 }
 
+pub mod batches;
 pub mod bidir;
 pub mod chi2;
 pub mod cv;

@@ -20,6 +20,7 @@
 //!   error 0) are the same number; `Unidirectional` keeps the walks.
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
 use strata_bsdf::{Estimator, LayerStack, LayeredBsdf};

@@ -26,6 +26,7 @@
 //! reciprocity in `tests/physics/layered_reciprocity.rs`.
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::cv::{api_pairs, as_api, PAIRS, WITHOUT_SCATTERING};
 use common::*;
 use strata_bsdf::estimator::coat_lambertian::CoatLambertian;

@@ -27,6 +27,7 @@
 //!   plus the uniform part.
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::reference::SplitMix;
 use common::*;
 use strata_bsdf::estimator::pdf::UNIFORM_FRACTION;

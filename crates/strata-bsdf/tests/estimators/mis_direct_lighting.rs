@@ -12,6 +12,7 @@
 //! per rule of density walks.
 
 use crate::common;
+use crate::common::batches::Batches;
 
 use common::reference::SplitMix;
 use common::{

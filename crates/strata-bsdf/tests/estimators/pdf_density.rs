@@ -14,6 +14,7 @@
 //! (`tests/estimators/closed_form_sampler.rs`).
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::chi2::chi2_sf;
 use std::f64::consts::{PI, TAU};
 use strata_bsdf::estimator::wavefront::{Plan, Wavefront};

@@ -10,6 +10,7 @@
 //! (.ci/run), since results must not depend on the target
 //! (docs/architecture.md).
 
+use crate::common::batches::Batches;
 use glam::Vec3;
 use strata_bsdf::{Engine, Estimator, LayeredBsdf};
 

@@ -4,6 +4,7 @@
 //! different, but statistically consistent, estimate).
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::*;
 use strata_bsdf::estimator::scalar::{Scalar, ScalarEngine};
 use strata_bsdf::rng::{Stream, WalkRng};

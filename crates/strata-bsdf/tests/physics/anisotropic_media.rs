@@ -22,9 +22,10 @@
 //! transmittance to 2e-6 relative (single precision through the walk).
 
 use crate::common;
+use crate::common::batches::{Batches, MaterialBatches};
 use common::reference::Acc;
 use common::*;
-use strata_bsdf::Settings;
+use strata_bsdf::{Materials, Settings};
 
 fn sggx(flakes: &str, axis: [f64; 3], r: f64, scattering: &str) -> String {
     format!(
@@ -348,13 +349,13 @@ fn sggx_parameters_per_query_are_their_materials() {
     );
     assert!(variants[1] == file, "a set is the file with its values");
     let bsdf = LayeredBsdf::new(base.clone()).samples(64).seed(3);
-    let sets = bsdf.param_sets(variants.clone()).unwrap();
+    let sets = Materials::new(&bsdf, variants.clone());
     let pairs: Vec<_> = [(20.0, 40.0), (60.0, 10.0), (5.0, 80.0), (45.0, 45.0)]
         .iter()
         .map(|&(a, b)| (vec3(dir(a, 0.0)), vec3(dir(b, 120.0))))
         .collect();
     let which = [0u32, 1, 2, 1];
-    let got = bsdf.eval_batch_sets(&sets, &which, &pairs).unwrap();
+    let got = sets.eval_batch(&which, &pairs).unwrap();
     for (q, &s) in which.iter().enumerate() {
         let own = LayeredBsdf::new(variants[s as usize].clone())
             .samples(64)

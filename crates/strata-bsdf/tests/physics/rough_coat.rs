@@ -20,6 +20,7 @@
 //!   its streams as they drive walks'.
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::*;
 use strata_bsdf::estimator::closed_form::SmoothCoatLambertian;
 use strata_bsdf::{Engine, Estimator, LayeredBsdf, Settings};

@@ -31,9 +31,10 @@
 //! lanes inside tilted vectors, in `kernel_parity.rs`.
 
 use crate::common;
+use crate::common::batches::{Batches, MaterialBatches};
 use common::reference::{fresnel, rough_dielectric, sphere_integral};
 use common::*;
-use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, QueryError, Transport};
+use strata_bsdf::{Estimator, LayerStack, LayeredBsdf, Materials, Transport};
 
 fn unit(v: [f64; 3]) -> [f64; 3] {
     let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -320,11 +321,11 @@ fn importance_mode_of_a_tilted_stack_is_its_adjoint() {
         asymmetric >= 3,
         "f is not reciprocal on a tilted stack: {asymmetric}"
     );
-    // Parameter sets carry the mode.
-    let sets = radiance.param_sets([stack(&toml)]).unwrap();
-    let e =
-        importance.eval_batch_sets(&sets, &[0], &[(vec3(dir(10.0, 0.0)), vec3(dir(20.0, 0.0)))]);
-    assert_eq!(e.unwrap_err().error, QueryError::ForeignSets);
+    // A table of materials answers in its template's mode.
+    let pair = [(vec3(dir(10.0, 0.0)), vec3(dir(20.0, 0.0)))];
+    let table = Materials::new(&importance, [stack(&toml)]);
+    let want = importance.eval_batch(&pair).unwrap();
+    assert_eq!(table.eval_batch(&[0], &pair).unwrap(), want);
     // The closed form and the control variate do not apply to tilted stacks.
     let coat =
         "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, normal = [0.2, 0, 1] }\n\

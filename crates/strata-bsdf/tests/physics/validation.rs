@@ -23,6 +23,7 @@
 //! even when no single comparison is outside 4σ.
 
 use crate::common;
+use crate::common::batches::Batches;
 use common::*;
 use strata_bsdf::{Engine, Estimator, LayerStack, LayeredBsdf};
 

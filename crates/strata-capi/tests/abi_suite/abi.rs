@@ -4,6 +4,7 @@
 //! the same numbers; bad input is a negative status and a message naming the
 //! query and the argument, never a crash.
 
+use crate::common::batches::{Batches, Buffers};
 use glam::Vec3;
 use std::ffi::{CStr, CString};
 use std::ptr::{null, null_mut};
@@ -226,7 +227,7 @@ fn an_eval_with_pdf_is_eval_then_pdf_bit_for_bit() {
             // The Rust API's two calls.
             let (mut want_f, mut want_se) = (vec![[0.0f32; 3]; N], vec![[0.0f32; 3]; N]);
             let want_cut = r
-                .eval_into(
+                .eval_buffers(
                     Vectors::Aos(&wi),
                     Vectors::Aos(&wo),
                     k,
@@ -235,7 +236,7 @@ fn an_eval_with_pdf_is_eval_then_pdf_bit_for_bit() {
                 )
                 .unwrap();
             let mut want_pdf = vec![0.0f32; N];
-            r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want_pdf)
+            r.pdf_buffers(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want_pdf)
                 .unwrap();
             let (want_f, want_se) = (flat(&want_f), flat(&want_se));
             assert!(want_pdf.iter().any(|&p| p > 0.0), "a nonzero pdf");
@@ -396,7 +397,7 @@ fn sample_is_the_rust_apis_bit_for_bit_in_both_layouts() {
             let (mut rpdf, mut rflags) = (vec![0.0f32; N], vec![0u32; N]);
             let [a, b2, c2] = &mut rwo;
             let [d, e, f] = &mut rweight;
-            r.sample_into(
+            r.sample_buffers(
                 Vectors::Soa([&wis[0], &wis[1], &wis[2]]),
                 k,
                 VectorsMut::Soa([a, b2, c2]),
@@ -436,7 +437,7 @@ fn the_unbiased_pdf_is_the_rust_apis() {
     assert_eq!(status, STRATA_OK, "{}", last_error());
     assert_eq!(cut, 0);
     let (mut want, mut want_se) = (vec![0.0f32; N], vec![0.0f32; N]);
-    r.pdf_unbiased_into(
+    r.pdf_unbiased_buffers(
         Vectors::Aos(&wi),
         Vectors::Aos(&wo),
         64,
@@ -479,7 +480,7 @@ fn a_samples_pdf_is_what_strata_pdf_gives_and_pdf_is_the_rust_apis() {
     let status = unsafe { strata_pdf(c.0, &batch) };
     assert_eq!(status, STRATA_OK, "{}", last_error());
     let mut want = vec![0.0f32; N];
-    r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want)
+    r.pdf_buffers(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut want)
         .unwrap();
     assert_eq!(bits(&pdf), bits(&want));
     assert!(pdf.iter().all(|&p| p > 0.0 && p.is_finite()));
@@ -555,7 +556,7 @@ fn pdf_samples_are_the_rust_apis() {
     };
     let rust_pdfs = |r: &LayeredBsdf| {
         let mut pdf = vec![0.0f32; N];
-        r.pdf_into(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut pdf)
+        r.pdf_buffers(Vectors::Aos(&wi), Vectors::Aos(&wo), &mut pdf)
             .unwrap();
         let mut s = vec![SampleRecord::default(); N];
         r.sample_records(Vectors::Aos(&wi), None, &mut s).unwrap();

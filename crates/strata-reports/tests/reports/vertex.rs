@@ -6,7 +6,7 @@
 //! sum to one keep the vertex unbiased whatever the pdf; this checks that
 //! they do, and that `sample`'s pdf is `pdf`'s.
 
-use strata_bsdf::{Vectors, VectorsMut};
+use strata_bsdf::{Bsdf, Queries, SampleBuffers, Vectors, VectorsMut};
 use strata_reports::vertex;
 
 /// The vertex mean agrees with the albedo plus the sun's integral within
@@ -56,15 +56,14 @@ fn a_sample_carries_the_pdf_of_its_direction() {
         let keys: Vec<u64> = (0..n as u64).collect();
         let (mut wo, mut weight) = (vec![0.0f32; 3 * n], vec![0.0f32; 3 * n]);
         let (mut pdf, mut flags) = (vec![0.0f32; n], vec![0u32; n]);
-        bsdf.sample_into(
-            Vectors::from_flat(&wi).unwrap(),
-            Some(&keys),
-            VectorsMut::from_flat(&mut wo).unwrap(),
-            VectorsMut::from_flat(&mut weight).unwrap(),
-            &mut pdf,
-            &mut flags,
-        )
-        .unwrap();
+        let mut out = SampleBuffers {
+            wo: VectorsMut::from_flat(&mut wo).unwrap(),
+            weight: VectorsMut::from_flat(&mut weight).unwrap(),
+            pdf: &mut pdf,
+            flags: &mut flags,
+        };
+        let q = Queries::directions(Vectors::from_flat(&wi).unwrap()).keys(&keys);
+        bsdf.sample_into(&q, &mut |k, s| out.put(k, s)).unwrap();
         // The pdf of every sampled direction, in one batch.
         let sampled: Vec<usize> = (0..n).filter(|&k| flags[k] != 0).collect();
         let pick = |v: &[f32]| -> Vec<f32> {
@@ -75,12 +74,11 @@ fn a_sample_carries_the_pdf_of_its_direction() {
         };
         let (wi_s, wo_s) = (pick(&wi), pick(&wo));
         let mut again = vec![0.0f32; sampled.len()];
-        bsdf.pdf_into(
+        let q = Queries::pairs(
             Vectors::from_flat(&wi_s).unwrap(),
             Vectors::from_flat(&wo_s).unwrap(),
-            &mut again,
-        )
-        .unwrap_or_else(|e| panic!("{}: {e}", c.name));
+        );
+        (bsdf.pdf_into(&q, &mut |k, p| again[k] = p)).unwrap_or_else(|e| panic!("{}: {e}", c.name));
         for (j, &k) in sampled.iter().enumerate() {
             assert!(
                 pdf[k].is_finite() && pdf[k] > 0.0,
