@@ -481,8 +481,169 @@ def run_table(args, out):
 # Equal-time comparison
 
 
+SHELL = 0.02  # the brute-force shell's thickness (the sphere's radius is 1)
+
+
+def compare_lights(d):
+    """The comparison's lights: the sky, and a small round sun (a sphere
+    emitter subtending about 5 degrees; not a delta light, so that paths
+    through the brute-force shell's smooth coat can reach it)."""
+    d["sun"] = {"type": "sphere", "radius": 0.5, "center": [-5.5, 9.0, 5.0],
+                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [420.0, 400.0, 370.0]}}}
+    return d
+
+
+def compare_scene(kind, size, spp, bsdf=None):
+    """The sphere scene with the comparison's material: ``strata``, ``brute``
+    (explicit geometry in volpath) or ``approx`` (a given Mitsuba BSDF)."""
+    d = base_scene(size, size, spp, depth=32 if kind == "brute" else 8, sun=None, env_scale=1.0)
+    d["ground"] = checker_ground()
+    compare_lights(d)
+    if kind == "strata":
+        d["sphere"] = {"type": "sphere", "radius": 1.0, "bsdf": strata("compare_coat")}
+    elif kind == "approx":
+        d["sphere"] = {"type": "sphere", "radius": 1.0, "bsdf": bsdf}
+    else:
+        d["integrator"] = {"type": "volpath", "max_depth": 32}
+        d["medium"] = {"type": "homogeneous", "sigma_t": {"type": "rgb", "value": 1.0 / SHELL},
+                       "albedo": {"type": "rgb", "value": [0.9, 0.6, 0.3]}, "phase": {"type": "hg", "g": 0.3}}
+        d["coat"] = {"type": "sphere", "radius": 1.0, "interior": {"type": "ref", "id": "medium"},
+                     "bsdf": {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}}
+        d["base"] = {"type": "sphere", "radius": 1.0 - SHELL, "exterior": {"type": "ref", "id": "medium"},
+                     "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.5}}}
+    return d
+
+
+class symbolic_mode:
+    """Dr.Jit's default (symbolic) mode for a render without strata, which
+    does not need the evaluated mode (and runs 3-4x faster in its own)."""
+
+    def __enter__(self):
+        dr.set_flag(dr.JitFlag.SymbolicLoops, True)
+        dr.set_flag(dr.JitFlag.SymbolicCalls, True)
+
+    def __exit__(self, *a):
+        dr.set_flag(dr.JitFlag.SymbolicLoops, False)
+        dr.set_flag(dr.JitFlag.SymbolicCalls, False)
+
+
+def rel_error(img, ref):
+    """Relative error per pixel |img - ref| / (ref + 0.01), channel mean;
+    and the image's relative RMSE and mean relative error over all pixels."""
+    e = np.abs(img[..., :3] - ref[..., :3]) / (ref[..., :3] + 0.01)
+    rmse = float(np.sqrt(((img[..., :3] - ref[..., :3]) ** 2 / (ref[..., :3] ** 2 + 1e-4)).mean()))
+    return e.mean(axis=2), rmse, float(e.mean())
+
+
+def heat(e, top=0.5):
+    """A false colour: 0 black, then red, yellow, white at ``top``."""
+    x = np.clip(e / top, 0, 1)[..., None] * 3
+    return np.concatenate([np.clip(x, 0, 1), np.clip(x - 1, 0, 1), np.clip(x - 2, 0, 1)], axis=2).astype(np.float32)
+
+
+def body_albedo():
+    """The hemispherical (cosine-weighted) albedo of compare_body, per RGB
+    channel: the diffuse reflectance the approximations are given."""
+    import strata_bsdf
+
+    b = strata_bsdf.Bsdf.from_path(MAT / "compare_body.toml", seed=2).configure("threads=1")
+    n = 64
+    mu = np.sqrt((np.arange(n) + 0.5) / n)  # cosine-weighted: mu^2 uniform
+    wi = np.stack([np.sqrt(1 - mu**2), np.zeros(n), mu], axis=1).astype(np.float32)
+    R, Tr, _, _ = b.albedo(wi, 64 if TINY else 8192)
+    return np.asarray(R).mean(axis=0)
+
+
 def run_compare(args, out):
-    print("\n== Equal time: not implemented in this script yet", flush=True)
+    size = 16 if TINY else args.compare_size
+    spp = 4 if TINY else args.compare_spp
+    ref_spp = 8 if TINY else args.ref_spp
+    print(f"\n== Equal time: {size}x{size}; strata at {spp} spp against explicit geometry in volpath "
+          f"(Dr.Jit's symbolic mode) at the same time; references at {ref_spp} spp (strata) and "
+          f"the same time for brute force", flush=True)
+    a, ta = render(compare_scene("strata", size, spp), f"compare strata {spp} spp")
+    # Brute force: a pilot to find its time per sample, then the spp of equal time.
+    with symbolic_mode():
+        pilot = max(4, spp // 4)
+        scene = mi.load_dict(compare_scene("brute", size, pilot))
+        np.array(mi.render(scene, seed=0))  # compiles
+        t = time.perf_counter()
+        np.array(mi.render(scene, seed=1))
+        per = (time.perf_counter() - t) / pilot
+        bspp = max(1, int(ta / per))
+        b, tb = render(compare_scene("brute", size, bspp), f"compare brute force {bspp} spp")
+    ra, tra = render(compare_scene("strata", size, ref_spp), f"compare strata reference {ref_spp} spp", seed=7)
+    with symbolic_mode():
+        rbspp = max(1, int(tra / per))
+        rb, trb = render(compare_scene("brute", size, rbspp), f"compare brute-force reference {rbspp} spp", seed=7)
+    # Each method's error against its own reference (their convergence), and
+    # the two references' difference (the thin-slab model against geometry).
+    ea, rmse_a, mre_a = rel_error(a, ra)
+    eb, rmse_b, mre_b = rel_error(b, rb)
+    eab, rmse_ab, mre_ab = rel_error(rb, ra)
+    # Cross: each equal-time image against the other's reference.
+    _, rmse_a_x, _ = rel_error(a, rb)
+    _, rmse_b_x, _ = rel_error(b, ra)
+    res = {"size": size, "strata_spp": spp, "strata_s": ta, "brute_spp": bspp, "brute_s": tb,
+           "strata_ref_spp": ref_spp, "strata_ref_s": tra, "brute_ref_spp": rbspp, "brute_ref_s": trb,
+           "strata_rel_rmse": rmse_a, "strata_mean_rel_err": mre_a,
+           "brute_rel_rmse": rmse_b, "brute_mean_rel_err": mre_b,
+           "refs_rel_rmse": rmse_ab, "refs_mean_rel_err": mre_ab,
+           "strata_vs_brute_ref_rel_rmse": rmse_a_x, "brute_vs_strata_ref_rel_rmse": rmse_b_x}
+    print(f"  strata {spp} spp {ta:.1f} s: relative RMSE {rmse_a:.4f}, mean relative error {mre_a:.4f} "
+          f"(against strata's reference)", flush=True)
+    print(f"  brute force {bspp} spp {tb:.1f} s: relative RMSE {rmse_b:.4f}, mean relative error {mre_b:.4f} "
+          f"(against brute force's reference)", flush=True)
+    print(f"  the references' difference: relative RMSE {rmse_ab:.4f}, mean relative error {mre_ab:.4f}", flush=True)
+    gap = np.ones((size, max(1, size // 64), 3), np.float32)
+    top = np.concatenate([a[..., :3], gap, b[..., :3], gap, ra[..., :3], gap, rb[..., :3]], axis=1)
+    bot = np.concatenate([heat(ea), gap, heat(eb), gap, heat(eab), gap, np.zeros_like(a[..., :3])], axis=1)
+    save(np.concatenate([top, np.ones((gap.shape[1], top.shape[1], 3), np.float32), bot], axis=0), out, "equal_time")
+
+    # Mitsuba's own approximations, against strata's reference.
+    alb = body_albedo()
+    print(f"  compare_body's hemispherical albedo (the approximations' diffuse reflectance): "
+          f"{alb[0]:.4f} {alb[1]:.4f} {alb[2]:.4f}", flush=True)
+    rgb = {"type": "rgb", "value": [float(x) for x in alb]}
+    approx = {
+        "plastic": {"type": "plastic", "int_ior": 1.5, "diffuse_reflectance": rgb},
+        "roughplastic": {"type": "roughplastic", "int_ior": 1.5, "alpha": 0.05, "distribution": "ggx",
+                         "diffuse_reflectance": rgb},
+        "principled": {"type": "principled", "base_color": rgb, "roughness": 1.0, "metallic": 0.0,
+                       "specular": 0.0, "clearcoat": 1.0, "clearcoat_gloss": 1.0},
+    }
+    imgs, errs = [], []
+    res["approx"] = {}
+    for k, bs in approx.items():
+        with symbolic_mode():
+            img, dt = render(compare_scene("approx", size, ref_spp, bs), f"compare {k} {ref_spp} spp", seed=7)
+        e, rmse, mre = rel_error(img, ra)
+        sph = sphere_mask(size)
+        diff = (img[..., :3] - ra[..., :3])[sph].mean(axis=0)
+        rel = diff / ra[..., :3][sph].mean(axis=0)
+        res["approx"][k] = {"rel_rmse": rmse, "mean_rel_err": mre, "sphere_mean_diff_rel": [float(x) for x in rel],
+                            "render_s": dt}
+        print(f"  {k}: relative RMSE {rmse:.4f}, mean relative error {mre:.4f} against strata's reference; "
+              f"over the sphere, mean {100 * rel[0]:+.1f} % / {100 * rel[1]:+.1f} % / {100 * rel[2]:+.1f} % (R/G/B)",
+              flush=True)
+        imgs.append(img[..., :3])
+        errs.append(heat(e))
+    top = np.concatenate([ra[..., :3], gap] + sum(([x, gap] for x in imgs), [])[:-1], axis=1)
+    bot = np.concatenate([heat(eab), gap] + sum(([x, gap] for x in errs), [])[:-1], axis=1)
+    save(np.concatenate([top, np.ones((gap.shape[1], top.shape[1], 3), np.float32), bot], axis=0), out, "approximations")
+    (out / "compare.json").write_text(json.dumps(res, indent=1))
+    return res
+
+
+def sphere_mask(size):
+    """Pixels of the sphere in the sphere scene's camera (those the sphere
+    covers, found by rendering its depth once)."""
+    d = base_scene(size, size, 1, sun=None, rfilter="box")
+    d["integrator"] = {"type": "aov", "aovs": "dd:depth"}
+    d["sphere"] = {"type": "sphere", "radius": 1.0, "bsdf": {"type": "diffuse"}}
+    with symbolic_mode():
+        z = np.array(mi.render(mi.load_dict(d), seed=0))[..., 0]
+    return z > 0
 
 
 def main():
@@ -498,6 +659,9 @@ def main():
     ap.add_argument("--table-size", type=int, default=128)
     ap.add_argument("--table-spp", type=int, default=16)
     ap.add_argument("--turns", type=int, default=3)
+    ap.add_argument("--compare-size", type=int, default=256)
+    ap.add_argument("--compare-spp", type=int, default=16)
+    ap.add_argument("--ref-spp", type=int, default=512)
     ap.add_argument("--tiny", action="store_true")
     args = ap.parse_args()
     TINY = args.tiny
