@@ -76,17 +76,32 @@ def configure(scene, config):
     return n
 
 
+MAX_LANES = 4_200_000  # samples per pass: a JIT render holds all of its samples at once
+
+
 def render(scene_d, name, config="", seed=0, quiet=False):
-    """Loads and renders a scene dict; returns (image as numpy, seconds)."""
+    """Loads and renders a scene dict; returns (image as numpy, seconds).
+    Renders in passes of at most MAX_LANES samples (in evaluated mode every
+    sample's state is in memory at once: 84 million samples ran out of
+    24 GB), each with its own seed, and averages them."""
     scene = mi.load_dict(scene_d)
     configure(scene, config)
+    film = scene_d["sensor"]["film"]
+    spp = scene_d["sensor"]["sampler"]["sample_count"]
+    per = max(1, min(spp, MAX_LANES // (film["width"] * film["height"])))
+    while spp % per:
+        per -= 1
     t = time.perf_counter()
-    img = mi.render(scene, seed=seed)
-    img = np.array(img)
+    acc = None
+    for i in range(spp // per):
+        img = np.array(mi.render(scene, seed=seed * 1000 + i, spp=per))
+        acc = img if acc is None else acc + img
+    img = acc / (spp // per)
     dt = time.perf_counter() - t
     assert np.isfinite(img).all(), name
     if not quiet:
-        print(f"  render {name}: {dt:.1f} s", flush=True)
+        print(f"  render {name}: {dt:.1f} s" + (f" ({spp // per} passes of {per} spp)" if per < spp else ""),
+              flush=True)
     LOG.append((name, dt))
     return img, dt
 
@@ -104,11 +119,12 @@ def save(img, out, name):
 # Scenes
 
 
-def sky(width=128, height=64, sun_glow=True):
-    """An equirectangular sky (blue zenith, pale horizon, dark brown ground)."""
+def sky(width=128, height=64, ground=(0.12, 0.1, 0.08)):
+    """An equirectangular sky (blue zenith, pale horizon, a dark brown ground
+    below the horizon unless ``ground`` says otherwise)."""
     v = (np.arange(height) + 0.5) / height
     elev = np.cos(np.pi * v)
-    zenith, horizon, ground = np.array([0.25, 0.4, 0.8]), np.array([0.85, 0.9, 1.0]), np.array([0.12, 0.1, 0.08])
+    zenith, horizon, ground = np.array([0.25, 0.4, 0.8]), np.array([0.85, 0.9, 1.0]), np.array(ground)
     t = np.clip(elev, 0, 1)[:, None] ** 0.5
     col = np.where(elev[:, None] > 0, horizon * (1 - t) + zenith * t, ground)
     return mi.Bitmap(np.repeat(col[:, None, :], width, axis=1).astype(np.float32))
@@ -333,13 +349,13 @@ def logo_and_drop(size=512, levels=5):
 SUBJECTS = ["materials", "top_bottom", "refl_trans", "thickness", "scattering", "microflake", "logo_drop"]
 # (width, height, spp): chosen for the time budget of one thread (docs/gallery/paper.md).
 SIZES = {
-    "materials": (1280, 512, 64),
-    "top_bottom": (1024, 512, 64),
-    "refl_trans": (512, 512, 64),  # two panels
-    "thickness": (512, 512, 64),
-    "scattering": (512, 512, 64),
-    "microflake": (512, 512, 64),
-    "logo_drop": (512, 512, 64),
+    "materials": (1280, 512, 128),
+    "top_bottom": (1024, 512, 128),
+    "refl_trans": (512, 512, 256),  # two panels
+    "thickness": (512, 512, 256),
+    "scattering": (512, 512, 256),
+    "microflake": (512, 512, 256),
+    "logo_drop": (512, 512, 256),
 }
 
 
@@ -355,26 +371,22 @@ def subject_scene(name, w, h, spp):
         d["ground"] = checker_ground(scale=14, tiles=14)
         return d
     if name == "top_bottom":
-        d = base_scene(w, h, spp, origin=(0, 1.6, 7.5), target=(0, 0.0, 0), fov=38, depth=12,
-                       sun=(-0.3, 0.6, -0.7), sun_power=(2.5, 2.4, 2.2))
-        # The sun shines from below the horizon onto the scene from behind-left (upwards): the
-        # light reaches the spheres from below. The sky lights them from above.
+        # No ground: a sun from below (its light travels upwards) and a pale lower half of the
+        # environment light the spheres from below, the sky from above.
+        d = base_scene(w, h, spp, origin=(0, 1.0, 7.5), target=(0, 0.0, 0), fov=38, depth=12,
+                       sun=(0.35, 0.8, -0.5), sun_power=(3.0, 2.9, 2.7))
+        d["env"]["bitmap"] = sky(ground=(0.55, 0.55, 0.5))
         d["top"] = {"type": "sphere", "radius": 1.0, "center": [-1.25, 0, 0], "bsdf": strata("two_faced_slab")}
         d["bottom"] = {"type": "sphere", "radius": 1.0, "center": [1.25, 0, 0], "flip_normals": True,
                        "bsdf": strata("two_faced_slab")}
-        d["ground"] = checker_ground(y=-1.6, scale=10, tiles=10)
         return d
     if name.startswith("refl_trans"):
         front = name.endswith("front")
         d = base_scene(w, h, spp, origin=(0, 0.6, 5.0), target=(0, 0.0, 0), fov=40, depth=10,
-                       sun=(0.3, -0.4, -1.0) if front else (-0.3, -0.4, 1.0),
-                       sun_power=(3.0, 2.9, 2.7), env_scale=0.3)
+                       sun=(0.3, -0.5, -1.0) if front else (-0.12, -0.2, 1.0),
+                       sun_power=(3.0, 2.9, 2.7) if front else (0.8, 0.77, 0.72), env_scale=0.3)
         d["card"] = {"type": "rectangle", "to_world": T().rotate([0, 1, 0], 20).scale([1.2, 1.2, 1]),
                      "bsdf": strata("translucent_sheet")}
-        d["wall"] = {"type": "rectangle", "to_world": T().translate([0, 0, -2.5]).scale(4),
-                     "bsdf": {"type": "diffuse", "reflectance": {
-                         "type": "checkerboard", "color0": {"type": "rgb", "value": [0.1, 0.1, 0.1]},
-                         "color1": {"type": "rgb", "value": [0.7, 0.7, 0.7]}, "to_uv": T().scale([8, 8, 1])}}}
         d["ground"] = checker_ground(y=-1.3)
         return d
     if name == "thickness":
@@ -443,6 +455,19 @@ def run_table(args, out):
           f"{turns} turns of (diffuse, uni, bidir), median", flush=True)
     trivial = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.5, 0.5]}}
     rows = []
+    # For reference: the trivial scene in Dr.Jit's default symbolic mode,
+    # Mitsuba's usual mode (a Python BSDF cannot run in it).
+    with symbolic_mode():
+        s = mi.load_dict(sphere_scene(trivial, size, spp))
+        np.array(mi.render(s, seed=0))
+        sym = []
+        for turn in range(turns):
+            t = time.perf_counter()
+            np.array(mi.render(s, seed=turn + 1))
+            sym.append(time.perf_counter() - t)
+    print(f"  diffuse in symbolic mode: {statistics.median(sym):.2f} s (" + "/".join(f"{x:.2f}" for x in sym) + ")",
+          flush=True)
+    rows.append({"material": "diffuse_symbolic", "diffuse_s": statistics.median(sym), "all": sym})
     for name, label in TABLE:
         if name == "logo_drop":
             ior0, nmap, ior1, thick = logo_and_drop(256)
@@ -505,7 +530,7 @@ def compare_scene(kind, size, spp, bsdf=None):
         d["sphere"] = {"type": "sphere", "radius": 1.0, "bsdf": bsdf}
     else:
         d["integrator"] = {"type": "volpath", "max_depth": 32}
-        d["medium"] = {"type": "homogeneous", "sigma_t": {"type": "rgb", "value": 1.0 / SHELL},
+        d["medium"] = {"type": "homogeneous", "sigma_t": 1.0 / SHELL,
                        "albedo": {"type": "rgb", "value": [0.9, 0.6, 0.3]}, "phase": {"type": "hg", "g": 0.3}}
         d["coat"] = {"type": "sphere", "radius": 1.0, "interior": {"type": "ref", "id": "medium"},
                      "bsdf": {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}}
@@ -527,15 +552,24 @@ class symbolic_mode:
         dr.set_flag(dr.JitFlag.SymbolicCalls, False)
 
 
-def rel_error(img, ref):
+def rel_error(img, ref, mask=None):
     """Relative error per pixel |img - ref| / (ref + 0.01), channel mean;
-    and the image's relative RMSE and mean relative error over all pixels."""
+    and the relative RMSE and mean relative error over the pixels of
+    ``mask`` (all pixels without one)."""
     e = np.abs(img[..., :3] - ref[..., :3]) / (ref[..., :3] + 0.01)
-    rmse = float(np.sqrt(((img[..., :3] - ref[..., :3]) ** 2 / (ref[..., :3] ** 2 + 1e-4)).mean()))
-    return e.mean(axis=2), rmse, float(e.mean())
+    r2 = (img[..., :3] - ref[..., :3]) ** 2 / (ref[..., :3] ** 2 + 1e-4)
+    m = np.ones(img.shape[:2], bool) if mask is None else mask
+    return e.mean(axis=2), float(np.sqrt(r2[m].mean())), float(e[m].mean())
 
 
-def heat(e, top=0.5):
+def blocks(img, k=8):
+    """The image averaged over k x k blocks (noise down, the model's
+    differences kept)."""
+    h, w = img.shape[0] // k * k, img.shape[1] // k * k
+    return img[:h, :w, :3].reshape(h // k, k, w // k, k, 3).mean(axis=(1, 3))
+
+
+def heat(e, top=1.0):
     """A false colour: 0 black, then red, yellow, white at ``top``."""
     x = np.clip(e / top, 0, 1)[..., None] * 3
     return np.concatenate([np.clip(x, 0, 1), np.clip(x - 1, 0, 1), np.clip(x - 2, 0, 1)], axis=2).astype(np.float32)
@@ -560,7 +594,7 @@ def run_compare(args, out):
     ref_spp = 8 if TINY else args.ref_spp
     print(f"\n== Equal time: {size}x{size}; strata at {spp} spp against explicit geometry in volpath "
           f"(Dr.Jit's symbolic mode) at the same time; references at {ref_spp} spp (strata) and "
-          f"the same time for brute force", flush=True)
+          f"{args.brute_ref_factor}x that time for brute force", flush=True)
     a, ta = render(compare_scene("strata", size, spp), f"compare strata {spp} spp")
     # Brute force: a pilot to find its time per sample, then the spp of equal time.
     with symbolic_mode():
@@ -574,27 +608,33 @@ def run_compare(args, out):
         b, tb = render(compare_scene("brute", size, bspp), f"compare brute force {bspp} spp")
     ra, tra = render(compare_scene("strata", size, ref_spp), f"compare strata reference {ref_spp} spp", seed=7)
     with symbolic_mode():
-        rbspp = max(1, int(tra / per))
+        rbspp = max(1, int(args.brute_ref_factor * tra / per))
         rb, trb = render(compare_scene("brute", size, rbspp), f"compare brute-force reference {rbspp} spp", seed=7)
-    # Each method's error against its own reference (their convergence), and
-    # the two references' difference (the thin-slab model against geometry).
-    ea, rmse_a, mre_a = rel_error(a, ra)
-    eb, rmse_b, mre_b = rel_error(b, rb)
-    eab, rmse_ab, mre_ab = rel_error(rb, ra)
-    # Cross: each equal-time image against the other's reference.
-    _, rmse_a_x, _ = rel_error(a, rb)
-    _, rmse_b_x, _ = rel_error(b, ra)
+    # Each method's error against its own reference (their convergence), over
+    # the sphere's pixels (the ground is the same in both), and the two
+    # references' difference (the thin-slab model against geometry), also on
+    # 8x8 blocks, which average the references' remaining noise away.
+    sph = sphere_mask(size)
+    ea, rmse_a, mre_a = rel_error(a, ra, sph)
+    eb, rmse_b, mre_b = rel_error(b, rb, sph)
+    eab, rmse_ab, mre_ab = rel_error(rb, ra, sph)
+    bsph = blocks(np.repeat(sph[..., None], 3, axis=2).astype(np.float32))[..., 0] > 0.999
+    _, rmse_ab8, mre_ab8 = rel_error(blocks(rb), blocks(ra), bsph)
+    mean_a, mean_b = ra[..., :3][sph].mean(axis=0), rb[..., :3][sph].mean(axis=0)
     res = {"size": size, "strata_spp": spp, "strata_s": ta, "brute_spp": bspp, "brute_s": tb,
            "strata_ref_spp": ref_spp, "strata_ref_s": tra, "brute_ref_spp": rbspp, "brute_ref_s": trb,
            "strata_rel_rmse": rmse_a, "strata_mean_rel_err": mre_a,
            "brute_rel_rmse": rmse_b, "brute_mean_rel_err": mre_b,
            "refs_rel_rmse": rmse_ab, "refs_mean_rel_err": mre_ab,
-           "strata_vs_brute_ref_rel_rmse": rmse_a_x, "brute_vs_strata_ref_rel_rmse": rmse_b_x}
-    print(f"  strata {spp} spp {ta:.1f} s: relative RMSE {rmse_a:.4f}, mean relative error {mre_a:.4f} "
-          f"(against strata's reference)", flush=True)
+           "refs_rel_rmse_8x8": rmse_ab8, "refs_mean_rel_err_8x8": mre_ab8,
+           "sphere_mean_strata_ref": [float(x) for x in mean_a], "sphere_mean_brute_ref": [float(x) for x in mean_b]}
+    print(f"  over the sphere's pixels: strata {spp} spp {ta:.1f} s: relative RMSE {rmse_a:.4f}, mean relative error "
+          f"{mre_a:.4f} (against strata's reference)", flush=True)
     print(f"  brute force {bspp} spp {tb:.1f} s: relative RMSE {rmse_b:.4f}, mean relative error {mre_b:.4f} "
           f"(against brute force's reference)", flush=True)
-    print(f"  the references' difference: relative RMSE {rmse_ab:.4f}, mean relative error {mre_ab:.4f}", flush=True)
+    print(f"  the references' difference: relative RMSE {rmse_ab:.4f}, mean relative error {mre_ab:.4f}; on 8x8 "
+          f"blocks {rmse_ab8:.4f} and {mre_ab8:.4f}; sphere means strata "
+          + " ".join(f"{x:.4f}" for x in mean_a) + ", brute force " + " ".join(f"{x:.4f}" for x in mean_b), flush=True)
     gap = np.ones((size, max(1, size // 64), 3), np.float32)
     top = np.concatenate([a[..., :3], gap, b[..., :3], gap, ra[..., :3], gap, rb[..., :3]], axis=1)
     bot = np.concatenate([heat(ea), gap, heat(eb), gap, heat(eab), gap, np.zeros_like(a[..., :3])], axis=1)
@@ -617,13 +657,12 @@ def run_compare(args, out):
     for k, bs in approx.items():
         with symbolic_mode():
             img, dt = render(compare_scene("approx", size, ref_spp, bs), f"compare {k} {ref_spp} spp", seed=7)
-        e, rmse, mre = rel_error(img, ra)
-        sph = sphere_mask(size)
+        e, rmse, mre = rel_error(img, ra, sph)
         diff = (img[..., :3] - ra[..., :3])[sph].mean(axis=0)
         rel = diff / ra[..., :3][sph].mean(axis=0)
         res["approx"][k] = {"rel_rmse": rmse, "mean_rel_err": mre, "sphere_mean_diff_rel": [float(x) for x in rel],
                             "render_s": dt}
-        print(f"  {k}: relative RMSE {rmse:.4f}, mean relative error {mre:.4f} against strata's reference; "
+        print(f"  {k}: over the sphere, relative RMSE {rmse:.4f}, mean relative error {mre:.4f} against strata's reference; "
               f"over the sphere, mean {100 * rel[0]:+.1f} % / {100 * rel[1]:+.1f} % / {100 * rel[2]:+.1f} % (R/G/B)",
               flush=True)
         imgs.append(img[..., :3])
@@ -662,6 +701,7 @@ def main():
     ap.add_argument("--compare-size", type=int, default=256)
     ap.add_argument("--compare-spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=512)
+    ap.add_argument("--brute-ref-factor", type=float, default=4.0)
     ap.add_argument("--tiny", action="store_true")
     args = ap.parse_args()
     TINY = args.tiny
