@@ -20,6 +20,7 @@ Dr.Jit on one thread, and strata's batches on the calling thread
 """
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -544,6 +545,9 @@ class symbolic_mode:
     does not need the evaluated mode (and runs 3-4x faster in its own)."""
 
     def __enter__(self):
+        # A symbolic call traces every live instance of the BSDF domain: let
+        # no strata BSDF of an earlier scene (kept by a reference cycle) be one.
+        gc.collect()
         dr.set_flag(dr.JitFlag.SymbolicLoops, True)
         dr.set_flag(dr.JitFlag.SymbolicCalls, True)
 
