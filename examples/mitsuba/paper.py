@@ -350,8 +350,8 @@ def logo_and_drop(size=512, levels=5):
 SUBJECTS = ["materials", "top_bottom", "refl_trans", "thickness", "scattering", "microflake", "logo_drop"]
 # (width, height, spp): chosen for the time budget of one thread (docs/gallery/paper.md).
 SIZES = {
-    "materials": (1280, 512, 128),
-    "top_bottom": (1024, 512, 128),
+    "materials": (1280, 512, 256),
+    "top_bottom": (1024, 512, 256),
     "refl_trans": (512, 512, 256),  # two panels
     "thickness": (512, 512, 256),
     "scattering": (512, 512, 256),
