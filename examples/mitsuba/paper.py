@@ -64,17 +64,18 @@ def strata(name, **params):
     return d
 
 
-def configure(scene, config):
-    """Applies strata settings (``estimator=bidir``; ``threads=1`` always)
-    to every strata BSDF of a loaded scene; returns how many it changed."""
-    n = 0
-    for s in scene.shapes():
-        b = s.bsdf()
-        if hasattr(b, "_camera"):
-            b._camera = b._camera.configure(f"threads=1 {config}")
-            b._light = b._light.configure(f"threads=1 {config}")
-            n += 1
-    return n
+def configure(scene_d, config):
+    """A copy of a scene dict whose strata BSDFs take the settings `config`
+    (``estimator=bidir``) and ``threads=1``, through the plugin's ``config``
+    property."""
+    if isinstance(scene_d, dict):
+        d = {k: configure(v, config) for k, v in scene_d.items()}
+        if d.get("type") == "strata":
+            d["config"] = f"threads=1 {config}"
+        return d
+    if isinstance(scene_d, list):
+        return [configure(v, config) for v in scene_d]
+    return scene_d
 
 
 MAX_LANES = 4_200_000  # samples per pass: a JIT render holds all of its samples at once
@@ -85,8 +86,7 @@ def render(scene_d, name, config="", seed=0, quiet=False):
     Renders in passes of at most MAX_LANES samples (in evaluated mode every
     sample's state is in memory at once: 84 million samples ran out of
     24 GB), each with its own seed, and averages them."""
-    scene = mi.load_dict(scene_d)
-    configure(scene, config)
+    scene = mi.load_dict(configure(scene_d, config))
     film = scene_d["sensor"]["film"]
     spp = scene_d["sensor"]["sampler"]["sample_count"]
     per = max(1, min(spp, MAX_LANES // (film["width"] * film["height"])))
@@ -481,8 +481,7 @@ def run_table(args, out):
                   "bidir": (sphere_scene(bsdf, size, spp), "estimator=bidir")}
         loaded = {}
         for k, (d, cfg) in scenes.items():
-            s = mi.load_dict(d)
-            configure(s, cfg)
+            s = mi.load_dict(configure(d, cfg))
             np.array(mi.render(s, seed=0))  # warm-up (kernel compilation)
             loaded[k] = s
         times = {k: [] for k in scenes}

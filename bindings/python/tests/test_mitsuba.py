@@ -266,6 +266,26 @@ def test_pdf_samples_property(materials):
         mi.load_dict(dict(d, pdf_samples=4.5))
 
 
+def test_config_property(materials):
+    """``config`` applies the library's settings as text, after the other
+    properties: ``pdf_walks=4`` gives the pdf of ``pdf_samples=4`` bit for
+    bit, in both transport modes; a bad setting names the key and value."""
+    use_variant("scalar_rgb")
+    path = str(materials / "coated_copper.toml")
+    d = {"type": "strata", "filename": path}
+    by_text = mi.load_dict(dict(d, config="pdf_walks=4"))
+    by_property = mi.load_dict(dict(d, pdf_samples=4))
+    default = mi.load_dict(d)
+    wi, wo = (0.3, 0.2, math.sqrt(1 - 0.13)), (-0.6, 0.0, 0.8)
+    si = si_with(mi.Vector3f(*wi))
+    for c in (mi.BSDFContext(), mi.BSDFContext(mi.TransportMode.Importance)):
+        got = by_text.pdf(c, si, mi.Vector3f(*wo))
+        assert got == by_property.pdf(c, si, mi.Vector3f(*wo)) and got > 0
+        assert got != default.pdf(c, si, mi.Vector3f(*wo))
+    with pytest.raises(Exception, match="rr_threshold=2"):
+        mi.load_dict(dict(d, config="rr_threshold=2"))
+
+
 def test_delta_samples_are_flagged(materials):
     use_variant("scalar_rgb")
     cc = mi.load_dict({"type": "strata", "filename": str(materials / "clear_coat_lambertian.toml")})

@@ -27,6 +27,10 @@ Parameters of ``"strata"``:
   standard error of 0.15) or ``"tight"`` (8, then 8 to 128 for 0.1: a pdf
   within 0.7–1.3× of the density of the samples at nearly every direction);
   docs/method.md §6 compares them.
+* ``config`` (string): any of the library's settings as ``key=value`` text
+  (``"estimator=bidir threads=1"``; ``Bsdf.configure``, docs/embedding.md),
+  applied after the parameters above; a bad setting is a ``ValueError``
+  naming the key and the value.
 * ``param:<path>`` (float, RGB or texture, any number of them): a parameter
   of the material that varies over the surface, e.g.
   ``"param:layers[0]:medium:thickness": {"type": "bitmap", ...}``. The path
@@ -359,6 +363,9 @@ def _make_class():
             self._camera = Bsdf.from_path(
                 path, samples=samples, seed=seed, transport="importance", pdf_samples=pdf_samples
             )
+            if "config" in props:
+                # The library's settings as text, after the others.
+                self._camera = self._camera.configure(str(props["config"]))
             self._light = self._camera.with_transport("radiance")
             self._filename = name
             self._host = _Host()
