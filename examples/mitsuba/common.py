@@ -5,12 +5,12 @@ a sun."""
 import numpy as np
 
 
-def sky(mi, width=64, height=32):
-    """An equirectangular sky: blue at the zenith, pale at the horizon, a
-    dark brown ground."""
+def sky(mi, width=64, height=32, ground=(0.12, 0.1, 0.08)):
+    """An equirectangular sky: blue at the zenith, pale at the horizon, and
+    below it `ground` (a dark brown by default)."""
     v = (np.arange(height) + 0.5) / height  # 0 = zenith, 1 = nadir
     elev = np.cos(np.pi * v)  # +1 up, -1 down
-    zenith, horizon, ground = np.array([0.25, 0.4, 0.8]), np.array([0.85, 0.9, 1.0]), np.array([0.12, 0.1, 0.08])
+    zenith, horizon, ground = np.array([0.25, 0.4, 0.8]), np.array([0.85, 0.9, 1.0]), np.array(ground)
     t = np.clip(elev, 0, 1)[:, None] ** 0.5
     up = horizon * (1 - t) + zenith * t
     col = np.where(elev[:, None] > 0, up, ground)
@@ -48,3 +48,15 @@ def scene_dict(mi, bsdf, width=256, height=256, spp=64, max_depth=8, ground=True
             },
         }
     return d
+
+
+def normal_map(tx, ty, levels):
+    """A normal map (RGB c = (n + 1) / 2, as Mitsuba's normalmap reads it)
+    from the slopes `tx`, `ty` of the normal in x and y, each quantized to
+    steps of 1 / `levels` so that a wavefront holds a few distinct
+    materials."""
+    tx = np.round(tx * levels) / levels
+    ty = np.round(ty * levels) / levels
+    n = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return ((n + 1.0) / 2.0).astype(np.float32)

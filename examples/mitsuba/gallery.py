@@ -31,6 +31,7 @@ import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
+from common import normal_map  # noqa: E402
 
 MATERIALS = ["coated_copper", "clear_coat_lambertian", "varnished_wood", "scattering_slab", "validation1",
              "fibers_under_coat", "jade"]
@@ -127,11 +128,7 @@ def hammered_normals(width=256, height=128, seed=2, levels=4):
     with np.errstate(invalid="ignore", divide="ignore"):
         tx = np.where(r > 0, s * x / r, 0.0)
         ty = np.where(r > 0, s * y / r, 0.0)
-    tx = np.round(tx * levels) / levels
-    ty = np.round(ty * levels) / levels
-    n = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    return ((n + 1.0) / 2.0).astype(np.float32)
+    return normal_map(tx, ty, levels)
 
 
 def bitmap(mi, data):

@@ -35,9 +35,11 @@ import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
 import numpy as np  # noqa: E402
 
+sys.path.insert(0, str(pathlib.Path(__file__).parent))
+import common  # noqa: E402  (the gallery's scene helpers)
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MAT = ROOT / "examples" / "materials" / "paper"
-sys.path.insert(0, str(pathlib.Path(__file__).parent))
 
 T = None  # mi.ScalarTransform4f, once a variant is set (setup())
 TINY = False
@@ -121,14 +123,8 @@ def save(img, out, name):
 
 
 def sky(width=128, height=64, ground=(0.12, 0.1, 0.08)):
-    """An equirectangular sky (blue zenith, pale horizon, a dark brown ground
-    below the horizon unless ``ground`` says otherwise)."""
-    v = (np.arange(height) + 0.5) / height
-    elev = np.cos(np.pi * v)
-    zenith, horizon, ground = np.array([0.25, 0.4, 0.8]), np.array([0.85, 0.9, 1.0]), np.array(ground)
-    t = np.clip(elev, 0, 1)[:, None] ** 0.5
-    col = np.where(elev[:, None] > 0, horizon * (1 - t) + zenith * t, ground)
-    return mi.Bitmap(np.repeat(col[:, None, :], width, axis=1).astype(np.float32))
+    """The gallery's equirectangular sky (common.py) at this script's size."""
+    return common.sky(mi, width, height, ground)
 
 
 def checker_ground(y=-1.0, scale=8.0, tiles=8.0):
@@ -333,11 +329,7 @@ def logo_and_drop(size=512, levels=5):
     with np.errstate(invalid="ignore", divide="ignore"):
         tx = np.where(d > 0, slope * dx / d, 0.0)
         ty = np.where(d > 0, slope * dy / d, 0.0)
-    tx = np.round(tx * levels) / levels
-    ty = np.round(ty * levels) / levels
-    n = np.stack([tx, ty, np.ones_like(tx)], axis=-1)
-    n /= np.linalg.norm(n, axis=-1, keepdims=True)
-    nmap = ((n + 1) / 2).astype(np.float32)
+    nmap = common.normal_map(tx, ty, levels)
     ior0 = np.where(drop, 1.33, 1.0).astype(np.float32)
     ior1 = np.where(logo, 1.5, ior0).astype(np.float32)
     thick = np.where(logo, 1.0, 0.0).astype(np.float32)

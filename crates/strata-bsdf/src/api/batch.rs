@@ -410,10 +410,13 @@ impl Materials {
                 one_each("rows", r.len(), q.len())?;
                 Ok(Cow::Borrowed(r))
             }
-            None => {
-                one_each("rows", self.len(), q.len())?;
-                Ok(Cow::Owned(Materials::identity(q.len())))
-            }
+            // Without rows, a batch has a query per material.
+            None if q.len() != self.len() => Err(BatchError::call(QueryError::LengthMismatch {
+                argument: "rows",
+                len: 0,
+                queries: q.len(),
+            })),
+            None => Ok(Cow::Owned(Materials::identity(q.len()))),
         }
     }
 }

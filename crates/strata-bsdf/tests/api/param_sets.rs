@@ -207,6 +207,15 @@ fn sets_that_do_not_fit_are_errors() {
         e.to_string().contains("rows has 2 entries for 4 queries"),
         "{e}"
     );
+    // Without rows a batch has a query per material: 4 queries on 2 are an
+    // error naming the rows.
+    let (wi, wo): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+    let q = strata_bsdf::Queries::pairs(&wi, &wo);
+    let e = strata_bsdf::Bsdf::eval_into(&sets, &q, &mut |_, _| ()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "rows has 0 entries for 4 queries: give one per query"
+    );
 }
 
 /// Columns that cannot make materials are errors, never panics: a query
