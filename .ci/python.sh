@@ -31,7 +31,7 @@ fi
 # shellcheck disable=SC1091
 source "$VENV/bin/activate"
 python -m pip install -q --upgrade pip
-python -m pip install -q mitsuba==3.9.1 drjit==1.5.0 numpy==2.4.6 maturin==1.16.0 pytest==9.2.0
+python -m pip install -q mitsuba==3.9.1 drjit==1.5.0 numpy==2.4.6 maturin==1.16.0 pytest==9.2.0 pytest-xdist==3.8.0
 # .ci/run installs ahead, in the background, while the Rust stages run.
 if [ "${1:-}" = --install-only ]; then
   exit 0
@@ -50,5 +50,7 @@ cargo build --release -p strata-cli
 TARGET_DIR=${CARGO_TARGET_DIR:-target}
 export STRATA_CLI="$TARGET_DIR/release/strata"
 
-echo "== pytest bindings/python/tests"
-python -m pytest -q bindings/python/tests
+echo "== pytest bindings/python/tests (a worker per core)"
+# Most tests hold the GIL (a Python BSDF plugin in Mitsuba's scalar variant):
+# one process each core, the idle one stealing the slow renders' neighbours.
+python -m pytest -q -n auto --dist worksteal bindings/python/tests
