@@ -1,10 +1,11 @@
 //! The cost per query of the C ABI: 4096 calls of n = 1 against one call of
 //! n = 4096 (on one thread, `strata_bsdf_set_threads(b, 1)`, and on the
 //! default pool of one thread per core), for eval (1 and 64 walks) and
-//! sample, on
-//! examples/materials/coated_copper.toml; then one call with and without a
-//! thickness per query (`StrataBatch::columns`). Calls the extern "C"
-//! functions, as a C program does. Not a test: run it and read the tables.
+//! sample, on examples/materials/coated_copper.toml; then a renderer's
+//! vertex on pbrt-v4's six layered configurations with the material's own
+//! values and with every query's own (`StrataBatch::columns`). Calls the
+//! extern "C" functions, as a C program does. Not a test: run it and read
+//! the tables.
 //!
 //! ```text
 //! cargo run --release -p strata-capi --example batch_cost
@@ -196,59 +197,87 @@ fn main() {
         cells[1],
         cells[2],
     );
-    columns_cost(budget, path, &wi, &wo);
+    columns_cost(budget, &wi, &wo);
 }
 
-/// The cost of per-query parameters: one call of n = N on one thread with
-/// the BSDF's own parameters against the call with a column of a thickness
-/// per query (every query its own material, built and checked per call).
-fn columns_cost(budget: Duration, path: &str, wi: &[f32], wo: &[f32]) {
-    let thickness: Vec<f32> = (0..N).map(|k| 0.1 + 0.9 * k as f32 / N as f32).collect();
-    let p = CString::new("layers[0].medium.thickness").unwrap();
-    let cols = [StrataColumn {
-        path: p.as_ptr(),
-        width: 1,
-        values: thickness.as_ptr(),
-    }];
+/// The cost of per-query values as a renderer's textures give them, on
+/// pbrt-v4's six layered configurations (`strata_reports::pbrt::configs`):
+/// a vertex's two calls of n = N on one thread, one walk per eval, in
+/// importance mode (a sample, then an eval with its pdf at a second
+/// direction), with the material's own values against a column per
+/// parameter (`strata_reports::vertex::Texture`: the coat's thickness, its
+/// absorption, its roughness where rough, the base's albedo where
+/// Lambertian), every query its own values, drawn afresh (untimed) before
+/// every repetition as a texture lookup would give them.
+fn columns_cost(budget: Duration, wi: &[f32], wo: &[f32]) {
     let mut f = vec![0.0f32; 3 * N];
+    let mut pdf = vec![0.0f32; N];
     let mut s = vec![StrataSample::default(); N];
     println!();
-    println!("| one call of n = {N}, 1 thread | own parameters | a thickness per query | ratio |");
+    println!(
+        "| one vertex (sample, eval with pdf), n = {N}, 1 thread, 1 walk | own values | per-query values | ratio |"
+    );
     println!("|---|---|---|---|");
-    for samples in [1u64, 64] {
-        let b = create(path, samples, Some(1));
-        let mut cell = |c: &[StrataColumn]| {
-            per_query(budget, || {
-                let batch = eval_of(N, wi, wo, &mut f, c);
-                // SAFETY: N queries in every array, N values per column; a
-                // live BSDF.
-                let st = unsafe { strata_eval(b, &batch) };
-                assert_eq!(st, STRATA_OK);
-            })
+    for c in strata_reports::pbrt::configs() {
+        let toml = CString::new(c.toml.as_str()).unwrap();
+        let mut b = null_mut();
+        // SAFETY: a NUL-terminated TOML text; a writable out pointer; `b` is
+        // used by this thread only.
+        unsafe {
+            assert_eq!(
+                strata_bsdf_from_toml(toml.as_ptr(), 1, 1, &mut b),
+                STRATA_OK
+            );
+            assert_eq!(strata_bsdf_set_threads(b, 1), STRATA_OK);
+            let t = STRATA_TRANSPORT_IMPORTANCE;
+            assert_eq!(strata_bsdf_set_transport(b, t), STRATA_OK);
+        }
+        let mut texture = strata_reports::vertex::Texture::new(&c);
+        let paths: Vec<CString> = (texture.paths().into_iter())
+            .map(|p| CString::new(p).unwrap())
+            .collect();
+        let mut rng = 1u64;
+        let mut cell = |textured: bool| {
+            texture.draw(N, &mut rng);
+            let mut vertex = |texture: &strata_reports::vertex::Texture| {
+                let cols: Vec<StrataColumn> = match textured {
+                    false => vec![],
+                    true => (paths.iter().zip(texture.columns()))
+                        .map(|(p, c)| StrataColumn {
+                            path: p.as_ptr(),
+                            width: c.width,
+                            values: c.values.as_ptr(),
+                        })
+                        .collect(),
+                };
+                let t = Instant::now();
+                let smp = sample_of(wi, &mut s, &cols);
+                let mut light = eval_of(N, wi, wo, &mut f, &cols);
+                light.pdf = pdf.as_mut_ptr();
+                // SAFETY: N queries in every array, N rows per column; a live
+                // BSDF.
+                unsafe {
+                    assert_eq!(strata_sample(b, &smp), STRATA_OK);
+                    assert_eq!(strata_eval(b, &light), STRATA_OK);
+                }
+                t.elapsed().as_secs_f64()
+            };
+            vertex(&texture); // warm up
+            let start = Instant::now();
+            let mut best = f64::INFINITY;
+            while start.elapsed() < budget {
+                texture.draw(N, &mut rng);
+                best = best.min(vertex(&texture));
+            }
+            best * 1e9 / N as f64
         };
-        let (own, per) = (cell(&[]), cell(&cols));
+        let (own, per) = (cell(false), cell(true));
         println!(
-            "| `strata_eval` with columns, samples {samples} | {own:.0} ns | {per:.0} ns | {:.2}× |",
-            own / per
+            "| {} | {own:.0} ns | {per:.0} ns | {:.2}× |",
+            c.name,
+            per / own
         );
-        // SAFETY: from `create`, freed once.
+        // SAFETY: from `strata_bsdf_from_toml`, freed once.
         unsafe { strata_bsdf_free(b) };
     }
-    let b = create(path, 1, Some(1));
-    let mut cell = |c: &[StrataColumn]| {
-        per_query(budget, || {
-            let batch = sample_of(wi, &mut s, c);
-            // SAFETY: N queries in every array, N values per column; a live
-            // BSDF.
-            let st = unsafe { strata_sample(b, &batch) };
-            assert_eq!(st, STRATA_OK);
-        })
-    };
-    let (own, per) = (cell(&[]), cell(&cols));
-    println!(
-        "| `strata_sample` with columns | {own:.0} ns | {per:.0} ns | {:.2}× |",
-        own / per
-    );
-    // SAFETY: from `create`, freed once.
-    unsafe { strata_bsdf_free(b) };
 }

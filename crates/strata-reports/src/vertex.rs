@@ -201,7 +201,7 @@ impl Texture {
     /// costs; a wider spread would add the texture's own variation to the
     /// vertex's variance, which is the image's content, not the estimator's
     /// noise, and the efficiency ratio is of the estimator.)
-    fn draw(&mut self, n: usize, rng: &mut u64) {
+    pub fn draw(&mut self, n: usize, rng: &mut u64) {
         self.values = (self.columns.iter())
             .map(|&(_, width, own)| {
                 let jitter = |r: &mut u64| own * (0.99 + 0.02 * uniform(r) as f32);
@@ -210,7 +210,9 @@ impl Texture {
             .collect();
     }
 
-    fn columns(&self) -> Vec<Column<'_>> {
+    /// Its columns for the last [`Texture::draw`]: per parameter, its path,
+    /// its width (1 or 3) and `width × n` values.
+    pub fn columns(&self) -> Vec<Column<'_>> {
         (self.columns.iter().zip(&self.values))
             .map(|((path, width, _), values)| Column {
                 path,

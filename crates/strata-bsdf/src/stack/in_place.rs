@@ -114,11 +114,17 @@ impl LayerStack {
 
     /// [`LayerStack::same_shape`] for this stack written from `other` at
     /// `paths` alone (paths [`SetPath::in_place`] takes): only the parts a
-    /// write there can change are compared.
+    /// write there can change are compared. A write changes no phase
+    /// function, distribution, shadowing, normal or interface kind: only a
+    /// medium's kind and greyness (its phase's kind follows its kind) and an
+    /// interface's smoothness.
     pub fn same_shape_at(&self, other: &LayerStack, paths: &[&SetPath]) -> bool {
         paths.iter().all(|p| match p.target {
-            Target::Medium(l, _) => self.layer_shape(l) == other.layer_shape(l),
-            Target::Interface(i, _) => self.interface_shape(i) == other.interface_shape(i),
+            Target::Medium(l, _) => match (&self.media[l], &other.media[l]) {
+                (Some(a), Some(b)) => a.kind() == b.kind() && a.grey() == b.grey(),
+                (a, b) => a.is_none() && b.is_none(),
+            },
+            Target::Interface(i, _) => self.interfaces[i].smooth == other.interfaces[i].smooth,
             Target::ExteriorIor => self.same_shape(other),
         })
     }

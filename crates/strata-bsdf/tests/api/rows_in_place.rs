@@ -217,6 +217,62 @@ fn rows_that_leave_the_shape_or_are_invalid() {
     }
 }
 
+/// `same_shape_at` compares only what a write can change (a medium's kind and
+/// greyness, an interface's smoothness): on writes that keep and that change
+/// the shape, of every in-place field, it says what the whole comparison says.
+#[test]
+fn same_shape_at_agrees_with_the_whole_comparison() {
+    let stacks = [
+        LayerStack::from_toml_str(VARNISH_OVER_SCATTERING).unwrap(),
+        LayerStack::from_toml_str(ROUGH_COAT_ABSORBER).unwrap(),
+        LayerStack::from_toml_str(SMOOTH_COAT_ABSORBER).unwrap(),
+        LayerStack::from_toml_str(COATED_COPPER).unwrap(),
+    ];
+    let writes: [(&str, &[&[f64]]); 7] = [
+        ("layers[0].medium.thickness", &[&[0.0], &[0.25], &[1.0]]),
+        (
+            "layers[0].medium.sigma_t",
+            &[&[0.0], &[0.5], &[0.5, 1.0, 2.0], &[0.0, 0.0, 0.0]],
+        ),
+        (
+            "layers[0].medium.albedo",
+            &[&[0.0], &[0.5], &[0.5, 0.0, 0.9]],
+        ),
+        ("layers[0].interface.roughness", &[&[0.0], &[0.1], &[0.25]]),
+        ("layers[1].interface.albedo", &[&[0.0], &[0.5, 0.6, 0.7]]),
+        ("layers[1].interface.eta", &[&[0.2, 0.9, 1.1]]),
+        ("layers[1].interface.k", &[&[0.0], &[3.0, 2.5, 2.0]]),
+    ];
+    let (mut same, mut differ) = (0, 0);
+    for stack in &stacks {
+        for (path, values) in writes {
+            let path: SetPath = path.parse().unwrap();
+            // The stack has the field (0.5 is a valid value of every one).
+            let has = stack.desc().clone().apply_set(&path, &Value::from(0.5));
+            if !path.in_place() || has.is_err() {
+                continue;
+            }
+            for v in values {
+                let mut row = stack.clone();
+                if row.write(&path, v).is_err() || row.check_depths().is_err() {
+                    continue;
+                }
+                let whole = row.same_shape(stack);
+                assert_eq!(row.same_shape_at(stack, &[&path]), whole, "{path} = {v:?}");
+                if whole {
+                    same += 1;
+                } else {
+                    differ += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        same > 10 && differ > 5,
+        "{same} writes keep the shape, {differ} change it"
+    );
+}
+
 /// A thread keeps its last table and reuses it for the same template and
 /// columns (a renderer's three calls at a batch of vertices): the answers
 /// are those of a table built afresh, for the same columns and for any
