@@ -48,7 +48,10 @@ pub use error::{
     check_walks, BatchError, Direction, QueryError, ThreadsError, MAX_THREADS, MAX_WALKS,
 };
 pub use materials::Materials;
-pub use plan::{BOOSTED_CV_MAX_DEPTH, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA, ROUGH_CV_MIN_BASE};
+pub use plan::{
+    BOOSTED_CV_MAX_DEPTH, MAX_COATED_CONDUCTOR_DEPTH, MAX_OPTICAL_DEPTH, NEAR_SPECULAR_ALPHA,
+    ROUGH_CV_MIN_BASE,
+};
 pub use queries::{Bsdf, Queries};
 pub use strategy::{Engine, Estimator, EvalStart};
 pub use transport::Transport;

@@ -7,7 +7,7 @@
 //! |---|---|---|---|
 //! | eval without walks | `Estimator::Auto` on a dielectric coat over a clear or absorbing layer over a Lambertian base: the closed form under a smooth coat, the factorization under a rough one (`estimator::coat_and_base`) | | `tests/physics/rough_coat.rs`, docs/method.md §4 |
 //! | control variate | `Auto` on a coat over a *scattering* layer over a Lambertian base, where it measured less variance per unit of time ([`CoatLambertian::control_variate_pays`]) | [`BOOSTED_CV_MAX_DEPTH`] 2, [`ROUGH_CV_MIN_BASE`] 0.5, scattering at most 0.1 of the base | `tests/estimators/layered_control_variate.rs` |
-//! | bidirectional walks | `Auto` on optically thin stacks of three interfaces or more, on a rough coat over a smooth conductor, on near-specular coated conductors; not at the specular peak ([`Estimator::bidirectional_pays`], [`Estimator::is_bidirectional_at`]) | [`NEAR_SPECULAR_ALPHA`] 0.05, [`MAX_OPTICAL_DEPTH`] 1 | docs/results.md |
+//! | bidirectional walks | `Auto` on optically thin stacks of three interfaces or more, on a rough coat over a smooth conductor, on near-specular coated conductors; not at the specular peak ([`Estimator::bidirectional_pays`], [`Estimator::is_bidirectional_at`]) | [`NEAR_SPECULAR_ALPHA`] 0.05, [`MAX_OPTICAL_DEPTH`] 3, [`MAX_COATED_CONDUCTOR_DEPTH`] 1 | docs/results.md |
 //! | side walks start from | `EvalStart::Normal`: the direction nearer the normal, or farther from it for a reflected pair under a rough entrance; on an untilted stack | | docs/performance.md |
 //! | engine | `Engine::Auto`: the scalar engine for a call of fewer walks than the wavefront has lanes ([`Engine::resolve`]; a pdf counts its first round twice) | lanes 8 | docs/performance.md, *criterion* |
 //! | threads | a batch of at most `SERIAL_WALKS` walks (a pdf batch of at most `PDF_CHUNK` queries) runs on the calling thread | 256, 64 | `crates/strata-benches`, group `small` |
@@ -33,12 +33,18 @@ use crate::stack::{LayerStack, PhaseKind};
 /// only where it clearly wins.
 pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 
-/// The largest optical depth of a scattering layer for which
-/// `Estimator::Auto` runs the bidirectional estimator
-/// ([`Estimator::bidirectional_pays`]): it won at 0.5 on three interfaces
-/// and lost by far at 8 and 10, where its walks, whose cost grows with the
-/// cube of their length, are long (docs/results.md).
-pub const MAX_OPTICAL_DEPTH: f64 = 1.0;
+/// The largest optical depth of a scattering layer in a stack of three
+/// interfaces or more for which `Estimator::Auto` runs the bidirectional
+/// estimator ([`Estimator::bidirectional_pays`]): on three such stacks it
+/// won at every depth up to 3 (by at least 1.04× at 3, 2× at 2) and lost
+/// on two of them from 4 on, where its walks, whose cost grows with the
+/// cube of their length, are long (docs/results.md, *The optical depth
+/// threshold*).
+pub const MAX_OPTICAL_DEPTH: f64 = 3.0;
+
+/// The same threshold on a two-interface coated conductor, where it has
+/// not been measured between 0.5 (a win) and 10 (a loss).
+pub const MAX_COATED_CONDUCTOR_DEPTH: f64 = 1.0;
 
 /// The deepest grey medium on which [`crate::Estimator::Auto`] uses the
 /// boosted control variate ([`CoatLambertian::control_variate_pays`]).
@@ -58,7 +64,8 @@ pub const ROUGH_CV_MIN_BASE: f64 = 0.5;
 impl Estimator {
     /// Whether `Auto` answers `stack`'s eval with the bidirectional
     /// estimator, on stacks whose scattering layers are all optically thin
-    /// (optical depth at most [`MAX_OPTICAL_DEPTH`] in every channel):
+    /// (optical depth at most [`MAX_OPTICAL_DEPTH`] in every channel on
+    /// three interfaces or more, [`MAX_COATED_CONDUCTOR_DEPTH`] on two):
     /// * on stacks of three interfaces or more, where vertices below the
     ///   exit's layer reach the viewer only through continuations in the
     ///   unidirectional estimator;
@@ -85,16 +92,18 @@ impl Estimator {
         // A bidirectional walk's cost grows with the cube of its length
         // (every pair of vertices, each weight O(n)): an optically thick
         // scattering layer makes it lose whatever the interfaces.
-        let thin = (0..stack.len().saturating_sub(1)).all(|l| {
-            stack.medium(l).is_none_or(|m| {
-                !m.scatters() || m.optical_depth().iter().all(|&t| t <= MAX_OPTICAL_DEPTH)
+        let thin = |max: f64| {
+            (0..stack.len().saturating_sub(1)).all(|l| {
+                stack
+                    .medium(l)
+                    .is_none_or(|m| !m.scatters() || m.optical_depth().iter().all(|&t| t <= max))
             })
-        });
-        if !thin {
-            return false;
-        }
+        };
         if stack.len() >= 3 {
-            return true;
+            return thin(MAX_OPTICAL_DEPTH);
+        }
+        if !thin(MAX_COATED_CONDUCTOR_DEPTH) {
+            return false;
         }
         if stack.len() != 2 {
             return false;

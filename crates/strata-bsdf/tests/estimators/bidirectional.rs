@@ -356,6 +356,53 @@ fn auto_picks_by_the_measured_rule() {
         "#,
     );
     assert!(!Estimator::bidirectional_pays(&thick));
+    // The thresholds: a scattering layer of optical depth up to 3 on three
+    // interfaces (docs/results.md, *The optical depth threshold*), up to 1
+    // in a coated conductor.
+    let three = |depth: f64| {
+        stack(&format!(
+            r#"
+            [[layers]]
+            interface = {{ kind = "dielectric", ior = 1.5 }}
+            [[layers]]
+            interface = {{ kind = "dielectric", ior = 1.3, roughness = 0.3 }}
+            medium = {{ thickness = 1.0, sigma_t = [0.5, {depth}, 1.0], albedo = 0.98 }}
+            [[layers]]
+            interface = {{ kind = "diffuse", albedo = 0.7 }}
+            "#
+        ))
+    };
+    for (depth, want) in [
+        (0.5, true),
+        (2.0, true),
+        (3.0, true),
+        (3.01, false),
+        (8.0, false),
+    ] {
+        assert_eq!(
+            Estimator::bidirectional_pays(&three(depth)),
+            want,
+            "{depth}"
+        );
+    }
+    let coated_over = |depth: f64| {
+        stack(&format!(
+            r#"
+            [[layers]]
+            interface = {{ kind = "dielectric", ior = 1.5, roughness = 0.1 }}
+            medium = {{ thickness = 1.0, sigma_t = {depth}, albedo = 0.9 }}
+            [[layers]]
+            interface = {{ kind = "conductor", eta = [0.2, 0.9, 1.1], k = [3.9, 2.4, 2.2] }}
+            "#
+        ))
+    };
+    for (depth, want) in [(0.5, true), (1.0, true), (2.0, false)] {
+        assert_eq!(
+            Estimator::bidirectional_pays(&coated_over(depth)),
+            want,
+            "{depth}"
+        );
+    }
     for (name, toml) in STACKS.iter().chain(RULE_STACKS).chain(NEAR_SPECULAR) {
         let st = stack(toml);
         let near_coated_conductor = name.starts_with("near-specular: coat");
