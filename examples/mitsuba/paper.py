@@ -343,17 +343,13 @@ SUBJECTS = ["materials", "top_bottom", "refl_trans", "thickness", "scattering", 
 # (width, height, spp): chosen for the time budget of one thread (docs/gallery/paper.md).
 SIZES = {
     "materials": (1280, 512, 256),
-    "top_bottom": (1024, 512, 256),
+    "top_bottom": (1024, 512, 64),
     "refl_trans": (512, 512, 256),  # two panels
     "thickness": (512, 512, 256),
     "scattering": (512, 512, 256),
     "microflake": (512, 512, 256),
     "logo_drop": (512, 512, 128),
 }
-# The library's settings per subject, where they are not the defaults: top_bottom keeps the
-# unidirectional walks, as rendered for docs/gallery/paper.md (`auto` takes the bidirectional
-# ones on its stack, which make the render about 9 times longer).
-CONFIG = {"top_bottom": "estimator=uni"}
 
 
 def subject_scene(name, w, h, spp):
@@ -422,9 +418,9 @@ def run_subjects(args, out, names):
             gap = np.ones((h, max(1, w // 128), 3), np.float32)
             img, dt = np.concatenate([a[..., :3], gap, b[..., :3]], axis=1), ta + tb
         else:
-            img, dt = render(subject_scene(name, w, h, spp), name, config=CONFIG.get(name, ""))
+            img, dt = render(subject_scene(name, w, h, spp), name)
         save(img, out, name)
-        done[name] = {"width": w, "height": h, "spp": spp, "render_s": dt, "config": CONFIG.get(name, "")}
+        done[name] = {"width": w, "height": h, "spp": spp, "render_s": dt}
     p = out / "subjects.json"
     old = json.loads(p.read_text()) if p.exists() else {}
     old.update(done)
