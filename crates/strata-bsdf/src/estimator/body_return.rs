@@ -3,6 +3,7 @@
 //! (`super::lobe_pdf`).
 
 use crate::stack::{InterfaceKind, LayerStack, Phase};
+use wide::f64x4;
 
 /// The share of the light that crosses an opaque stack's entry interface
 /// and comes back out through it: the lobe pdf's weight of its cosine lobe,
@@ -44,8 +45,7 @@ pub fn body_return(stack: &LayerStack) -> f64 {
                 Phase::Mixture(lobes) => lobes.iter().map(|(w, g)| w * g).sum(),
                 Phase::Sggx { .. } => 0.0,
             };
-            let tau = m.optical_depth();
-            r = std::array::from_fn(|c| kubelka_munk(tau[c], m.albedo[c], g, r[c]));
+            r = kubelka_munk(m.optical_depth(), m.albedo, g, r);
         }
         if l == 0 {
             break;
@@ -76,26 +76,40 @@ pub fn body_return(stack: &LayerStack) -> f64 {
     ((out[0] + out[1] + out[2]) / 3.0).clamp(0.01, 1.0)
 }
 
-/// Diffuse reflectance of a layer of optical depth `tau`, single-scattering
-/// albedo `albedo` and phase asymmetry `g` over a background of diffuse
-/// reflectance `under` (Kubelka–Munk, with the similarity relations).
-fn kubelka_munk(tau: f64, albedo: f64, g: f64, under: f64) -> f64 {
-    let reduced = (1.0 - albedo * g).max(1e-9);
+/// Diffuse reflectance per channel of a layer of optical depths `tau`,
+/// single-scattering albedos `albedo` and phase asymmetry `g` over a
+/// background of diffuse reflectances `under` (Kubelka–Munk, with the
+/// similarity relations); the three channels run in the lanes of one
+/// vector, each branch computed and the channel's own selected.
+fn kubelka_munk(tau: [f64; 3], albedo: [f64; 3], g: f64, under: [f64; 3]) -> [f64; 3] {
+    let v = |x: [f64; 3]| f64x4::new([x[0], x[1], x[2], x[2]]);
+    let (tau, albedo, under) = (v(tau), v(albedo), v(under));
+    let one = f64x4::ONE;
+    let reduced = (one - albedo * g).max(f64x4::splat(1e-9));
     let a = albedo * (1.0 - g) / reduced;
     let tau = tau * reduced;
-    let (k, s) = (2.0 * (1.0 - a) * tau, a * tau);
-    if s < 1e-9 {
-        return under * (-2.0 * k).exp();
+    let (k, s) = (f64x4::splat(2.0) * (one - a) * tau, a * tau);
+    let clear = under * (f64x4::splat(-2.0) * k).exp();
+    let scatters_little = s.simd_lt(f64x4::splat(1e-9));
+    if scatters_little.all() {
+        return first3(clear);
     }
     let ratio = (s + k) / s;
-    let b = (ratio * ratio - 1.0).max(0.0).sqrt();
+    let b = (ratio * ratio - one).max(f64x4::ZERO).sqrt();
     // b coth(b s), and its limit s⁻¹ where the layer does not absorb.
-    let bc = if b * s < 1e-6 {
-        1.0 / s
-    } else {
-        b / (b * s).tanh()
-    };
-    ((1.0 - under * (ratio - bc)) / (ratio - under + bc)).clamp(0.0, 1.0)
+    let bc = (b * s)
+        .simd_lt(f64x4::splat(1e-6))
+        .select(one / s, b / (b * s).tanh());
+    let km = ((one - under * (ratio - bc)) / (ratio - under + bc))
+        .max(f64x4::ZERO)
+        .min(one);
+    first3(scatters_little.select(clear, km))
+}
+
+/// The three channels of `v`.
+fn first3(v: f64x4) -> [f64; 3] {
+    let r = v.to_array();
+    [r[0], r[1], r[2]]
 }
 
 /// Diffuse (hemispherical) reflectance of a smooth boundary for light that
