@@ -275,7 +275,7 @@ fn bench_stack(
     let sc = ScalarEngine::<f32>::new(stack, Settings::default());
     let mut table = SetTable::new(stack.len());
     for k in 0..pairs.len() as u64 {
-        table.push(&varied(stack, k), None, true);
+        table.push(&varied(stack, k), None, true, true);
     }
     let table = Arc::new(table);
     let set: Vec<u32> = (0..pairs.len() as u32).collect();

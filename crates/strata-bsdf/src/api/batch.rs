@@ -460,7 +460,7 @@ impl Bsdf for PerQuery<'_> {
         self.pairs_checked(q, true)?;
         let walks = self.template.walks_of(q)?;
         let mut cut = 0;
-        let in_place = self.in_place_chunks("eval", |per, r| {
+        let in_place = self.in_place_chunks("eval", false, |per, r| {
             let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
             let keys = keys.map(|x| &x[r.clone()]);
             let put = |k: usize, e: &Estimate| out(r.start + k, e);
@@ -503,7 +503,7 @@ impl Bsdf for PerQuery<'_> {
         self.pairs_checked(q, true)?;
         let walks = self.template.walks_of(q)?;
         let mut cut = 0;
-        let in_place = self.in_place_chunks("eval_pdf", |per, r| {
+        let in_place = self.in_place_chunks("eval_pdf", false, |per, r| {
             let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
             let keys = keys.map(|x| &x[r.clone()]);
             let evals = |k: usize, e: &Estimate| evals(r.start + k, e);
@@ -528,7 +528,7 @@ impl Bsdf for PerQuery<'_> {
     ) -> Result<(), BatchError> {
         self.directions_checked(q, true)?;
         let (wi, keys, indices) = (q.wi, q.keys, q.indices);
-        let in_place = self.in_place_chunks("sample", |per, r| {
+        let in_place = self.in_place_chunks("sample", false, |per, r| {
             let keys = keys.map(|x| &x[r.clone()]);
             let indices = indices.map(|x| &x[r.clone()]);
             let a = wi.range(r.clone());
@@ -573,7 +573,7 @@ impl Bsdf for PerQuery<'_> {
     ) -> Result<(), BatchError> {
         let (wi, wo) = (q.wi, q.wo_or_none());
         self.pairs_checked(q, false)?;
-        let in_place = self.in_place_chunks("pdf", |per, r| {
+        let in_place = self.in_place_chunks("pdf", false, |per, r| {
             let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
             let put = |k: usize, p: f32| out(r.start + k, p);
             (self.rows_bsdf()).pdfs(per, r.len(), |k| pair_at(&a, &b, k), put);
@@ -602,7 +602,7 @@ impl Bsdf for PerQuery<'_> {
         self.pairs_checked(q, false)?;
         let walks = self.template.walks_of(q)?;
         let mut cut = 0;
-        let in_place = self.in_place_chunks("pdf_unbiased", |per, r| {
+        let in_place = self.in_place_chunks("pdf_unbiased", false, |per, r| {
             let (a, b) = (wi.range(r.clone()), wo.range(r.clone()));
             let put = |k: usize, e: &PdfEstimate| out(r.start + k, e);
             cut += (self.rows_bsdf()).pdfs_unbiased(per, &a, &b, walks, put);
@@ -633,7 +633,7 @@ impl Bsdf for PerQuery<'_> {
         let walks = self.template.walks_of(q)?;
         let (wi, keys) = (q.wi, q.keys);
         let mut cut = 0;
-        let in_place = self.in_place_chunks("albedo", |per, r| {
+        let in_place = self.in_place_chunks("albedo", true, |per, r| {
             let keys = keys.map(|x| &x[r.clone()]);
             let a = wi.range(r.clone());
             let put = |k: usize, x: &Albedo| out(r.start + k, x);

@@ -1186,6 +1186,10 @@ impl LayeredBsdf {
         query: impl Fn(usize) -> (Pt, u64) + Sync,
         mut out: impl FnMut(usize, Albedo) + Send,
     ) {
+        debug_assert!(
+            !per.0.is_some_and(|(p, _)| p.table.is_lean()),
+            "albedo walks every set: its table has every set's lanes"
+        );
         let mut finish = |k: usize, mut r: Albedo| {
             let a = query(k).0;
             if let Some(s) = self.transport.factor(self.stack_in(per, k), a[2], -a[2]) {

@@ -582,7 +582,12 @@ impl<'a> PerQuery<'a> {
             }
         }
         let bsdf = shape.as_deref().unwrap_or(self.template);
-        let mut sets = (n <= self.rows).then(|| spare_sets(bsdf));
+        // Kept for every call but albedo's, which builds its own.
+        let mut sets = (n <= self.rows).then(|| {
+            let mut sets = spare_sets(bsdf);
+            sets.table_mut().set_lean(true);
+            sets
+        });
         // What a row's choices compute (a coat's table of `R̄`) honours the
         // thread setting.
         bsdf.on_own_threads(|| {
@@ -611,14 +616,21 @@ impl<'a> PerQuery<'a> {
     /// Runs `run` on every chunk of a batch whose rows are written in place
     /// ([`InPlace`]), in order: the queries' sets and their range. Errors
     /// name the query's index in the whole batch; `call` names the call in
-    /// an out-of-memory error. `None` if the rows are materials.
+    /// an out-of-memory error; `walks_every_row`: the call walks rows that
+    /// eval, sample and pdf answer without walks (albedo), so its sets carry
+    /// every row's lanes. `None` if the rows are materials.
     pub(super) fn in_place_chunks(
         &self,
         call: &'static str,
+        walks_every_row: bool,
         mut run: impl FnMut(Per, Range<usize>) -> Result<(), BatchError>,
     ) -> Option<Result<(), BatchError>> {
         let p = self.in_place.as_ref()?;
-        if let Some(sets) = &p.sets {
+        if let Some(sets) = p
+            .sets
+            .as_ref()
+            .filter(|s| !walks_every_row || !s.table.is_lean())
+        {
             return Some(run(Per(Some((sets, &p.identity))), 0..self.queries));
         }
         let bsdf = self.rows_bsdf();
@@ -626,6 +638,7 @@ impl<'a> PerQuery<'a> {
         for start in (0..self.queries).step_by(self.rows) {
             let end = self.queries.min(start + self.rows);
             sets.clear();
+            sets.table_mut().set_lean(!walks_every_row);
             if let Err(bytes) = sets.try_reserve(end - start) {
                 let error = QueryError::OutOfMemory { call, bytes };
                 return Some(Err(BatchError::call(error)));

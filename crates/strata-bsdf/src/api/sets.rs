@@ -101,9 +101,11 @@ impl LayeredBsdf {
             .as_ref()
             .filter(|_| self.control_variate_for(st))
             .cloned();
-        // A set with a walk-free form has a walk-free sampler too.
+        // A set with a walk-free form has a walk-free sampler too; only a
+        // rough coat's reads lanes (its first-order term).
         let lobe_pdf = coat.is_none() || !self.walks_can_be_skipped();
-        sets.table.push(st, cv, lobe_pdf);
+        let lanes = lobe_pdf || matches!(coat, Some(CoatLambertian::Rough(_)));
+        sets.table.push(st, cv, lobe_pdf, lanes);
         sets.table.set_adjoint_of_last(self.adjoint());
         sets.coat.push(coat);
         sets.route.push(self.estimator.route(st));

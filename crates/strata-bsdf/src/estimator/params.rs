@@ -41,6 +41,9 @@ pub struct SetTable {
     /// The phase parameters beyond `g` of `media` as rows ([`PHASE_ROW`]),
     /// read only for the layers whose phase has them.
     phase_rows: Vec<[f32; PHASE_ROW]>,
+    /// Sets answered without walks have no lanes of their own: a table
+    /// for calls that walk none of them ([`SetTable::set_lean`]).
+    lean: bool,
 }
 
 /// An interface's row: `n_above`, `n_below`, `alpha_x`, `alpha_y`, `eta`
@@ -106,25 +109,54 @@ impl SetTable {
         }
     }
 
+    /// Makes the sets added from now on whose eval, sample and pdf read no
+    /// lanes (`lanes` false in [`SetTable::push`]) carry none of their own
+    /// (they repeat the first set's), or carry them again: a lean table
+    /// serves every call but albedo, which walks every set.
+    pub fn set_lean(&mut self, on: bool) {
+        self.lean = on;
+    }
+
+    /// Whether some sets may lack lanes of their own ([`SetTable::set_lean`]).
+    pub fn is_lean(&self) -> bool {
+        self.lean
+    }
+
     /// Adds `stack` (of the table's shape) as the next set; with `cv`
     /// (what [`CoatLambertian::unscattered`] gives for it, or `None`), eval
     /// walks of its queries leave out what `cv` holds. `lobe_pdf` says
-    /// whether its pdfs may be the lobe pdf, which needs its body's return:
-    /// a set with a walk-free sampler never reads it (1 is stored).
-    pub fn push(&mut self, stack: &LayerStack, cv: Option<CoatLambertian>, lobe_pdf: bool) {
+    /// whether its pdfs may be the lobe pdf, which needs its body's return
+    /// (else 1 is stored); `lanes`, whether its eval, sample or pdf read its
+    /// lanes (walks, or a rough coat's first-order term): in a lean table
+    /// only such a set gets lanes of its own.
+    pub fn push(
+        &mut self,
+        stack: &LayerStack,
+        cv: Option<CoatLambertian>,
+        lobe_pdf: bool,
+        lanes: bool,
+    ) {
         debug_assert_eq!(stack.len(), self.n);
-        let n = self.n;
-        let first = (self.ifaces.len(), self.media.len());
-        self.ifaces
-            .extend((0..n).map(|i| stack.interface_lanes::<f32>(i)));
-        self.media
-            .extend((0..n.saturating_sub(1)).map(|l| MediumLanes::new(stack, l)));
-        let rows = self.ifaces[first.0..].iter().map(iface_row);
-        self.iface_rows.extend(rows);
-        let rows = self.media[first.1..].iter().map(medium_row);
-        self.medium_rows.extend(rows);
-        let rows = self.media[first.1..].iter().map(|m| m.phase.p);
-        self.phase_rows.extend(rows);
+        let (n, m) = (self.n, self.n.saturating_sub(1));
+        if self.lean && !lanes && !self.is_empty() {
+            self.ifaces.extend_from_within(..n);
+            self.iface_rows.extend_from_within(..n);
+            self.media.extend_from_within(..m);
+            self.medium_rows.extend_from_within(..m);
+            self.phase_rows.extend_from_within(..m);
+        } else {
+            let first = (self.ifaces.len(), self.media.len());
+            self.ifaces
+                .extend((0..n).map(|i| stack.interface_lanes::<f32>(i)));
+            self.media
+                .extend((0..m).map(|l| MediumLanes::new(stack, l)));
+            let rows = self.ifaces[first.0..].iter().map(iface_row);
+            self.iface_rows.extend(rows);
+            let rows = self.media[first.1..].iter().map(medium_row);
+            self.medium_rows.extend(rows);
+            let rows = self.media[first.1..].iter().map(|m| m.phase.p);
+            self.phase_rows.extend(rows);
+        }
         self.cv.push(cv);
         self.body.push(match lobe_pdf {
             true => super::body_return::body_return(stack),
@@ -132,9 +164,11 @@ impl SetTable {
         });
     }
 
-    /// Empties it for stacks of `n` interfaces, keeping its memory.
+    /// Empties it for stacks of `n` interfaces, keeping its memory (and
+    /// not lean).
     pub fn clear(&mut self, n: usize) {
         self.n = n;
+        self.lean = false;
         self.ifaces.clear();
         self.media.clear();
         self.cv.clear();
@@ -159,6 +193,7 @@ impl SetTable {
     /// Makes it a copy of `other`, reusing its memory.
     pub fn copy_from(&mut self, other: &SetTable) {
         self.n = other.n;
+        self.lean = other.lean;
         self.ifaces.clone_from(&other.ifaces);
         self.media.clone_from(&other.media);
         self.cv.clone_from(&other.cv);

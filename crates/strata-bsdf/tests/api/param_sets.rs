@@ -126,7 +126,7 @@ fn a_set_walks_as_its_own_stack_walk_by_walk() {
             let cv = (s % 2 == 1)
                 .then(|| CoatLambertian::unscattered(st, &settings))
                 .flatten();
-            table.push(st, cv, true);
+            table.push(st, cv, true, true);
         }
         let table = std::sync::Arc::new(table);
         let (pairs, set) = queries(17);

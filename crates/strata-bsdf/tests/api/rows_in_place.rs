@@ -3,7 +3,7 @@
 //! the values are the file's numbers exactly (multiples of 1/64: a float
 //! enters as itself, a file's decimal as its nearest double): on a coat
 //! over copper, on both engines: eval, sample (with its pdf) and pdf,
-//! keyed. Over a Lambertian base (a rough and a smooth coat over
+//! keyed, and albedo (which walks every row). Over a Lambertian base (a rough and a smooth coat over
 //! an absorber, answered without walks; the varnish, whose control variate
 //! knows the paths without a collision) a row takes its own `R̄` from the
 //! coat's table, within 1e-6 of the quadrature a material takes, so there
@@ -11,8 +11,9 @@
 //! A row that changes the stack's shape runs as a material and answers the
 //! same; an invalid row is the error its material file gives.
 
-use crate::common::batches::Buffers;
+use crate::common::batches::{Batches, Buffers};
 use crate::common::{COATED_COPPER, VARNISH_OVER_SCATTERING};
+use glam::Vec3;
 use serde_json::Value;
 use strata_bsdf::stack::SetPath;
 use strata_bsdf::{
@@ -115,6 +116,9 @@ fn rows_in_place_answer_their_material_files() {
             q.sample_records(a, Some(&keys), &mut s).unwrap();
             let mut p = vec![0f32; n];
             q.pdf_buffers(a, b, &mut p).unwrap();
+            // Albedo walks every row, those answered without walks too.
+            let wis: Vec<Vec3> = wi.iter().map(|&w| Vec3::from(w)).collect();
+            let albedo = q.albedo_batch_keyed(&wis, 8, &keys).unwrap();
             for k in 0..n {
                 let set: Vec<(SetPath, Value)> = (paths.iter().zip(&values))
                     .zip(&columns)
@@ -168,6 +172,12 @@ fn rows_in_place_answer_their_material_files() {
                 let mut wp = [0f32];
                 own.pdf_buffers(one(&wi, k), one(&wo, k), &mut wp).unwrap();
                 same(&p[k..k + 1], &wp, format!("pdf, {what}"));
+                let wa = own
+                    .albedo_batch_keyed(&wis[k..k + 1], 8, &keys[k..k + 1])
+                    .unwrap()[0];
+                let (g, w) = (albedo[k].reflected.value, wa.reflected.value);
+                let f32s = |v: [f64; 3]| v.map(|x| x as f32);
+                same(&f32s(g), &f32s(w), format!("albedo, {what}"));
             }
         }
     }
