@@ -84,6 +84,12 @@ impl LayeredBsdf {
     /// control variate, the estimator of its evals) decided here.
     pub(super) fn push_set(&self, sets: &mut SetsMut, st: &LayerStack, returns: Returns) {
         let tabulated = matches!(returns, Returns::Tabulated);
+        if let (true, Some(CoatLambertian::Smooth(own))) = (tabulated, &self.coat) {
+            // A row written in place keeps the shape and IORs: its closed
+            // form is this one's with the row's numbers.
+            let coat = Some(CoatLambertian::Smooth(own.with_numbers_of(st)));
+            return self.push_set_with(sets, st, coat);
+        }
         let coat = CoatLambertian::unscattered_with(st, &self.settings, tabulated).and_then(|c| {
             let (with, own) = match returns {
                 Returns::Own => (self.coat.as_ref(), true),
@@ -97,6 +103,12 @@ impl LayeredBsdf {
             };
             (own || same).then(|| with.map_or(c.clone(), |o| o.sharing_return(c)))
         });
+        self.push_set_with(sets, st, coat);
+    }
+
+    /// [`LayeredBsdf::push_set`] once the set's walk-free form, if any, is
+    /// known.
+    fn push_set_with(&self, sets: &mut SetsMut, st: &LayerStack, coat: Option<CoatLambertian>) {
         let cv = coat
             .as_ref()
             .filter(|_| self.control_variate_for(st))

@@ -111,6 +111,20 @@ impl SmoothCoatLambertian {
         })
     }
 
+    /// The closed form of `stack`, a stack of this one's shape and IORs
+    /// (a per-query row written in place), with `R̄` from the coat's table:
+    /// [`SmoothCoatLambertian::unscattered_with`]'s tabulated form, without
+    /// analysing the stack's shape again.
+    pub fn with_numbers_of(&self, stack: &LayerStack) -> Self {
+        let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
+        SmoothCoatLambertian {
+            eta: self.eta,
+            tau,
+            rho: stack.interface(1).albedo,
+            r_bar: coat_return::SmoothReturn::r_bar_of(self.eta, tau),
+        }
+    }
+
     /// `f(wi, wo)` per channel for directions in the stack's oriented frame
     /// (both above the coat; the caller mirrors two-sided queries and
     /// answers 0 where light cannot enter or leave).
