@@ -23,9 +23,12 @@ use crate::stack::LayerStack;
 pub struct SetTable {
     /// Interfaces per set.
     n: usize,
-    /// Set `s`, interface `i` at `s * n + i`.
+    /// Per set, its block of lanes: its own, or the first set's where a
+    /// lean table gives it none ([`SetTable::set_lean`]).
+    block: Vec<u32>,
+    /// Block `b`, interface `i` at `b * n + i`.
     ifaces: Vec<InterfaceLanes<f32>>,
-    /// Set `s`, layer `l` at `s * (n - 1) + l`, as the stack has them.
+    /// Block `b`, layer `l` at `b * (n - 1) + l`, as the stack has them.
     media: Vec<MediumLanes<f32>>,
     /// Per set: the exact part of eval that the walks leave out, when the
     /// control variate is on for it.
@@ -111,7 +114,7 @@ impl SetTable {
 
     /// Makes the sets added from now on whose eval, sample and pdf read no
     /// lanes (`lanes` false in [`SetTable::push`]) carry none of their own
-    /// (they repeat the first set's), or carry them again: a lean table
+    /// (they share the first set's), or carry them again: a lean table
     /// serves every call but albedo, which walks every set.
     pub fn set_lean(&mut self, on: bool) {
         self.lean = on;
@@ -139,12 +142,9 @@ impl SetTable {
         debug_assert_eq!(stack.len(), self.n);
         let (n, m) = (self.n, self.n.saturating_sub(1));
         if self.lean && !lanes && !self.is_empty() {
-            self.ifaces.extend_from_within(..n);
-            self.iface_rows.extend_from_within(..n);
-            self.media.extend_from_within(..m);
-            self.medium_rows.extend_from_within(..m);
-            self.phase_rows.extend_from_within(..m);
+            self.block.push(0);
         } else {
+            self.block.push((self.ifaces.len() / n.max(1)) as u32);
             let first = (self.ifaces.len(), self.media.len());
             self.ifaces
                 .extend((0..n).map(|i| stack.interface_lanes::<f32>(i)));
@@ -169,6 +169,7 @@ impl SetTable {
     pub fn clear(&mut self, n: usize) {
         self.n = n;
         self.lean = false;
+        self.block.clear();
         self.ifaces.clear();
         self.media.clear();
         self.cv.clear();
@@ -181,6 +182,7 @@ impl SetTable {
     /// Reserves room for `sets` more sets.
     pub fn try_reserve(&mut self, sets: usize) -> Result<(), std::collections::TryReserveError> {
         let (n, m) = (self.n * sets, self.n.saturating_sub(1) * sets);
+        self.block.try_reserve(sets)?;
         self.ifaces.try_reserve(n)?;
         self.iface_rows.try_reserve(n)?;
         self.media.try_reserve(m)?;
@@ -194,6 +196,7 @@ impl SetTable {
     pub fn copy_from(&mut self, other: &SetTable) {
         self.n = other.n;
         self.lean = other.lean;
+        self.block.clone_from(&other.block);
         self.ifaces.clone_from(&other.ifaces);
         self.media.clone_from(&other.media);
         self.cv.clone_from(&other.cv);
@@ -208,7 +211,8 @@ impl SetTable {
         self.n
     }
 
-    /// The interfaces of every set, set by set.
+    /// The interfaces of every block of lanes, block by block
+    /// ([`LaneSets::block`] is a lane's).
     pub fn ifaces(&self) -> &[InterfaceLanes<f32>] {
         &self.ifaces
     }
@@ -225,13 +229,14 @@ impl SetTable {
 
     /// The interfaces of set `s`.
     pub fn ifaces_of(&self, s: usize) -> &[InterfaceLanes<f32>] {
-        &self.ifaces[s * self.n..(s + 1) * self.n]
+        let b = self.block[s] as usize;
+        &self.ifaces[b * self.n..(b + 1) * self.n]
     }
 
     /// The layers of set `s`.
     pub fn media_of(&self, s: usize) -> &[MediumLanes<f32>] {
-        let per = self.n - 1;
-        &self.media[s * per..(s + 1) * per]
+        let (b, per) = (self.block[s] as usize, self.n - 1);
+        &self.media[b * per..(b + 1) * per]
     }
 
     /// What set `s`'s stack returns of the light that enters it.
@@ -241,12 +246,12 @@ impl SetTable {
 
     /// Interface `i` of set `s`.
     pub fn iface(&self, s: usize, i: usize) -> &InterfaceLanes<f32> {
-        &self.ifaces[s * self.n + i]
+        &self.ifaces[self.block[s] as usize * self.n + i]
     }
 
     /// Layer `l` of set `s`, as the stack has it.
     pub fn medium(&self, s: usize, l: usize) -> &MediumLanes<f32> {
-        &self.media[s * (self.n - 1) + l]
+        &self.media[self.block[s] as usize * (self.n - 1) + l]
     }
 
     /// Set `s`'s exact part of eval, if its walks leave it out.
@@ -260,8 +265,12 @@ impl SetTable {
 pub struct LaneSets<'a> {
     table: &'a SetTable,
     set: [u32; MAX_LANES],
+    /// Each lane's block of lanes in the table.
+    block: [u32; MAX_LANES],
     /// The set of every lane, when they share one.
     same: Option<u32>,
+    /// The block of every lane, when they share one.
+    same_block: Option<u32>,
 }
 
 impl<'a> LaneSets<'a> {
@@ -271,11 +280,14 @@ impl<'a> LaneSets<'a> {
         for (j, x) in s.iter_mut().enumerate().take(lanes) {
             *x = set(j);
         }
-        let same = s[..lanes].iter().all(|&x| x == s[0]).then_some(s[0]);
+        let b = s.map(|x| table.block.get(x as usize).copied().unwrap_or(0));
+        let all = |a: &[u32; MAX_LANES]| a[..lanes].iter().all(|&x| x == a[0]).then_some(a[0]);
         LaneSets {
             table,
             set: s,
-            same,
+            block: b,
+            same: all(&s),
+            same_block: all(&b),
         }
     }
 
@@ -289,15 +301,20 @@ impl<'a> LaneSets<'a> {
         self.set[j] as usize
     }
 
-    /// Row `first + k` of lane `j`'s set, where sets have `per` rows.
+    /// Lane `j`'s block of lanes in the table ([`SetTable::ifaces`]).
+    pub fn block(&self, j: usize) -> usize {
+        self.block[j] as usize
+    }
+
+    /// Row `first + k` of lane `j`'s block, where blocks have `per` rows.
     fn rows(&self, per: usize, first: usize) -> [u32; MAX_LANES] {
-        std::array::from_fn(|j| (self.set[j] as usize * per + first) as u32)
+        std::array::from_fn(|j| (self.block[j] as usize * per + first) as u32)
     }
 
     /// Interface `i` in every lane's set; kinds and flags from `own`.
     pub fn iface<W: Wide>(&self, own: &InterfaceLanes<W>, i: usize) -> InterfaceLanes<W> {
         let t = self.table;
-        let f = match self.same {
+        let f = match self.same_block {
             Some(s) => t.iface_rows[s as usize * t.n + i].map(|x| W::splat(x as f64)),
             None => load16::<W, IFACE_ROW>(&t.iface_rows, &self.rows(t.n, i)[..W::LANES], 0),
         };
@@ -322,14 +339,14 @@ impl<'a> LaneSets<'a> {
     pub fn medium<W: Wide>(&self, own: &MediumLanes<W>, l: usize) -> MediumLanes<W> {
         let t = self.table;
         let per = t.n - 1;
-        let f = match self.same {
+        let f = match self.same_block {
             Some(s) => t.medium_rows[s as usize * per + l].map(|x| W::splat(x as f64)),
             None => W::load8(&t.medium_rows, &self.rows(per, l)[..W::LANES], 0),
         };
         let mut phase = own.phase;
         phase.g = f[6];
         if own.phase.kind != PhaseKind::Hg {
-            phase.p = match self.same {
+            phase.p = match self.same_block {
                 Some(s) => t.phase_rows[s as usize * per + l].map(|x| W::splat(x as f64)),
                 None => W::load8(&t.phase_rows, &self.rows(per, l)[..W::LANES], 0),
             };

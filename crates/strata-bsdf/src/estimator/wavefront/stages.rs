@@ -390,7 +390,7 @@ impl<W: Wide> Wavefront<W> {
             iface: |j: W| match &sets {
                 None => InterfaceLanes::<W>::gather(&self.table, |k| j.lane(k) as usize),
                 Some(s) => InterfaceLanes::<W>::gather(s.table().ifaces(), |k| {
-                    s.set(k) * n + j.lane(k) as usize
+                    s.block(k) * n + j.lane(k) as usize
                 }),
             },
             media,
