@@ -312,6 +312,7 @@ impl<'a> LaneSets<'a> {
     }
 
     /// Interface `i` in every lane's set; kinds and flags from `own`.
+    #[inline(always)]
     pub fn iface<W: Wide>(&self, own: &InterfaceLanes<W>, i: usize) -> InterfaceLanes<W> {
         let t = self.table;
         let f = match self.same_block {
@@ -336,6 +337,7 @@ impl<'a> LaneSets<'a> {
 
     /// Layer `l` in every lane's set; its class, greyness and depth units
     /// from `own`.
+    #[inline(always)]
     pub fn medium<W: Wide>(&self, own: &MediumLanes<W>, l: usize) -> MediumLanes<W> {
         let t = self.table;
         let per = t.n - 1;

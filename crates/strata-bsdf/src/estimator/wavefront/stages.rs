@@ -130,6 +130,34 @@ impl<W: Wide> Wavefront<W> {
         }
     }
 
+    /// [`Wavefront::iface_in`], gathered into `slot` (no copy of the lanes).
+    #[inline(always)]
+    fn iface_at<'s>(
+        &'s self,
+        sets: &Option<LaneSets>,
+        i: usize,
+        slot: &'s mut Option<InterfaceLanes<W>>,
+    ) -> &'s InterfaceLanes<W> {
+        match sets {
+            None => &self.ifaces[i],
+            Some(s) => slot.insert(s.iface(&self.ifaces[i], i)),
+        }
+    }
+
+    /// [`Wavefront::medium_in`], gathered into `slot`.
+    #[inline(always)]
+    fn medium_at<'s>(
+        &'s self,
+        sets: &Option<LaneSets>,
+        l: usize,
+        slot: &'s mut Option<MediumLanes<W>>,
+    ) -> &'s MediumLanes<W> {
+        match sets {
+            None => &self.media[l],
+            Some(s) => slot.insert(s.medium(&self.media[l], l)),
+        }
+    }
+
     /// Layer `l` as the plan runs it, in the lanes' sets.
     #[inline(always)]
     pub(super) fn medium_in(&self, sets: &Option<LaneSets>, l: usize) -> Cow<'_, MediumLanes<W>> {
@@ -546,6 +574,8 @@ impl<W: Wide> Wavefront<W> {
     ) {
         let n = self.layout.n;
         let mut key = key;
+        // The chunk's lanes keep their walks (and sets) until it returns.
+        let sets = Self::sets_of(q, wave.ws, idx);
         loop {
             c.ensure(wave.ws, idx, self.stage_for(q, key));
             let busy = W::bitmask(c.active);
@@ -553,9 +583,9 @@ impl<W: Wide> Wavefront<W> {
             wave.stats.lanes += W::LANES as u64;
             wave.stats.segments += busy.count_ones() as u64;
             let o = if key < n {
-                self.interface_event(q, wave.ws, idx, &mut c, key)
+                self.interface_event(q, &sets, wave.ws, idx, &mut c, key)
             } else {
-                self.layer_event(q, wave.ws, idx, &mut c, key - n, &mut wave.deferred)
+                self.layer_event(q, &sets, wave.ws, idx, &mut c, key - n, &mut wave.deferred)
             };
             let ended = busy & !o.going;
             if ended != 0 {
@@ -586,6 +616,7 @@ impl<W: Wide> Wavefront<W> {
     fn interface_event(
         &self,
         q: &Queries,
+        sets: &Option<LaneSets>,
         ws: &Walks,
         idx: &[u32],
         c: &mut Chunk<W>,
@@ -596,8 +627,8 @@ impl<W: Wide> Wavefront<W> {
         let mis = self.settings.mis;
         let links = eval && self.connects_at[i];
         let active = c.active;
-        let sets = Self::sets_of(q, ws, idx);
-        let iface = &*self.iface_in(&sets, i);
+        let mut gathered = None;
+        let iface = self.iface_at(sets, i, &mut gathered);
         let a = -c.d;
         let (wo, e_out) = (c.wo, c.e_out);
         // With the control variate, a walk that has not collided yet scores
@@ -673,9 +704,11 @@ impl<W: Wide> Wavefront<W> {
                 continue;
             };
             let m = cont & if going_up { up } else { !up };
-            let med = self.medium_in(&sets, l);
-            let entry = med.entry(W::Mask::splat(going_up));
-            if med.kind == LayerKind::Scattering {
+            // The layer's class and depth units are the shape's: its
+            // numbers are gathered only to cross it here.
+            let own = &self.media[l];
+            let entry = own.entry(W::Mask::splat(going_up));
+            if own.kind == LayerKind::Scattering {
                 keys[dir] = (n + l) as u16;
                 c.z = W::select(m, entry, c.z);
                 continue;
@@ -684,6 +717,7 @@ impl<W: Wide> Wavefront<W> {
             if !m.any() {
                 continue;
             }
+            let med = self.medium_in(&sets, l);
             stuck = stuck | events::cross_inert(&med, entry, d, m, &mut c.beta);
         }
         let up = W::bitmask(up);
@@ -699,6 +733,7 @@ impl<W: Wide> Wavefront<W> {
     fn layer_event(
         &self,
         q: &Queries,
+        sets: &Option<LaneSets>,
         ws: &Walks,
         idx: &[u32],
         c: &mut Chunk<W>,
@@ -709,8 +744,8 @@ impl<W: Wide> Wavefront<W> {
         let mis = self.settings.mis;
         let links = eval && self.connects_in[l];
         let active = c.active;
-        let sets = Self::sets_of(q, ws, idx);
-        let med = &*self.medium_in(&sets, l);
+        let mut gathered = None;
+        let med = self.medium_at(sets, l, &mut gathered);
         let d = c.d;
         let up = d.z.gt(W::zero());
         let ud = c.rng.uniform(active);
