@@ -635,7 +635,7 @@ impl<W: Wide> Wavefront<W> {
         // nothing here: its connection crosses the layer by a transmittance,
         // a path without a collision, which the exact part holds (scalar:
         // `Connect::collided_only`).
-        let cv = self.cv_in(&sets);
+        let cv = self.cv_in(sets);
         let scoring = if eval && cv.any() {
             events::scoring(active, c.order, cv)
         } else {
@@ -681,7 +681,7 @@ impl<W: Wide> Wavefront<W> {
                 }
                 let m = alive & scoring & e_out.eq(W::splat(e as f64)) & toward(d, e);
                 if m.any() {
-                    let (ex, med) = (self.iface_in(&sets, e), self.medium_in(&sets, l0));
+                    let (ex, med) = (self.iface_in(sets, e), self.medium_in(sets, l0));
                     let add = events::surface_continuation(&ex, &med, wo, d, &s, c.beta, mis);
                     c.acc = Rgb::select(m, c.acc + add, c.acc);
                 }
@@ -694,7 +694,7 @@ impl<W: Wide> Wavefront<W> {
         // Russian roulette.
         let cont = alive & !exited;
         let u = c.rng.uniform(cont);
-        let boosting = self.boosting(eval, &sets);
+        let boosting = self.boosting(eval, sets);
         let cont = self.survive(c, u, cont, boosting);
         // Enter the next layer; cross the ones that do not scatter right here.
         let mut stuck = W::Mask::splat(false);
@@ -717,7 +717,7 @@ impl<W: Wide> Wavefront<W> {
             if !m.any() {
                 continue;
             }
-            let med = self.medium_in(&sets, l);
+            let med = self.medium_in(sets, l);
             stuck = stuck | events::cross_inert(&med, entry, d, m, &mut c.beta);
         }
         let up = W::bitmask(up);
@@ -756,7 +756,7 @@ impl<W: Wide> Wavefront<W> {
             order: &mut c.order,
         };
         let max_order = self.settings.max_scatter_order;
-        let boosting = self.boosting(eval, &sets);
+        let boosting = self.boosting(eval, sets);
         let boost = boosting
             .filter(|b| (active & *b).any())
             .map(|b| events::collision_boost(b, *st.order, *st.beta).0);
