@@ -730,6 +730,10 @@ impl<W: Wide> Wavefront<W> {
 
     /// One layer event for a chunk of walks inside scattering layer `l`.
     #[cfg_attr(feature = "profiling", inline(never))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "the chunk's walks, slots and sets are borrowed apart from the chunk itself"
+    )]
     fn layer_event(
         &self,
         q: &Queries,
