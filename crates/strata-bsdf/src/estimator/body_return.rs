@@ -3,7 +3,6 @@
 //! (`super::lobe_pdf`).
 
 use crate::stack::{InterfaceKind, LayerStack, Phase};
-use wide::f64x4;
 
 /// The share of the light that crosses an opaque stack's entry interface
 /// and comes back out through it: the lobe pdf's weight of its cosine lobe,
@@ -79,37 +78,29 @@ pub fn body_return(stack: &LayerStack) -> f64 {
 /// Diffuse reflectance per channel of a layer of optical depths `tau`,
 /// single-scattering albedos `albedo` and phase asymmetry `g` over a
 /// background of diffuse reflectances `under` (Kubelka–Munk, with the
-/// similarity relations); the three channels run in the lanes of one
-/// vector, each branch computed and the channel's own selected.
+/// similarity relations).
 fn kubelka_munk(tau: [f64; 3], albedo: [f64; 3], g: f64, under: [f64; 3]) -> [f64; 3] {
-    let v = |x: [f64; 3]| f64x4::new([x[0], x[1], x[2], x[2]]);
-    let (tau, albedo, under) = (v(tau), v(albedo), v(under));
-    let one = f64x4::ONE;
-    let reduced = (one - albedo * g).max(f64x4::splat(1e-9));
-    let a = albedo * (1.0 - g) / reduced;
-    let tau = tau * reduced;
-    let (k, s) = (f64x4::splat(2.0) * (one - a) * tau, a * tau);
-    let clear = under * (f64x4::splat(-2.0) * k).exp();
-    let scatters_little = s.simd_lt(f64x4::splat(1e-9));
-    if scatters_little.all() {
-        return first3(clear);
-    }
-    let ratio = (s + k) / s;
-    let b = (ratio * ratio - one).max(f64x4::ZERO).sqrt();
-    // b coth(b s), and its limit s⁻¹ where the layer does not absorb.
-    let bc = (b * s)
-        .simd_lt(f64x4::splat(1e-6))
-        .select(one / s, b / (b * s).tanh());
-    let km = ((one - under * (ratio - bc)) / (ratio - under + bc))
-        .max(f64x4::ZERO)
-        .min(one);
-    first3(scatters_little.select(clear, km))
-}
-
-/// The three channels of `v`.
-fn first3(v: f64x4) -> [f64; 3] {
-    let r = v.to_array();
-    [r[0], r[1], r[2]]
+    std::array::from_fn(|c| {
+        let reduced = (1.0 - albedo[c] * g).max(1e-9);
+        let a = albedo[c] * (1.0 - g) / reduced;
+        let tau = tau[c] * reduced;
+        let (k, s) = (2.0 * (1.0 - a) * tau, a * tau);
+        if s < 1e-9 {
+            return under[c] * (-2.0 * k).exp();
+        }
+        let ratio = (s + k) / s;
+        let b = (ratio * ratio - 1.0).max(0.0).sqrt();
+        // b coth(b s) = b (1 + e) / (1 - e), e = exp(−2 b s), and its limit
+        // s⁻¹ where the layer does not absorb.
+        let bs = b * s;
+        let bc = if bs < 1e-6 {
+            1.0 / s
+        } else {
+            let e = (-2.0 * bs).exp();
+            b * (1.0 + e) / (1.0 - e)
+        };
+        ((1.0 - under[c] * (ratio - bc)) / (ratio - under[c] + bc)).clamp(0.0, 1.0)
+    })
 }
 
 /// Diffuse (hemispherical) reflectance of a smooth boundary for light that
