@@ -3,6 +3,7 @@
 //! (`super::lobe_pdf`).
 
 use crate::stack::{InterfaceKind, LayerStack, Phase};
+use wide::f64x4;
 
 /// The share of the light that crosses an opaque stack's entry interface
 /// and comes back out through it: the lobe pdf's weight of its cosine lobe,
@@ -78,29 +79,44 @@ pub fn body_return(stack: &LayerStack) -> f64 {
 /// Diffuse reflectance per channel of a layer of optical depths `tau`,
 /// single-scattering albedos `albedo` and phase asymmetry `g` over a
 /// background of diffuse reflectances `under` (Kubelka–Munk, with the
-/// similarity relations).
+/// similarity relations). The channels' divisions and square roots run in
+/// the lanes of one vector, their exponentials one by one.
 fn kubelka_munk(tau: [f64; 3], albedo: [f64; 3], g: f64, under: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|c| {
-        let reduced = (1.0 - albedo[c] * g).max(1e-9);
-        let a = albedo[c] * (1.0 - g) / reduced;
-        let tau = tau[c] * reduced;
-        let (k, s) = (2.0 * (1.0 - a) * tau, a * tau);
-        if s < 1e-9 {
-            return under[c] * (-2.0 * k).exp();
-        }
-        let ratio = (s + k) / s;
-        let b = (ratio * ratio - 1.0).max(0.0).sqrt();
-        // b coth(b s) = b (1 + e) / (1 - e), e = exp(−2 b s), and its limit
-        // s⁻¹ where the layer does not absorb.
-        let bs = b * s;
-        let bc = if bs < 1e-6 {
-            1.0 / s
-        } else {
-            let e = (-2.0 * bs).exp();
-            b * (1.0 + e) / (1.0 - e)
-        };
-        ((1.0 - under[c] * (ratio - bc)) / (ratio - under[c] + bc)).clamp(0.0, 1.0)
-    })
+    let v = |x: [f64; 3]| f64x4::new([x[0], x[1], x[2], x[2]]);
+    let (tau, albedo, under) = (v(tau), v(albedo), v(under));
+    let one = f64x4::ONE;
+    let reduced = (one - albedo * g).max(f64x4::splat(1e-9));
+    let a = albedo * (1.0 - g) / reduced;
+    let tau = tau * reduced;
+    let (k, s) = (f64x4::splat(2.0) * (one - a) * tau, a * tau);
+    if s.simd_lt(f64x4::splat(1e-9)).all() {
+        // An absorber: its transmittance alone.
+        let (k, under) = (k.to_array(), under.to_array());
+        return std::array::from_fn(|c| under[c] * (-2.0 * k[c]).exp());
+    }
+    let ratio = (s + k) / s;
+    let b = (ratio * ratio - one).max(f64x4::ZERO).sqrt();
+    let bs = (b * s).to_array();
+    let (k, s3) = (k.to_array(), s.to_array());
+    // Per channel: `e^(−2k)` where the layer scatters too little to count
+    // (Kubelka–Munk's transmittance alone), else `e^(−2bs)` for
+    // `b coth(bs) = b (1 + e) / (1 − e)`.
+    let e = f64x4::new(std::array::from_fn(|c| match s3[c] < 1e-9 {
+        true => (-2.0 * k[c]).exp(),
+        false => (-2.0 * bs[c]).exp(),
+    }));
+    // `b coth(bs)`, and its limit s⁻¹ where the layer does not absorb.
+    let bc = f64x4::new(bs)
+        .simd_lt(f64x4::splat(1e-6))
+        .select(one / s, b * (one + e) / (one - e));
+    let km = ((one - under * (ratio - bc)) / (ratio - under + bc))
+        .max(f64x4::ZERO)
+        .min(one);
+    let r = s
+        .simd_lt(f64x4::splat(1e-9))
+        .select(under * e, km)
+        .to_array();
+    [r[0], r[1], r[2]]
 }
 
 /// Diffuse (hemispherical) reflectance of a smooth boundary for light that
