@@ -108,6 +108,21 @@ fn conn_lane<W: Wide>(c: &Connection<W>, j: usize) -> Connection<f32> {
     }
 }
 
+/// The engine's own lanes `own` without sets, else what `gather` makes of
+/// them in the lanes' sets, built in `slot` (no copy of the lanes).
+#[inline(always)]
+fn in_slot<'s, T>(
+    own: &'s T,
+    sets: &Option<LaneSets>,
+    slot: &'s mut Option<T>,
+    gather: impl FnOnce(&LaneSets, &T) -> T,
+) -> &'s T {
+    match sets {
+        None => own,
+        Some(s) => slot.insert(gather(s, own)),
+    }
+}
+
 /// Lane `j` of an RGB triple, as f32.
 fn rgb_lane<W: Wide>(c: Rgb<W>, j: usize) -> Rgb<f32> {
     Rgb::new(c.r.lane(j) as f32, c.g.lane(j) as f32, c.b.lane(j) as f32)
@@ -127,34 +142,6 @@ impl<W: Wide> Wavefront<W> {
         match sets {
             None => Cow::Borrowed(&self.ifaces[i]),
             Some(s) => Cow::Owned(s.iface(&self.ifaces[i], i)),
-        }
-    }
-
-    /// [`Wavefront::iface_in`], gathered into `slot` (no copy of the lanes).
-    #[inline(always)]
-    fn iface_at<'s>(
-        &'s self,
-        sets: &Option<LaneSets>,
-        i: usize,
-        slot: &'s mut Option<InterfaceLanes<W>>,
-    ) -> &'s InterfaceLanes<W> {
-        match sets {
-            None => &self.ifaces[i],
-            Some(s) => slot.insert(s.iface(&self.ifaces[i], i)),
-        }
-    }
-
-    /// [`Wavefront::medium_in`], gathered into `slot`.
-    #[inline(always)]
-    fn medium_at<'s>(
-        &'s self,
-        sets: &Option<LaneSets>,
-        l: usize,
-        slot: &'s mut Option<MediumLanes<W>>,
-    ) -> &'s MediumLanes<W> {
-        match sets {
-            None => &self.media[l],
-            Some(s) => slot.insert(s.medium(&self.media[l], l)),
         }
     }
 
@@ -628,7 +615,9 @@ impl<W: Wide> Wavefront<W> {
         let links = eval && self.connects_at[i];
         let active = c.active;
         let mut gathered = None;
-        let iface = self.iface_at(sets, i, &mut gathered);
+        let iface = in_slot(&self.ifaces[i], sets, &mut gathered, |s, own| {
+            s.iface(own, i)
+        });
         let a = -c.d;
         let (wo, e_out) = (c.wo, c.e_out);
         // With the control variate, a walk that has not collided yet scores
@@ -749,7 +738,9 @@ impl<W: Wide> Wavefront<W> {
         let links = eval && self.connects_in[l];
         let active = c.active;
         let mut gathered = None;
-        let med = self.medium_at(sets, l, &mut gathered);
+        let med = in_slot(&self.media[l], sets, &mut gathered, |s, own| {
+            s.medium(own, l)
+        });
         let d = c.d;
         let up = d.z.gt(W::zero());
         let ud = c.rng.uniform(active);
