@@ -17,6 +17,7 @@ use super::param_sets::{ParamSets, Per, Returns, SetsError, SetsMut};
 use crate::estimator::coat_lambertian::CoatLambertian;
 use crate::estimator::params::SetTable;
 use crate::estimator::pdf::PdfEstimate;
+use crate::estimator::rough_coat::RoughCoatLambertian;
 use crate::estimator::{Albedo, Estimate};
 use crate::stack::LayerStack;
 use glam::Vec3;
@@ -84,11 +85,19 @@ impl LayeredBsdf {
     /// control variate, the estimator of its evals) decided here.
     pub(super) fn push_set(&self, sets: &mut SetsMut, st: &LayerStack, returns: Returns) {
         let tabulated = matches!(returns, Returns::Tabulated);
-        if let (true, Some(CoatLambertian::Smooth(own))) = (tabulated, &self.coat) {
-            // A row written in place keeps the shape and IORs: its closed
-            // form is this one's with the row's numbers.
-            let coat = Some(CoatLambertian::Smooth(own.with_numbers_of(st)));
-            return self.push_set_with(sets, st, coat);
+        // A row written in place keeps the shape and IORs: its walk-free
+        // form is this BSDF's with the row's numbers.
+        match (tabulated, &self.coat) {
+            (true, Some(CoatLambertian::Smooth(own))) => {
+                let coat = Some(CoatLambertian::Smooth(own.with_numbers_of(st)));
+                return self.push_set_with(sets, st, coat);
+            }
+            (true, Some(CoatLambertian::Rough(_))) => {
+                let coat =
+                    RoughCoatLambertian::of_row(st).map(|r| CoatLambertian::Rough(Arc::new(r)));
+                return self.push_set_with(sets, st, coat);
+            }
+            _ => {}
         }
         let coat = CoatLambertian::unscattered_with(st, &self.settings, tabulated).and_then(|c| {
             let (with, own) = match returns {

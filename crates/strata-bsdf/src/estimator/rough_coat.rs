@@ -108,6 +108,27 @@ impl RoughCoatLambertian {
         tabulated: bool,
     ) -> Option<Self> {
         let (coat, _) = coat_and_base(stack, settings)?;
+        Self::of_coat(stack, coat).map(|r| match tabulated {
+            true => r.tabulated(),
+            false => RoughCoatLambertian {
+                r_bar: ReturnOf::Quadrature(Arc::default()),
+                ..r
+            },
+        })
+    }
+
+    /// The factorization of `stack`, whose shape has one (a per-query row
+    /// written in place), with `R̄` from the coat's table:
+    /// [`RoughCoatLambertian::unscattered_with`]'s tabulated form, without
+    /// analysing the stack's shape again. `None` where the row's roughness
+    /// leaves [`DOMAIN`].
+    pub fn of_row(stack: &LayerStack) -> Option<Self> {
+        Self::of_coat(stack, stack.interface(0)).map(Self::tabulated)
+    }
+
+    /// The factorization of `stack`, whose shape has one, with coat `coat`
+    /// (its `R̄` still to be found), if the coat is in [`DOMAIN`].
+    fn of_coat(stack: &LayerStack, coat: &Interface) -> Option<Self> {
         if !Self::in_domain(coat) {
             return None;
         }
@@ -139,13 +160,6 @@ impl RoughCoatLambertian {
             // (The numbers the walks take: the albedo in single precision.)
             rho: stack.interface(1).albedo.map(|a| f64::from(a as f32)),
             r_bar: ReturnOf::Table([0.0; 3]),
-        })
-        .map(|r| match tabulated {
-            true => r.tabulated(),
-            false => RoughCoatLambertian {
-                r_bar: ReturnOf::Quadrature(Arc::default()),
-                ..r
-            },
         })
     }
 

@@ -17,6 +17,7 @@ pub struct StackError {
 }
 
 impl StackError {
+    #[cold]
     pub(crate) fn new(layer: Option<usize>, field: &str, value: f64, problem: &str) -> Self {
         StackError {
             layer,
@@ -25,6 +26,7 @@ impl StackError {
             problem: problem.into(),
         }
     }
+    #[cold]
     pub(crate) fn new_rgb(layer: Option<usize>, field: &str, v: [f64; 3], problem: &str) -> Self {
         StackError {
             layer,

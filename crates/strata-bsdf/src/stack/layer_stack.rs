@@ -158,6 +158,7 @@ pub struct LayerStack {
     desc: MaterialDesc,
 }
 
+#[inline]
 fn finite(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> {
     if v.is_finite() {
         Ok(v)
@@ -196,6 +197,7 @@ fn shading_normal(layer: Option<usize>, n: Option<[f64; 3]>) -> Result<[f64; 3],
     Ok(if u[0] == 0.0 && u[1] == 0.0 { Z } else { u })
 }
 
+#[inline]
 fn finite_rgb(layer: Option<usize>, field: &str, v: [f64; 3]) -> Result<[f64; 3], StackError> {
     for x in v {
         if !x.is_finite() {
@@ -211,6 +213,7 @@ fn finite_rgb(layer: Option<usize>, field: &str, v: [f64; 3]) -> Result<[f64; 3]
 }
 
 /// Numbers in `[0, 1]` (an albedo).
+#[inline]
 pub(super) fn unit_rgb(
     layer: Option<usize>,
     field: &str,
@@ -258,6 +261,7 @@ pub(super) fn check_conductor(
 }
 
 /// A medium's thickness: finite and >= 0.
+#[inline]
 pub(super) fn thickness(layer: Option<usize>, h: f64) -> Result<f64, StackError> {
     let h = finite(layer, "medium.thickness", h)?;
     if h < 0.0 {
@@ -272,6 +276,7 @@ pub(super) fn thickness(layer: Option<usize>, h: f64) -> Result<f64, StackError>
 }
 
 /// A medium's extinction: finite and >= 0.
+#[inline]
 pub(super) fn sigma_t(layer: Option<usize>, st: [f64; 3]) -> Result<[f64; 3], StackError> {
     let st = finite_rgb(layer, "medium.sigma_t", st)?;
     if st.iter().any(|&x| x < 0.0) {
@@ -286,6 +291,7 @@ pub(super) fn sigma_t(layer: Option<usize>, st: [f64; 3]) -> Result<[f64; 3], St
 }
 
 /// A medium's optical depth `h × sigma_t`: at most [`MAX_OPTICAL_DEPTH`].
+#[inline]
 pub(super) fn check_depth(layer: Option<usize>, h: f64, st: [f64; 3]) -> Result<(), StackError> {
     if st.iter().any(|&x| x * h > MAX_OPTICAL_DEPTH) {
         return Err(StackError::new_rgb(
@@ -298,6 +304,7 @@ pub(super) fn check_depth(layer: Option<usize>, h: f64, st: [f64; 3]) -> Result<
     Ok(())
 }
 
+#[inline]
 pub(super) fn roughness(layer: usize, r: Roughness) -> Result<([f64; 2], bool), StackError> {
     let a = r.alphas();
     for x in a {
