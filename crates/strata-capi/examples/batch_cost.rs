@@ -72,13 +72,21 @@ fn sample_of(wi: &[f32], s: &mut [StrataSample], columns: &[StrataColumn]) -> St
 /// Nanoseconds per query of `run` (which answers `N` queries), the best of
 /// repetitions over `budget`.
 fn per_query(budget: Duration, mut run: impl FnMut()) -> f64 {
+    best_per_query(budget, || {
+        let t = Instant::now();
+        run();
+        t.elapsed().as_secs_f64()
+    })
+}
+
+/// [`per_query`] for a `run` that times itself (in seconds), leaving out
+/// what it prepares.
+fn best_per_query(budget: Duration, mut run: impl FnMut() -> f64) -> f64 {
     run(); // warm up
     let start = Instant::now();
     let mut best = f64::INFINITY;
     while start.elapsed() < budget {
-        let t = Instant::now();
-        run();
-        best = best.min(t.elapsed().as_secs_f64());
+        best = best.min(run());
     }
     best * 1e9 / N as f64
 }
@@ -238,8 +246,9 @@ fn columns_cost(budget: Duration, wi: &[f32], wo: &[f32]) {
             .collect();
         let mut rng = 1u64;
         let mut cell = |textured: bool| {
-            texture.draw(N, &mut rng);
-            let mut vertex = |texture: &strata_reports::vertex::Texture| {
+            best_per_query(budget, || {
+                // Fresh values for every repetition, untimed.
+                texture.draw(N, &mut rng);
                 let cols: Vec<StrataColumn> = match textured {
                     false => vec![],
                     true => (paths.iter().zip(texture.columns()))
@@ -261,15 +270,7 @@ fn columns_cost(budget: Duration, wi: &[f32], wo: &[f32]) {
                     assert_eq!(strata_eval(b, &light), STRATA_OK);
                 }
                 t.elapsed().as_secs_f64()
-            };
-            vertex(&texture); // warm up
-            let start = Instant::now();
-            let mut best = f64::INFINITY;
-            while start.elapsed() < budget {
-                texture.draw(N, &mut rng);
-                best = best.min(vertex(&texture));
-            }
-            best * 1e9 / N as f64
+            })
         };
         let (own, per) = (cell(false), cell(true));
         println!(

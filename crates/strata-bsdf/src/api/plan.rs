@@ -36,7 +36,8 @@ pub const NEAR_SPECULAR_ALPHA: f64 = 0.05;
 /// The largest optical depth of a scattering layer in a stack of three
 /// interfaces or more for which `Estimator::Auto` runs the bidirectional
 /// estimator ([`Estimator::bidirectional_pays`]): on three such stacks it
-/// won at every depth up to 3 and lost on two of them from 4 on, where its
+/// won at every depth up to 3 and, on two of them, lost at some direction
+/// pairs from 4 on and at all from 8 or 12, where its
 /// walks, whose cost grows with the cube of their length, are long
 /// (docs/results.md, *The optical depth threshold*).
 pub const MAX_OPTICAL_DEPTH: f64 = 3.0;

@@ -132,3 +132,64 @@ fn diffuse_fresnel(from: f64, to: f64) -> f64 {
         (1.0 - eta * eta * (1.0 - inside(eta))).clamp(0.0, 1.0)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::kubelka_munk;
+
+    /// Kubelka–Munk's reflectance written out per channel with the
+    /// hyperbolic cotangent, independently of the vector form.
+    fn textbook(tau: f64, albedo: f64, g: f64, under: f64) -> f64 {
+        let reduced = 1.0 - albedo * g;
+        let a = albedo * (1.0 - g) / reduced;
+        let (k, s) = (2.0 * (1.0 - a) * tau * reduced, a * tau * reduced);
+        let ratio = (s + k) / s;
+        let b = (ratio * ratio - 1.0).sqrt();
+        let bc = b / (b * s).tanh();
+        (1.0 - under * (ratio - bc)) / (ratio - under + bc)
+    }
+
+    /// The vector form agrees with the textbook form where every channel
+    /// scatters and absorbs, and with its limits: a layer that does not
+    /// absorb, `(ρ + s(1 − ρ)) / (1 + s(1 − ρ))`; a thick layer, the
+    /// semi-infinite `R∞ = 1 + K/S − √((K/S)² + 2K/S)`; a layer that does
+    /// not scatter, the background seen through it twice, `ρ e^(−2k)`.
+    #[test]
+    fn kubelka_munk_agrees_with_its_textbook_form_and_limits() {
+        let close = |x: f64, y: f64, tol: f64, what: &str| {
+            assert!(
+                (x - y).abs() <= tol * y.abs().max(1e-300),
+                "{what}: {x} vs {y}"
+            );
+        };
+        let (tau, albedo, g, under) = ([0.3, 1.7, 6.0], [0.5, 0.9, 0.99], 0.4, [0.2, 0.6, 0.9]);
+        let r = kubelka_munk(tau, albedo, g, under);
+        for c in 0..3 {
+            let want = textbook(tau[c], albedo[c], g, under[c]);
+            close(r[c], want, 1e-12, &format!("channel {c}"));
+        }
+        // No absorption: s = τ, K = 0.
+        let r = kubelka_munk([0.5, 2.0, 10.0], [1.0; 3], 0.0, [0.3; 3]);
+        for (c, s) in [0.5f64, 2.0, 10.0].into_iter().enumerate() {
+            let want = (0.3 + s * 0.7) / (1.0 + s * 0.7);
+            close(r[c], want, 1e-12, &format!("no absorption, s {s}"));
+        }
+        // Thick: the background no longer shows.
+        let r = kubelka_munk([200.0; 3], [0.3, 0.8, 0.95], 0.0, [0.0, 0.5, 1.0]);
+        for (c, a) in [0.3f64, 0.8, 0.95].into_iter().enumerate() {
+            let ks = 2.0 * (1.0 - a) / a;
+            let want = 1.0 + ks - (ks * ks + 2.0 * ks).sqrt();
+            close(r[c], want, 1e-12, &format!("thick, albedo {a}"));
+        }
+        // No scattering: k = 2τ.
+        let r = kubelka_munk([0.1, 0.5, 2.0], [0.0; 3], 0.0, [0.8; 3]);
+        for (c, t) in [0.1f64, 0.5, 2.0].into_iter().enumerate() {
+            close(
+                r[c],
+                0.8 * (-4.0 * t).exp(),
+                1e-15,
+                &format!("absorber, τ {t}"),
+            );
+        }
+    }
+}

@@ -90,25 +90,15 @@ impl SmoothCoatLambertian {
         settings: &Settings,
         tabulated: bool,
     ) -> Option<Self> {
-        let (coat, base) = coat_and_base(stack, settings)?;
+        let (coat, _) = coat_and_base(stack, settings)?;
         if !coat.smooth {
             return None;
         }
-        let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
-        let eta = coat.n_below / coat.n_above;
-        let r_bar = if tabulated {
-            coat_return::SmoothReturn::r_bar_of(eta, tau)
-        } else if tau[0] == tau[1] && tau[1] == tau[2] {
-            [coat_return::smooth(eta, tau[0]); 3]
-        } else {
-            coat_return::smooth_channels(eta, tau)
-        };
-        Some(SmoothCoatLambertian {
-            eta,
-            tau,
-            rho: base.albedo,
-            r_bar,
-        })
+        Some(Self::of_numbers(
+            coat.n_below / coat.n_above,
+            stack,
+            tabulated,
+        ))
     }
 
     /// The closed form of `stack`, a stack of this one's shape and IORs
@@ -116,12 +106,26 @@ impl SmoothCoatLambertian {
     /// [`SmoothCoatLambertian::unscattered_with`]'s tabulated form, without
     /// analysing the stack's shape again.
     pub fn with_numbers_of(&self, stack: &LayerStack) -> Self {
+        Self::of_numbers(self.eta, stack, true)
+    }
+
+    /// The closed form of `stack`, whose shape has one and whose coat's
+    /// relative IOR is `eta`: its layer's optical depth, its base's albedo
+    /// and `R̄`, from the coat's table where `tabulated`.
+    fn of_numbers(eta: f64, stack: &LayerStack, tabulated: bool) -> Self {
         let tau = stack.medium(0).map_or([0.0; 3], |m| m.optical_depth());
+        let r_bar = if tabulated {
+            coat_return::SmoothReturn::r_bar_of(eta, tau)
+        } else if tau[0] == tau[1] && tau[1] == tau[2] {
+            [coat_return::smooth(eta, tau[0]); 3]
+        } else {
+            coat_return::smooth_channels(eta, tau)
+        };
         SmoothCoatLambertian {
-            eta: self.eta,
+            eta,
             tau,
             rho: stack.interface(1).albedo,
-            r_bar: coat_return::SmoothReturn::r_bar_of(self.eta, tau),
+            r_bar,
         }
     }
 

@@ -103,7 +103,9 @@ impl SetTable {
     }
 
     /// Makes the last set's interfaces answer for the adjoint of a tilted
-    /// stack, or not ([`SetTable::set_adjoint`]).
+    /// stack, or not ([`SetTable::set_adjoint`]): the last block's, which a
+    /// lean table's set without lanes shares with others of the same table,
+    /// and so of the same transport mode.
     pub fn set_adjoint_of_last(&mut self, on: bool) {
         let n = self.n;
         let len = self.ifaces.len();
