@@ -79,8 +79,8 @@ pub fn body_return(stack: &LayerStack) -> f64 {
 /// Diffuse reflectance per channel of a layer of optical depths `tau`,
 /// single-scattering albedos `albedo` and phase asymmetry `g` over a
 /// background of diffuse reflectances `under` (Kubelka–Munk, with the
-/// similarity relations). The channels' divisions and square roots run in
-/// the lanes of one vector, their exponentials one by one.
+/// similarity relations). The channels' divisions, square roots and
+/// exponentials run in the lanes of one vector.
 fn kubelka_munk(tau: [f64; 3], albedo: [f64; 3], g: f64, under: [f64; 3]) -> [f64; 3] {
     let v = |x: [f64; 3]| f64x4::new([x[0], x[1], x[2], x[2]]);
     let (tau, albedo, under) = (v(tau), v(albedo), v(under));
@@ -91,31 +91,25 @@ fn kubelka_munk(tau: [f64; 3], albedo: [f64; 3], g: f64, under: [f64; 3]) -> [f6
     let (k, s) = (f64x4::splat(2.0) * (one - a) * tau, a * tau);
     if s.simd_lt(f64x4::splat(1e-9)).all() {
         // An absorber: its transmittance alone.
-        let (k, under) = (k.to_array(), under.to_array());
-        return std::array::from_fn(|c| under[c] * (-2.0 * k[c]).exp());
+        let r = (under * (f64x4::splat(-2.0) * k).exp()).to_array();
+        return [r[0], r[1], r[2]];
     }
     let ratio = (s + k) / s;
     let b = (ratio * ratio - one).max(f64x4::ZERO).sqrt();
-    let bs = (b * s).to_array();
-    let (k, s3) = (k.to_array(), s.to_array());
+    let bs = b * s;
     // Per channel: `e^(−2k)` where the layer scatters too little to count
     // (Kubelka–Munk's transmittance alone), else `e^(−2bs)` for
     // `b coth(bs) = b (1 + e) / (1 − e)`.
-    let e = f64x4::new(std::array::from_fn(|c| match s3[c] < 1e-9 {
-        true => (-2.0 * k[c]).exp(),
-        false => (-2.0 * bs[c]).exp(),
-    }));
+    let thin = s.simd_lt(f64x4::splat(1e-9));
+    let e = (f64x4::splat(-2.0) * thin.select(k, bs)).exp();
     // `b coth(bs)`, and its limit s⁻¹ where the layer does not absorb.
-    let bc = f64x4::new(bs)
+    let bc = bs
         .simd_lt(f64x4::splat(1e-6))
         .select(one / s, b * (one + e) / (one - e));
     let km = ((one - under * (ratio - bc)) / (ratio - under + bc))
         .max(f64x4::ZERO)
         .min(one);
-    let r = s
-        .simd_lt(f64x4::splat(1e-9))
-        .select(under * e, km)
-        .to_array();
+    let r = thin.select(under * e, km).to_array();
     [r[0], r[1], r[2]]
 }
 

@@ -444,9 +444,12 @@ impl SmoothReturn {
     /// [`smooth`]; a depth that is not positive is a clear layer).
     #[inline]
     pub fn r_bar(&self, tau: [f64; 3]) -> [f64; 3] {
-        self.rows
-            .at3(tau)
-            .map(|(j, t)| horner(self.rows.block::<1>(0, j)[0], t))
+        let (j, t) = self.rows.at3(tau);
+        let [a, b, c] = j.map(|j| &self.rows.block::<1>(0, j)[0]);
+        channels(horner4(
+            std::array::from_fn(|m| f64x4::new([a[m], b[m], c[m], 0.0])),
+            t,
+        ))
     }
 }
 
@@ -644,19 +647,21 @@ impl RoughReturn {
             -a * b * d * 0.5,
             a * b * c * (1.0 / 6.0),
         ];
-        self.rows.at3(tau).map(|at| self.at(i, weights, at))
+        let (j, t) = self.rows.at3(tau);
+        let [x, y, z] = j.map(|j| self.at(i, weights, j));
+        channels(horner4(
+            std::array::from_fn(|m| f64x4::new([x[m], y[m], z[m], 0.0])),
+            t,
+        ))
     }
 
-    /// `R̄` at one depth (its interval and where in it), between the rows
-    /// `i − 1 … i + 2` with `weights`.
+    /// The cubic of depth interval `j` between the rows `i − 1 … i + 2`
+    /// with `weights`.
     #[inline(always)]
-    fn at(&self, i: usize, weights: [f64; 4], (j, t): (usize, f64)) -> f64 {
+    fn at(&self, i: usize, weights: [f64; 4], j: usize) -> [f64; 4] {
         let [p, q, r, s] = self.rows.block::<4>(i - 1, j);
         let [a, b, c, d] = weights;
-        horner(
-            std::array::from_fn(|m| a * p[m] + b * q[m] + c * r[m] + d * s[m]),
-            t,
-        )
+        std::array::from_fn(|m| a * p[m] + b * q[m] + c * r[m] + d * s[m])
     }
 }
 
@@ -787,21 +792,37 @@ impl DepthRows {
     /// every row is 0. The division and square roots of the three run in
     /// the lanes of one vector.
     #[inline(always)]
-    fn at3(&self, tau: [f64; 3]) -> [(usize, f64); 3] {
-        let [a, b, c] = tau.map(|t| if t > 0.0 { t.min(f64::MAX) } else { 0.0 });
-        let v = f64x4::new([a, b, c, 0.0]);
+    fn at3(&self, tau: [f64; 3]) -> ([usize; 3], f64x4) {
+        let v = f64x4::new([tau[0], tau[1], tau[2], 0.0]);
+        // Not positive or NaN: 0; ∞: the largest finite depth.
+        let v = v
+            .simd_gt(f64x4::ZERO)
+            .select(v.min(f64x4::splat(f64::MAX)), f64x4::ZERO);
         let s = (v / (v + f64x4::splat(TAU_SCALE))).sqrt().sqrt() * f64x4::splat(self.n as f64);
-        let s = s.to_array();
-        [s[0], s[1], s[2]].map(|s| {
-            let j = s.floor().min((self.n - 1) as f64);
-            (j as u32 as usize, s - j)
-        })
+        let j = s.floor().min(f64x4::splat((self.n - 1) as f64));
+        let i = j.to_array();
+        (
+            [
+                i[0] as u32 as usize,
+                i[1] as u32 as usize,
+                i[2] as u32 as usize,
+            ],
+            s - j,
+        )
     }
 }
 
+/// The cubic with coefficients `c` at `t`, in every lane.
 #[inline(always)]
-fn horner(c: [f64; 4], t: f64) -> f64 {
+fn horner4(c: [f64x4; 4], t: f64x4) -> f64x4 {
     c[0] + t * (c[1] + t * (c[2] + t * c[3]))
+}
+
+/// The first three lanes: one per channel.
+#[inline(always)]
+fn channels(v: f64x4) -> [f64; 3] {
+    let a = v.to_array();
+    [a[0], a[1], a[2]]
 }
 
 /// `e^(−2τ/y)` and its derivative in the depth coordinate at the nodes of
