@@ -80,8 +80,9 @@ pub mod stack;
 pub use api::{
     check_walks, AlbedoRecord, BatchError, Bsdf, Column, ColumnsError, Config, ConfigError,
     Direction, Engine, Estimator, EvalBuffers, EvalRecord, EvalStart, LayeredBsdf, Materials,
-    PerQuery, Queries, QueryError, Sample, SampleBuffers, SampleFlags, SampleRecord, ThreadsError,
-    Transport, Vectors, VectorsMut, CONFIG_KEYS, MAX_QUERIES, MAX_THREADS, MAX_WALKS,
+    PerQuery, Queries, QueryError, Sample, SampleBuffers, SampleFlags, SampleRecord,
+    SpectralColumns, SpectralError, ThreadsError, Transport, Vectors, VectorsMut, CONFIG_KEYS,
+    MAX_QUERIES, MAX_THREADS, MAX_WALKS,
 };
 pub use api::{CHUNK_LAYERS, CHUNK_QUERIES, CHUNK_ROWS, MAX_MATERIAL_LAYERS};
 pub use estimator::pdf::{PdfEstimate, PdfKind, PdfWalks};

@@ -22,7 +22,8 @@
 //!   `#[repr(C)]` records.
 //! * `param_sets`, `sets`: the numbers of many stacks of one shape, which
 //!   a table's rows become; `materials`: tables of materials of any shapes;
-//!   `columns`: a query's own numbers by column.
+//!   `columns`: a query's own numbers by column; `spectral`: the columns
+//!   of queries at wavelengths.
 
 mod batch;
 mod bsdf;
@@ -34,6 +35,7 @@ mod param_sets;
 mod plan;
 mod queries;
 mod sets;
+mod spectral;
 mod strategy;
 mod transport;
 mod vectors;
@@ -53,6 +55,7 @@ pub use plan::{
     ROUGH_CV_MIN_BASE,
 };
 pub use queries::{Bsdf, Queries};
+pub use spectral::{SpectralColumns, SpectralError};
 pub use strategy::{Engine, Estimator, EvalStart};
 pub use transport::Transport;
 pub use vectors::{

@@ -9,7 +9,8 @@
 //! `set` (a per-query override of a number by its path) add to it. Coloured
 //! values and IORs may be spectra (`spectrum`, checked sample by sample in
 //! `samples`); the conductor presets are measured spectra (`presets`, with
-//! the tables in `measured`).
+//! the tables in `measured`); `spectral_fields` lists the fields whose value
+//! varies with wavelength.
 
 mod description;
 mod error;
@@ -23,6 +24,7 @@ pub mod presets;
 mod samples;
 mod set;
 mod shape;
+mod spectral_fields;
 pub mod spectrum;
 
 pub(crate) use description::tables_only;
@@ -39,4 +41,5 @@ pub use lobes::Lobes;
 pub use phase::{Phase, PhaseKind, MAX_COMPONENTS, MIN_SGGX_ROUGHNESS};
 pub use set::{SetError, SetPath};
 pub use shape::{InterfaceShape, LayerKind, LayerShape, Shape};
+pub use spectral_fields::SpectralField;
 pub use spectrum::{RgbParam, Spectrum};

@@ -209,6 +209,19 @@ impl SetPath {
         }
     }
 
+    /// Whether the field takes one value per colour channel (an albedo,
+    /// `sigma_t`, a conductor's `eta` or `k`): what a spectral query reads
+    /// at each of its wavelengths.
+    pub fn coloured(&self) -> bool {
+        matches!(
+            self.target,
+            Target::Interface(
+                _,
+                InterfaceField::Albedo | InterfaceField::Eta | InterfaceField::K
+            ) | Target::Medium(_, MediumField::SigmaT | MediumField::Albedo)
+        )
+    }
+
     /// The field as [`StackError::field`] spells it: `exterior_ior`,
     /// `interface.eta`, `medium.phase.g`, ...
     pub fn field(&self) -> String {

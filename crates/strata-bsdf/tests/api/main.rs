@@ -20,4 +20,5 @@ mod per_query_chunks;
 mod proptest_api;
 mod readme_example;
 mod rows_in_place;
+mod spectral_queries;
 mod threads;

@@ -1,0 +1,190 @@
+//! Spectral queries: three wavelengths a query, one in each channel.
+//!
+//! A spectral renderer carries wavelengths per path. strata's walks carry
+//! three channels, so a query may give three wavelengths (in nm) and read
+//! its answer's channel `c` as the value at its wavelength `c`. Its
+//! material's spectra are read at its wavelengths and become the query's
+//! own numbers, per-query columns that [`PerQuery`] answers: a coloured
+//! field (albedos, `sigma_t`, a conductor's `eta` and `k`) one value per
+//! wavelength; an IOR that varies with wavelength one value, since a walk
+//! refracts in one direction. A query of such a stack therefore gives one
+//! wavelength, three times (a dispersive query's four wavelengths are four
+//! queries). A renderer's own textures of coloured fields are RGB triples,
+//! read at the query's wavelengths through the same uplift as a material
+//! file's RGB values (`Spectrum::at`).
+//!
+//! [`PerQuery`]: super::PerQuery
+
+use super::bsdf::LayeredBsdf;
+use super::columns::{Column, ColumnsError};
+use crate::stack::spectrum::rgb_at;
+use crate::stack::SetPath;
+use std::fmt;
+
+/// The per-query columns of spectral queries: a template's fields that vary
+/// with wavelength, read at each query's three wavelengths, and a caller's
+/// own columns, coloured ones read the same way. [`SpectralColumns::columns`]
+/// gives them to [`super::PerQuery::new`] or [`super::Materials::per_query`].
+///
+/// ```
+/// use strata_bsdf::{LayerStack, LayeredBsdf, PerQuery, SpectralColumns};
+/// let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(
+///     "[[layers]]\ninterface = { kind = \"conductor\", preset = \"Au\", roughness = 0.2 }\n",
+/// ).unwrap());
+/// // Two queries: 450, 550 and 650 nm, then 700 nm three times.
+/// let nm = [450.0, 550.0, 650.0, 700.0, 700.0, 700.0];
+/// let spectral = SpectralColumns::new(&bsdf, &nm, &[]).unwrap();
+/// let queries = PerQuery::new(&bsdf, spectral.queries(), &spectral.columns()).unwrap();
+/// assert_eq!(queries.len(), 2);
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct SpectralColumns {
+    queries: usize,
+    columns: Vec<(SetPath, usize, Vec<f32>)>,
+}
+
+/// Wavelengths or columns that cannot make spectral queries.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SpectralError {
+    /// Not three wavelengths a query.
+    Length {
+        /// The number of wavelengths given.
+        len: usize,
+    },
+    /// A wavelength that is not a positive, finite number of nm.
+    Wavelength {
+        /// The query's index.
+        query: usize,
+        /// The wavelength.
+        value: f32,
+    },
+    /// A query with different wavelengths on a stack whose IOR varies with
+    /// wavelength: one walk cannot refract at three IORs.
+    Dispersive {
+        /// The query's index.
+        query: usize,
+        /// The IOR's path.
+        path: String,
+        /// The query's wavelengths.
+        nm: [f32; 3],
+    },
+    /// A caller's column of the wrong width or length.
+    Columns(Box<ColumnsError>),
+}
+
+impl fmt::Display for SpectralError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SpectralError::Length { len } => write!(
+                f,
+                "wavelengths: {len} values; a spectral query gives 3 (one per channel)"
+            ),
+            SpectralError::Wavelength { query, value } => write!(
+                f,
+                "query {query}: wavelength {value} nm; expected a positive, finite number"
+            ),
+            SpectralError::Dispersive { query, path, nm } => write!(
+                f,
+                "query {query}: `{path}` varies with wavelength and a walk refracts at one \
+                 IOR: give one wavelength three times, not {} / {} / {} nm",
+                nm[0], nm[1], nm[2]
+            ),
+            SpectralError::Columns(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for SpectralError {}
+
+impl SpectralColumns {
+    /// The columns of `nm.len() / 3` queries of `template`'s material, query
+    /// `k` at wavelengths `nm[3k..3k + 3]` (nm), with the caller's
+    /// `columns` (a texture): a coloured one's RGB triples read at the
+    /// query's wavelengths, the others as given. A caller's column replaces
+    /// the material's field of the same path.
+    pub fn new(
+        template: &LayeredBsdf,
+        nm: &[f32],
+        columns: &[Column],
+    ) -> Result<Self, SpectralError> {
+        if nm.len() % 3 != 0 {
+            return Err(SpectralError::Length { len: nm.len() });
+        }
+        let queries = nm.len() / 3;
+        let at = |k: usize| -> [f32; 3] { [nm[3 * k], nm[3 * k + 1], nm[3 * k + 2]] };
+        for k in 0..queries {
+            if let Some(&value) = at(k).iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+                return Err(SpectralError::Wavelength { query: k, value });
+            }
+        }
+        for c in columns {
+            if !matches!(c.width, 1 | 3) || c.values.len() != c.width * queries {
+                return Err(SpectralError::Columns(Box::new(ColumnsError::Length {
+                    path: c.path.to_string(),
+                    width: c.width,
+                    len: c.values.len(),
+                    queries,
+                })));
+            }
+        }
+        let mut out = SpectralColumns {
+            queries,
+            columns: Vec::new(),
+        };
+        let fields = template.stack().desc().spectral_fields();
+        for f in fields
+            .iter()
+            .filter(|f| columns.iter().all(|c| *c.path != f.path))
+        {
+            let read = |x: f32| f.spectrum.at(f64::from(x)) as f32;
+            let values = if f.path.coloured() {
+                (0..queries).flat_map(|k| at(k).map(read)).collect()
+            } else {
+                let mut v = Vec::with_capacity(queries);
+                for k in 0..queries {
+                    let w = at(k);
+                    if w[1] != w[0] || w[2] != w[0] {
+                        let path = f.path.to_string();
+                        return Err(SpectralError::Dispersive {
+                            query: k,
+                            path,
+                            nm: w,
+                        });
+                    }
+                    v.push(read(w[0]));
+                }
+                v
+            };
+            let width = if f.path.coloured() { 3 } else { 1 };
+            out.columns.push((f.path.clone(), width, values));
+        }
+        for c in columns {
+            let values = if c.path.coloured() && c.width == 3 {
+                let rgb = |k: usize| std::array::from_fn(|i| f64::from(c.values[3 * k + i]));
+                (0..queries)
+                    .flat_map(|k| at(k).map(|x| rgb_at(rgb(k), f64::from(x)) as f32))
+                    .collect()
+            } else {
+                c.values.to_vec()
+            };
+            out.columns.push((c.path.clone(), c.width, values));
+        }
+        Ok(out)
+    }
+
+    /// The number of queries.
+    pub fn queries(&self) -> usize {
+        self.queries
+    }
+
+    /// The columns, for [`super::PerQuery::new`].
+    pub fn columns(&self) -> Vec<Column<'_>> {
+        (self.columns.iter())
+            .map(|(path, width, values)| Column {
+                path,
+                width: *width,
+                values,
+            })
+            .collect()
+    }
+}
