@@ -1,10 +1,11 @@
 //! `strata albedo`: reflected and transmitted fractions for one incident direction.
 //!
 //! Output: one JSON line `{"R":[r,g,b],"T":[r,g,b],"stderr_R":[..],"stderr_T":[..]}`,
-//! with `"truncated":n` when the limit of events (`--max-events`) ended `n` walks.
+//! with `"truncated":n` when the limit of events (`--max-events`) ended `n` walks;
+//! with `--wavelengths`, one value per wavelength in each array.
 
 use crate::common::EngineArgs;
-use crate::common::{load_material, stdout_failure};
+use crate::common::{load_material, spectral_passes, stdout_failure};
 use std::io::Write;
 use std::path::PathBuf;
 use strata_bsdf::LayeredBsdf;
@@ -27,6 +28,11 @@ pub struct Args {
     /// Seed of every random stream.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Wavelengths in nm, e.g. `450,550,650,700`: the material's spectra
+    /// are read at each (docs/materials.md, *Spectra*), and every array has
+    /// one value per wavelength.
+    #[arg(long)]
+    wavelengths: Option<crate::common::Wavelengths>,
     #[command(flatten)]
     engine: EngineArgs,
 }
@@ -55,16 +61,23 @@ pub fn run(args: Args) -> Result<(), String> {
     let stack = load_material(&args.material)?;
     let bsdf = args.engine.apply(LayeredBsdf::new(stack).seed(args.seed))?;
     let wi = direction(args.theta, args.phi);
-    let a = bsdf
-        .albedo(wi, args.samples)
-        .map_err(|e| format!("--theta {} --phi {}: {e}", args.theta, args.phi))?;
-    let mut line = serde_json::json!({
-        "R": a.reflected.value, "T": a.transmitted.value,
-        "stderr_R": a.reflected.stderr, "stderr_T": a.transmitted.stderr
-    });
+    let [mut r, mut t, mut se_r, mut se_t]: [Vec<f64>; 4] = Default::default();
+    let mut truncated = 0;
+    for pass in spectral_passes(&bsdf, args.wavelengths.as_ref())? {
+        let a = (pass.bsdf)
+            .albedo(wi, args.samples)
+            .map_err(|e| format!("--theta {} --phi {}: {e}", args.theta, args.phi))?;
+        let c = pass.channels();
+        r.extend(&a.reflected.value[..c]);
+        t.extend(&a.transmitted.value[..c]);
+        se_r.extend(&a.reflected.stderr[..c]);
+        se_t.extend(&a.transmitted.stderr[..c]);
+        truncated += a.reflected.truncated;
+    }
+    let mut line = serde_json::json!({ "R": r, "T": t, "stderr_R": se_r, "stderr_T": se_t });
     // Walks the limit of events ended, when some were.
-    if a.reflected.truncated > 0 {
-        line["truncated"] = a.reflected.truncated.into();
+    if truncated > 0 {
+        line["truncated"] = truncated.into();
     }
     writeln!(std::io::stdout(), "{line}").or_else(stdout_failure)
 }

@@ -25,7 +25,7 @@
 //! invalid, stops the run like any bad line, naming the line, the path and
 //! the value.
 
-use crate::common::{load_material, stdout_failure, EngineArgs};
+use crate::common::{at_wavelengths, load_material, spectral_passes, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -70,6 +70,12 @@ pub struct Args {
     /// walks, default 4096.
     #[arg(long)]
     pdf_samples: Option<strata_bsdf::PdfWalks>,
+    /// Wavelengths in nm, e.g. `450,550,650,700`: the material's spectra
+    /// are read at each (docs/materials.md, *Spectra*), `f` and `stderr`
+    /// have one value per wavelength, and `pdf` is the density of the first
+    /// wavelength's walks. A set's RGB values are read through the uplift.
+    #[arg(long)]
+    wavelengths: Option<crate::common::Wavelengths>,
     #[command(flatten)]
     engine: EngineArgs,
     /// The density walks of an unbiased pdf, from `--pdf-samples` (set by
@@ -101,8 +107,8 @@ const CHUNK: usize = 1024;
 /// One output line (fields in this order).
 #[derive(Serialize)]
 struct Answer {
-    f: [f64; 3],
-    stderr: [f64; 3],
+    f: Vec<f64>,
+    stderr: Vec<f64>,
     pdf: f32,
     #[serde(skip_serializing_if = "Option::is_none")]
     pdf_stderr: Option<f32>,
@@ -240,13 +246,44 @@ fn answer(
     if pairs.is_empty() {
         return Ok(());
     }
-    if sets.stacks.len() > 1 {
-        // Some lines set values of their own: one batch over the materials.
-        let mats = Materials::new(bsdf, sets.stacks.iter().cloned());
-        let rows = Some(&sets.material[..]);
-        return answer_with(&mats, rows, args, pairs, lines_of, out);
+    let passes = spectral_passes(bsdf, args.wavelengths.as_ref()).map_err(Err)?;
+    let mut lines: Vec<Answer> = Vec::new();
+    for (p, pass) in passes.iter().enumerate() {
+        let got = if sets.stacks.len() > 1 {
+            // Some lines set values of their own: one batch over the
+            // materials, each at the pass's wavelengths.
+            let at = |st: &LayerStack| match pass.nm {
+                None => Ok(st.clone()),
+                Some(nm) => {
+                    at_wavelengths(&bsdf.with_stack(st.clone()), nm).map(|b| b.stack().clone())
+                }
+            };
+            let stacks = sets.stacks.iter().map(at).collect::<Result<Vec<_>, _>>();
+            let mats = Materials::new(&pass.bsdf, stacks.map_err(Err)?);
+            answer_with(&mats, Some(&sets.material[..]), args, pairs, lines_of)?
+        } else {
+            answer_with(pass.bsdf.as_ref(), None, args, pairs, lines_of)?
+        };
+        let channels = pass.channels();
+        if p == 0 {
+            lines = got;
+            for l in &mut lines {
+                l.f.truncate(channels);
+                l.stderr.truncate(channels);
+            }
+        } else {
+            for (l, g) in lines.iter_mut().zip(got) {
+                l.f.extend(&g.f[..channels]);
+                l.stderr.extend(&g.stderr[..channels]);
+                l.truncated += g.truncated;
+            }
+        }
     }
-    answer_with(bsdf, None, args, pairs, lines_of, out)
+    for line in &lines {
+        let line = serde_json::to_string(line).map_err(|e| Err(format!("cannot format: {e}")))?;
+        writeln!(out, "{line}").map_err(stdout_failure)?;
+    }
+    Ok(())
 }
 
 /// The materials of a chunk: the file's (0) and each distinct set's.
@@ -293,16 +330,15 @@ impl Variants {
     }
 }
 
-/// [`answer`] on the file's material alone, or on materials with each
-/// line's row.
+/// The answers of [`answer`] on the file's material alone, or on materials
+/// with each line's row.
 fn answer_with(
     answers: &dyn Bsdf,
     rows: Option<&[u32]>,
     args: &Args,
     pairs: &[(glam::Vec3, glam::Vec3)],
     lines_of: &[usize],
-    out: &mut impl Write,
-) -> Result<(), Result<(), String>> {
+) -> Result<Vec<Answer>, Result<(), String>> {
     // Directions were validated when parsed, so the batch cannot fail on them.
     let fail = |e: strata_bsdf::BatchError| {
         Err(match e.index {
@@ -330,16 +366,13 @@ fn answer_with(
         }
     }
     .map_err(fail)?;
-    for (e, (pdf, pdf_stderr, pdf_cut)) in f.iter().zip(p) {
-        let line = Answer {
-            f: e.value,
-            stderr: e.stderr,
+    Ok((f.iter().zip(p))
+        .map(|(e, (pdf, pdf_stderr, pdf_cut))| Answer {
+            f: e.value.to_vec(),
+            stderr: e.stderr.to_vec(),
             pdf,
             pdf_stderr,
             truncated: e.truncated + pdf_cut,
-        };
-        let line = serde_json::to_string(&line).map_err(|e| Err(format!("cannot format: {e}")))?;
-        writeln!(out, "{line}").map_err(stdout_failure)?;
-    }
-    Ok(())
+        })
+        .collect())
 }

@@ -6,7 +6,7 @@
 //! mean of `weight` over all lines is an unbiased estimate of the albedo R + T.
 //! If stdout is closed early (`| head`), the command stops quietly.
 
-use crate::common::{load_material, parse_vec3, stdout_failure, EngineArgs};
+use crate::common::{at_wavelengths, load_material, parse_vec3, stdout_failure, EngineArgs};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -38,6 +38,12 @@ pub struct Args {
     /// `tight`, a fixed number, or `PILOT,MAX,REL_STDERR`.
     #[arg(long)]
     pdf_samples: Option<strata_bsdf::PdfWalks>,
+    /// Wavelengths in nm of every walk, one to three (one where the
+    /// material's IOR varies with wavelength), e.g. `450,550,650`: the
+    /// material's spectra are read at each (docs/materials.md, *Spectra*)
+    /// and `weight` has one value per wavelength.
+    #[arg(long)]
+    wavelengths: Option<crate::common::Wavelengths>,
     #[command(flatten)]
     engine: EngineArgs,
 }
@@ -49,7 +55,7 @@ const CHUNK: u64 = 1 << 16;
 #[derive(Serialize)]
 struct Line {
     wo: Option<[f32; 3]>,
-    weight: [f32; 3],
+    weight: Vec<f32>,
     /// The pdf `strata eval` reports for `(wi, wo)`; null if absorbed.
     pdf: Option<f32>,
     reflection: Option<bool>,
@@ -71,7 +77,24 @@ pub fn run(args: Args) -> Result<(), String> {
     }
     let walks = args.pdf_samples.unwrap_or_default();
     let bsdf = LayeredBsdf::new(stack).seed(args.seed).pdf_walks(walks);
-    let bsdf = args.engine.apply(bsdf)?;
+    let mut bsdf = args.engine.apply(bsdf)?;
+    let channels = match &args.wavelengths {
+        None => 3,
+        Some(nm) => {
+            // One walk draws one direction: one pass of wavelengths (three
+            // a walk, or one: how many passes three take says which).
+            let per_walk = 3 / bsdf.wavelength_groups(&[500.0; 3]).len();
+            if nm.0.len() > per_walk {
+                return Err(format!(
+                    "--wavelengths: {} wavelengths; a walk carries at most {per_walk} on this \
+                     material (one where its IOR varies with wavelength)",
+                    nm.0.len()
+                ));
+            }
+            bsdf = at_wavelengths(&bsdf, &nm.0)?;
+            nm.0.len()
+        }
+    };
     // Validate the direction once, naming the flag.
     strata_bsdf::Direction::new("wi", wi).map_err(|e| format!("--wi {}: {e}", args.wi))?;
     let stdout = std::io::stdout();
@@ -89,14 +112,14 @@ pub fn run(args: Args) -> Result<(), String> {
             let line = match s {
                 Some(s) => Line {
                     wo: Some(s.wo.to_array()),
-                    weight: s.weight,
+                    weight: s.weight[..channels].to_vec(),
                     pdf: Some(s.pdf),
                     reflection: Some(s.reflection),
                     specular: Some(s.specular),
                 },
                 None => Line {
                     wo: None,
-                    weight: [0.0; 3],
+                    weight: vec![0.0; channels],
                     pdf: None,
                     reflection: None,
                     specular: None,

@@ -2,7 +2,7 @@
 //! with errors that name the flag and the value.
 
 use std::path::Path;
-use strata_bsdf::LayerStack;
+use strata_bsdf::{LayerStack, LayeredBsdf};
 
 /// Loads and validates the material file given by `--material`.
 pub fn load_material(path: &Path) -> Result<LayerStack, String> {
@@ -29,6 +29,68 @@ pub fn parse_vec3(flag: &str, text: &str) -> Result<glam::Vec3, String> {
         *slot = x;
     }
     Ok(glam::Vec3::from(v))
+}
+
+/// `--wavelengths`: wavelengths in nm, comma-separated, each positive and
+/// finite, at least one.
+#[derive(Clone, Debug)]
+pub struct Wavelengths(pub Vec<f32>);
+
+impl std::str::FromStr for Wavelengths {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        let nm = (text.split(',').map(str::trim))
+            .map(|p| match p.parse::<f32>() {
+                Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+                _ => Err(format!("{p:?} is not a positive number of nm")),
+            })
+            .collect::<Result<Vec<f32>, String>>()?;
+        Ok(Wavelengths(nm))
+    }
+}
+
+/// The walks that answer `--wavelengths` (`bsdf` itself without it): per
+/// pass, its wavelengths (three, or one where the material's IOR varies
+/// with wavelength: `LayeredBsdf::wavelength_groups`) and `bsdf` at them.
+pub fn spectral_passes<'b>(
+    bsdf: &'b LayeredBsdf,
+    nm: Option<&'b Wavelengths>,
+) -> Result<Vec<SpectralPass<'b>>, String> {
+    let Some(nm) = nm else {
+        return Ok(vec![SpectralPass {
+            nm: None,
+            bsdf: std::borrow::Cow::Borrowed(bsdf),
+        }]);
+    };
+    (bsdf.wavelength_groups(&nm.0).into_iter())
+        .map(|g| {
+            Ok(SpectralPass {
+                nm: Some(g),
+                bsdf: std::borrow::Cow::Owned(at_wavelengths(bsdf, g)?),
+            })
+        })
+        .collect()
+}
+
+/// One pass of [`spectral_passes`].
+pub struct SpectralPass<'b> {
+    /// Its wavelengths (none: RGB).
+    pub nm: Option<&'b [f32]>,
+    /// The BSDF at them.
+    pub bsdf: std::borrow::Cow<'b, LayeredBsdf>,
+}
+
+impl SpectralPass<'_> {
+    /// The channels of its answers that are wanted.
+    pub fn channels(&self) -> usize {
+        self.nm.map_or(3, <[f32]>::len)
+    }
+}
+
+/// `bsdf` at the wavelengths `nm`, an error naming the flag.
+pub fn at_wavelengths(bsdf: &LayeredBsdf, nm: &[f32]) -> Result<LayeredBsdf, String> {
+    bsdf.at_wavelengths(nm)
+        .map_err(|e| format!("--wavelengths: {e}"))
 }
 
 /// Parses a count that must be at least 1 (clap names the flag and value).

@@ -905,7 +905,7 @@ fn decimal(x: f32) -> f64 {
 }
 
 /// `base` with query `k`'s row of every column.
-fn query_stack(
+pub(super) fn query_stack(
     base: &LayerStack,
     columns: &[Column],
     k: usize,

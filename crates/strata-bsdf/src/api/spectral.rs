@@ -16,7 +16,7 @@
 //! [`PerQuery`]: super::PerQuery
 
 use super::bsdf::LayeredBsdf;
-use super::columns::{Column, ColumnsError};
+use super::columns::{query_stack, Column, ColumnsError};
 use crate::stack::spectrum::rgb_at;
 use crate::stack::SetPath;
 use std::fmt;
@@ -46,7 +46,8 @@ pub struct SpectralColumns {
 /// Wavelengths or columns that cannot make spectral queries.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SpectralError {
-    /// Not three wavelengths a query.
+    /// Not three wavelengths a query (for [`LayeredBsdf::at_wavelengths`],
+    /// not one to three).
     Length {
         /// The number of wavelengths given.
         len: usize,
@@ -77,7 +78,7 @@ impl fmt::Display for SpectralError {
         match self {
             SpectralError::Length { len } => write!(
                 f,
-                "wavelengths: {len} values; a spectral query gives 3 (one per channel)"
+                "{len} wavelengths: a spectral query gives 3 (one per channel)"
             ),
             SpectralError::Wavelength { query, value } => write!(
                 f,
@@ -186,5 +187,35 @@ impl SpectralColumns {
                 values,
             })
             .collect()
+    }
+}
+
+impl LayeredBsdf {
+    /// This BSDF's material at the wavelengths `nm` (one to three; channel
+    /// `c` at `nm[c]`, the spare channels repeating the last), with the same
+    /// configuration: the material of one spectral query
+    /// ([`SpectralColumns`]), for a batch whose queries share their
+    /// wavelengths.
+    pub fn at_wavelengths(&self, nm: &[f32]) -> Result<LayeredBsdf, SpectralError> {
+        let Some(&last) = nm.last().filter(|_| nm.len() <= 3) else {
+            return Err(SpectralError::Length { len: nm.len() });
+        };
+        let nm: [f32; 3] = std::array::from_fn(|c| nm.get(c).copied().unwrap_or(last));
+        let s = SpectralColumns::new(self, &nm, &[])?;
+        let stack = query_stack(self.stack(), &s.columns(), 0)
+            .map_err(|e| SpectralError::Columns(Box::new(e)))?;
+        Ok(self.with_stack(stack))
+    }
+
+    /// The wavelengths each walk answers of `nm`: three a walk, or one
+    /// where the stack's IOR varies with wavelength ([`LayeredBsdf::at_wavelengths`]
+    /// of each is a walk's material).
+    pub fn wavelength_groups<'n>(&self, nm: &'n [f32]) -> Vec<&'n [f32]> {
+        let fields = self.stack().desc().spectral_fields();
+        let per_walk = match fields.iter().any(|f| !f.path.coloured()) {
+            true => 1,
+            false => 3,
+        };
+        nm.chunks(per_walk).collect()
     }
 }

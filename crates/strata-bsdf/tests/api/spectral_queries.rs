@@ -281,3 +281,47 @@ fn bad_wavelengths_are_errors_naming_the_query() {
     let nm = [450.0, 550.0, 650.0, 400.0, 500.0, 600.0];
     assert!(SpectralColumns::new(&bsdf, &nm, &columns).is_ok());
 }
+
+/// A batch whose queries share their wavelengths takes one material at them
+/// (`at_wavelengths`, one to three, the spare channels repeating the last):
+/// it answers what the per-query form answers; walks split wavelengths
+/// three at a time, or one at a time where the IOR varies.
+#[test]
+fn a_batch_at_shared_wavelengths_takes_one_material() {
+    let gold = LayeredBsdf::new(stack(
+        "[[layers]]\ninterface = { kind = \"conductor\", preset = \"Au\", roughness = 0.3 }\n",
+    ));
+    let (a, b) = (f32x3(dir(20.0, 0.0)), f32x3(dir(35.0, 120.0)));
+    let nm = [430.0f32, 510.0, 640.0];
+    let per_query = evals(&gold, &nm, &[a], &[b])[0].value;
+    let one = gold.at_wavelengths(&nm).unwrap();
+    let mut got = [Estimate::default()];
+    one.eval_into(&Queries::pairs(&[a][..], &[b][..]), &mut |k, e| got[k] = *e)
+        .unwrap();
+    for (x, y) in got[0].value.iter().zip(per_query) {
+        assert!((x - y).abs() < 1e-6 * y, "{x} vs {y}");
+    }
+    let padded = gold.at_wavelengths(&[430.0, 510.0]).unwrap();
+    assert_eq!(
+        padded.stack().interface(0).eta[2],
+        gold.at_wavelengths(&[510.0])
+            .unwrap()
+            .stack()
+            .interface(0)
+            .eta[0]
+    );
+    assert!(matches!(
+        gold.at_wavelengths(&[]),
+        Err(SpectralError::Length { len: 0 })
+    ));
+    assert!(matches!(
+        gold.at_wavelengths(&[500.0; 4]),
+        Err(SpectralError::Length { len: 4 })
+    ));
+    let four = [400.0, 500.0, 600.0, 700.0];
+    assert_eq!(gold.wavelength_groups(&four), [&four[..3], &four[3..]]);
+    let glass = LayeredBsdf::new(stack(
+        "[[layers]]\ninterface = { kind = \"dielectric\", ior = { nd = 1.5, abbe = 40 } }\n",
+    ));
+    assert_eq!(glass.wavelength_groups(&four).len(), 4);
+}

@@ -11,3 +11,4 @@ mod cli;
 mod cli_converge;
 mod cli_input;
 mod cli_robustness;
+mod cli_spectral;
