@@ -25,10 +25,19 @@ const TIMING: &str = include_str!("../data/pbrt-v4/timing_amd_epyc_2026-12-01.cs
 /// Where pbrt-v4's times were measured.
 pub const TIMING_MACHINE: &str = "a 2-vCPU AMD EPYC VM (thread-CPU time, otherwise idle)";
 
-/// pbrt-v4's Cu, divided by the coat's 1.5, at 545.9, 616.9 and 830.0 nm
-/// (the first three of its four wavelengths: strata's three channels).
-const CU_ETA: [f64; 3] = [0.659210, 0.192042, 0.174942];
-const CU_K: [f64; 3] = [1.719525, 2.129022, 3.524815];
+/// pbrt-v4's four wavelengths of its data, in nm: the first three are
+/// strata's three channels in [`configs`].
+pub const WAVELENGTHS: [f64; 4] = [545.9, 616.9, 830.0, 479.2];
+
+/// pbrt-v4's Cu, divided by the coat's 1.5, at its four wavelengths
+/// ([`WAVELENGTHS`]; the data's README gives them).
+pub const CU_ETA4: [f64; 4] = [0.659210, 0.192042, 0.174942, 0.765492];
+/// The imaginary part, likewise.
+pub const CU_K4: [f64; 4] = [1.719525, 2.129022, 3.524815, 1.674542];
+
+/// pbrt-v4's Cu at the first three wavelengths (strata's three channels).
+const CU_ETA: [f64; 3] = [CU_ETA4[0], CU_ETA4[1], CU_ETA4[2]];
+const CU_K: [f64; 3] = [CU_K4[0], CU_K4[1], CU_K4[2]];
 
 /// One pbrt-v4 configuration and its strata twin.
 #[derive(Clone, Debug)]
@@ -44,11 +53,7 @@ pub struct Config {
 
 /// The layered configurations of the data, as strata materials.
 pub fn configs() -> Vec<Config> {
-    let coat = |alpha: f64| {
-        format!("interface = {{ kind = \"dielectric\", ior = 1.5, roughness = {alpha} }}")
-    };
-    // pbrt's thickness 0.01 with unit extinction: optical depth 0.01.
-    let absorber = "medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.0 }";
+    let absorber = ABSORBER;
     let scatterer =
         "medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.9, phase = { kind = \"hg\", g = 0.5 } }";
     let diffuse = "interface = { kind = \"diffuse\", albedo = 0.8 }";
@@ -60,9 +65,7 @@ pub fn configs() -> Vec<Config> {
             eta[0], eta[1], eta[2], k[0], k[1], k[2]
         )
     };
-    let stack = |top: String, medium: &str, base: String| {
-        format!("[[layers]]\n{top}\n{medium}\n[[layers]]\n{base}\n")
-    };
+    let stack = |top: String, medium: &str, base: String| coated(&top, medium, &base);
     vec![
         Config {
             name: "coated_diffuse_smooth_alb0",
@@ -97,6 +100,46 @@ pub fn configs() -> Vec<Config> {
     ]
 }
 
+/// Configuration `name` (a coated conductor) with pbrt-v4's copper as a
+/// spectrum through its values at its four wavelengths ([`WAVELENGTHS`],
+/// [`CU_ETA4`], [`CU_K4`]), for spectral queries at them; `None` for the
+/// others, whose numbers do not vary with wavelength.
+pub fn spectral_toml(name: &str) -> Option<String> {
+    let alpha = match name {
+        "coated_conductor_rough_cu_smooth" => 0.0,
+        "coated_conductor_rough_cu_rough0.1" => 0.1,
+        _ => return None,
+    };
+    let mut order = [0, 1, 2, 3];
+    order.sort_by(|&a, &b| WAVELENGTHS[a].total_cmp(&WAVELENGTHS[b]));
+    let list = |f: &dyn Fn(usize) -> f64| {
+        let v: Vec<String> = order.iter().map(|&w| f(w).to_string()).collect();
+        v.join(", ")
+    };
+    let nm = list(&|w| WAVELENGTHS[w]);
+    // strata's conductor is relative to vacuum and divided by the coat's 1.5.
+    let (eta, k) = (list(&|w| CU_ETA4[w] * 1.5), list(&|w| CU_K4[w] * 1.5));
+    let cu = format!(
+        "interface = {{ kind = \"conductor\", eta = {{ nm = [{nm}], values = [{eta}] }}, \
+         k = {{ nm = [{nm}], values = [{k}] }}, roughness = {alpha} }}"
+    );
+    Some(coated(&coat(0.1), ABSORBER, &cu))
+}
+
+/// pbrt-v4's dielectric coat of IOR 1.5 and roughness `alpha`.
+fn coat(alpha: f64) -> String {
+    format!("interface = {{ kind = \"dielectric\", ior = 1.5, roughness = {alpha} }}")
+}
+
+/// pbrt's layer of thickness 0.01 with unit extinction (optical depth
+/// 0.01), absorbing.
+const ABSORBER: &str = "medium = { thickness = 0.01, sigma_t = 1.0, albedo = 0.0 }";
+
+/// A stack of `top` over `medium` over `base`.
+fn coated(top: &str, medium: &str, base: &str) -> String {
+    format!("[[layers]]\n{top}\n{medium}\n[[layers]]\n{base}\n")
+}
+
 /// One direction pair of pbrt-v4's data.
 #[derive(Clone, Copy, Debug)]
 pub struct PbrtPair {
@@ -114,6 +157,11 @@ pub struct PbrtPair {
     pub f: f64,
     /// Its standard error.
     pub se: f64,
+    /// pbrt-v4's mean f at each of its four wavelengths
+    /// ([`WAVELENGTHS`]).
+    pub f4: [f64; 4],
+    /// Their standard errors.
+    pub se4: [f64; 4],
     /// The calls it averages.
     pub calls: f64,
 }
@@ -150,6 +198,8 @@ pub fn pairs(name: &str) -> Vec<PbrtPair> {
                 wi: [num(c_wi), num(c_wi + 1), num(c_wi + 2)],
                 f: num(c_f),
                 se: num(c_se),
+                f4: std::array::from_fn(|w| num(c_f + w)),
+                se4: std::array::from_fn(|w| num(c_se + w)),
                 calls: num(c_n),
             }
         })
