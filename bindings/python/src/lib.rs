@@ -26,7 +26,8 @@ use pyo3::IntoPyObjectExt;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Bsdf as Answers, Column, ColumnsError, Estimator,
     EvalBuffers, LayerStack, LayeredBsdf, MaterialError as StackMaterialError, PdfWalks, PerQuery,
-    Queries, SampleBuffers, SetError, SetPath, Transport, Vectors, VectorsMut, MAX_WALKS,
+    Queries, SampleBuffers, SetError, SetPath, SpectralColumns, SpectralError, Transport, Vectors,
+    VectorsMut, MAX_WALKS,
 };
 
 create_exception!(
@@ -442,10 +443,44 @@ fn params_in<'py>(obj: Option<&Bound<'py, PyAny>>, n: usize) -> PyResult<Vec<Par
     Ok(out)
 }
 
+/// Parses the `wavelengths` argument: `None`, or a float32 array of shape
+/// `(n, 3)`, query k's three wavelengths in nm (their values are the
+/// library's to check).
+fn wavelengths_in<'py>(
+    obj: Option<&Bound<'py, PyAny>>,
+    n: usize,
+) -> PyResult<Option<PyReadonlyArrayDyn<'py, f32>>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let expected = format!("a float32 array of shape ({n}, 3): three wavelengths in nm per query");
+    let a = obj.cast::<PyUntypedArray>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "wavelengths must be None or {expected}; got {}",
+            type_name(obj)
+        ))
+    })?;
+    let shape = a.shape();
+    if !a.dtype().is_equiv_to(&dtype::<f32>(a.py())) || shape != [n, 3] {
+        return Err(PyValueError::new_err(format!(
+            "wavelengths must be {expected}; got dtype {}, shape {}",
+            a.dtype(),
+            shape_text(shape)
+        )));
+    }
+    if !a.is_c_contiguous() || !a.is_aligned() {
+        return Err(PyValueError::new_err(
+            "wavelengths must be C-contiguous and aligned: pass numpy.ascontiguousarray(value)",
+        ));
+    }
+    Ok(Some(borrow("wavelengths", a.cast::<PyArrayDyn<f32>>()?)?))
+}
+
 /// Why a call with `params` did not run.
 enum CallError {
     /// Boxed: a `SetError` makes it large, and errors are rare.
     Columns(Box<ColumnsError>),
+    Spectral(Box<SpectralError>),
     Batch(BatchError),
 }
 
@@ -461,6 +496,14 @@ impl CallError {
         match self {
             CallError::Batch(e) => batch_err(py, e),
             CallError::Columns(e) => columns_err(py, *e, columns),
+            CallError::Spectral(e) => match *e {
+                SpectralError::Columns(e) => columns_err(py, *e, columns),
+                e @ (SpectralError::Wavelength { query, .. }
+                | SpectralError::Dispersive { query, .. }) => {
+                    query_err(py, format!("wavelengths: {e}"), Some(query))
+                }
+                e => PyValueError::new_err(format!("wavelengths: {e}")),
+            },
         }
     }
 }
@@ -534,7 +577,7 @@ impl Bsdf {
     fn run<R: Send>(
         &self,
         py: Python<'_>,
-        params: &[Param<'_>],
+        (params, wavelengths): (&[Param<'_>], Option<&PyReadonlyArrayDyn<'_, f32>>),
         n: usize,
         walks: u64,
         call: impl FnOnce(&dyn Answers) -> Result<R, BatchError> + Send,
@@ -548,7 +591,15 @@ impl Bsdf {
             })
             .collect();
         let bsdf = &self.inner;
+        let nm = wavelengths.map(|w| w.as_slice().expect("checked contiguous"));
         let work = || {
+            // Spectral queries: the material's spectra at each query's
+            // wavelengths, and the params' RGB triples, as columns.
+            let spectral = nm
+                .map(|nm| SpectralColumns::new(bsdf, nm, &columns))
+                .transpose()
+                .map_err(|e| CallError::Spectral(Box::new(e)))?;
+            let columns = spectral.as_ref().map_or(columns.clone(), |s| s.columns());
             if columns.is_empty() {
                 return Ok(call(bsdf)?);
             }
@@ -964,12 +1015,24 @@ impl Bsdf {
     /// same seed and keys. Every row is checked first: an invalid one raises
     /// `QueryError` naming the query, the path and the value.
     ///
+    /// `wavelengths` (every batch method takes it) makes the queries
+    /// spectral: a float32 array of shape (N, 3), query k's three
+    /// wavelengths in nm, and channel c of every result is the value at
+    /// wavelength c. The material's spectra (and `params`' RGB triples, by
+    /// their uplift) are read at them (docs/materials.md, *Spectra*). A
+    /// material whose IOR varies with wavelength takes one wavelength three
+    /// times per query; four wavelengths are two calls.
+    ///
     /// `return_truncated=True` (`eval`, `pdf_unbiased` and `albedo` take it)
     /// returns `(result, truncated)`: the result as above and the number of
     /// walks the limit of events (`max_events`) ended in the call, summed
     /// over the batch (0 when none did; their paths' energy beyond the limit
     /// is missing from the estimates).
-    #[pyo3(signature = (wi, wo, keys=None, *, params=None, return_truncated=false))]
+    #[pyo3(signature = (wi, wo, keys=None, *, params=None, wavelengths=None, return_truncated=false))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a Python method's positional and keyword arguments"
+    )]
     fn eval<'py>(
         &self,
         py: Python<'py>,
@@ -977,6 +1040,7 @@ impl Bsdf {
         wo: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
         return_truncated: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let wi = vectors_in("wi", wi)?;
@@ -984,6 +1048,7 @@ impl Bsdf {
         let keys = keys_in(keys)?;
         let n = check_pairs(py, &wi, &wo, keys.as_ref())?;
         let params = params_in(params, n)?;
+        let wavelengths = wavelengths_in(wavelengths, n)?;
         let mut f = VecOut::new("Bsdf.eval", wi.layout(), n)?;
         let mut se = VecOut::new("Bsdf.eval", wi.layout(), n)?;
         let cut = {
@@ -992,17 +1057,23 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let (fm, sm) = (f.as_mut(), se.as_mut());
-            self.run(py, &params, n, self.inner.samples_per_eval(), |a| {
-                let q = Queries {
-                    keys,
-                    ..Queries::pairs(wiv, wov)
-                };
-                let mut out = EvalBuffers {
-                    f: fm,
-                    stderr: Some(sm),
-                };
-                a.eval_into(&q, &mut |k, e| out.put(k, e))
-            })?
+            self.run(
+                py,
+                (&params, wavelengths.as_ref()),
+                n,
+                self.inner.samples_per_eval(),
+                |a| {
+                    let q = Queries {
+                        keys,
+                        ..Queries::pairs(wiv, wov)
+                    };
+                    let mut out = EvalBuffers {
+                        f: fm,
+                        stderr: Some(sm),
+                    };
+                    a.eval_into(&q, &mut |k, e| out.put(k, e))
+                },
+            )?
         };
         let result = (f.into_py(py)?, se.into_py(py)?);
         counted(py, result, return_truncated.then_some(cut))
@@ -1012,8 +1083,12 @@ impl Bsdf {
     /// bit for bit what `eval(wi, wo, keys)` and `pdf(wi, wo)` return (a
     /// light sample's value and its density for MIS), with the directions
     /// checked and normalized once. `keys`, `params` and `return_truncated`
-    /// as for `eval` (the count is that of `f`'s walks).
-    #[pyo3(signature = (wi, wo, keys=None, *, params=None, return_truncated=false))]
+    /// as for `eval`, and `wavelengths` (the count is that of `f`'s walks).
+    #[pyo3(signature = (wi, wo, keys=None, *, params=None, wavelengths=None, return_truncated=false))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a Python method's positional and keyword arguments"
+    )]
     fn eval_pdf<'py>(
         &self,
         py: Python<'py>,
@@ -1021,6 +1096,7 @@ impl Bsdf {
         wo: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
         return_truncated: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let wi = vectors_in("wi", wi)?;
@@ -1028,6 +1104,7 @@ impl Bsdf {
         let keys = keys_in(keys)?;
         let n = check_pairs(py, &wi, &wo, keys.as_ref())?;
         let params = params_in(params, n)?;
+        let wavelengths = wavelengths_in(wavelengths, n)?;
         let mut f = VecOut::new("Bsdf.eval_pdf", wi.layout(), n)?;
         let mut se = VecOut::new("Bsdf.eval_pdf", wi.layout(), n)?;
         let mut pdf: Vec<f32> = zeros("Bsdf.eval_pdf", n)?;
@@ -1045,7 +1122,7 @@ impl Bsdf {
                 .inner
                 .samples_per_eval()
                 .saturating_add(self.pdf_walks_at_most());
-            self.run(py, &params, n, walks, |a| {
+            self.run(py, (&params, wavelengths.as_ref()), n, walks, |a| {
                 let q = Queries {
                     keys,
                     ..Queries::pairs(wiv, wov)
@@ -1064,8 +1141,9 @@ impl Bsdf {
     /// (uint32) has bits REFLECTION = 1, TRANSMISSION = 2, DELTA = 4, and 0
     /// for an absorbed walk (then everything is zero: count it as a zero
     /// sample). With `keys`, query k draws from the stream (seed, keys[k]);
-    /// without, from sample index k of its direction's key.
-    #[pyo3(signature = (wi, keys=None, *, params=None))]
+    /// without, from sample index k of its direction's key. `params` and
+    /// `wavelengths` as for `eval`.
+    #[pyo3(signature = (wi, keys=None, *, params=None, wavelengths=None))]
     #[allow(clippy::type_complexity)]
     fn sample<'py>(
         &self,
@@ -1073,6 +1151,7 @@ impl Bsdf {
         wi: &Bound<'py, PyAny>,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<(
         Bound<'py, PyAny>,
         Bound<'py, PyAny>,
@@ -1083,6 +1162,7 @@ impl Bsdf {
         let keys = keys_in(keys)?;
         let n = check_directions(py, &wi, keys.as_ref())?;
         let params = params_in(params, n)?;
+        let wavelengths = wavelengths_in(wavelengths, n)?;
         let mut wo = VecOut::new("Bsdf.sample", wi.layout(), n)?;
         let mut weight = VecOut::new("Bsdf.sample", wi.layout(), n)?;
         let mut pdf: Vec<f32> = zeros("Bsdf.sample", n)?;
@@ -1098,13 +1178,19 @@ impl Bsdf {
                 pdf: &mut pdf[..],
                 flags: &mut flags[..],
             };
-            self.run(py, &params, n, self.pdf_walks_at_most(), |a| {
-                let q = Queries {
-                    keys,
-                    ..Queries::directions(wiv)
-                };
-                a.sample_into(&q, &mut |k, s| out.put(k, s))
-            })?;
+            self.run(
+                py,
+                (&params, wavelengths.as_ref()),
+                n,
+                self.pdf_walks_at_most(),
+                |a| {
+                    let q = Queries {
+                        keys,
+                        ..Queries::directions(wiv)
+                    };
+                    a.sample_into(&q, &mut |k, s| out.put(k, s))
+                },
+            )?;
         }
         Ok((
             wo.into_py(py)?,
@@ -1116,25 +1202,28 @@ impl Bsdf {
 
     /// The approximate density of `sample`'s direction `wo` for each pair
     /// (float32, shape (N,)), keyed by the directions: a function of
-    /// `(wi, wo)`, the seed and the query's `params` (see `eval`).
-    #[pyo3(signature = (wi, wo, *, params=None))]
+    /// `(wi, wo)`, the seed and the query's `params` and `wavelengths` (see
+    /// `eval`).
+    #[pyo3(signature = (wi, wo, *, params=None, wavelengths=None))]
     fn pdf<'py>(
         &self,
         py: Python<'py>,
         wi: &Bound<'py, PyAny>,
         wo: &Bound<'py, PyAny>,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f32>>> {
         let wi = vectors_in("wi", wi)?;
         let wo = vectors_in("wo", wo)?;
         let n = check_pairs(py, &wi, &wo, None)?;
         let params = params_in(params, n)?;
+        let wavelengths = wavelengths_in(wavelengths, n)?;
         let mut pdf: Vec<f32> = zeros("Bsdf.pdf", n)?;
         {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let p = &mut pdf[..];
             let walks = self.pdf_walks_at_most();
-            self.run(py, &params, n, walks, |a| {
+            self.run(py, (&params, wavelengths.as_ref()), n, walks, |a| {
                 a.pdf_into(&Queries::pairs(wiv, wov), &mut |k, x| p[k] = x)
             })?;
         }
@@ -1144,8 +1233,12 @@ impl Bsdf {
     /// The unbiased pdf of each pair from `samples` density walks:
     /// `(pdf, stderr)`, float32 arrays of shape (N,), the density of
     /// `sample`'s directions with its standard error. Slow: for references.
-    /// `params` and `return_truncated` as for `eval`.
-    #[pyo3(signature = (wi, wo, samples, *, params=None, return_truncated=false))]
+    /// `params`, `wavelengths` and `return_truncated` as for `eval`.
+    #[pyo3(signature = (wi, wo, samples, *, params=None, wavelengths=None, return_truncated=false))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a Python method's positional and keyword arguments"
+    )]
     fn pdf_unbiased<'py>(
         &self,
         py: Python<'py>,
@@ -1153,6 +1246,7 @@ impl Bsdf {
         wo: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = samples_arg)] samples: i128,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
         return_truncated: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let samples = walks_arg("samples", samples).map_err(|e| query_err(py, e, None))?;
@@ -1160,12 +1254,13 @@ impl Bsdf {
         let wo = vectors_in("wo", wo)?;
         let n = check_pairs(py, &wi, &wo, None)?;
         let params = params_in(params, n)?;
+        let wavelengths = wavelengths_in(wavelengths, n)?;
         let mut pdf: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
         let mut stderr: Vec<f32> = zeros("Bsdf.pdf_unbiased", n)?;
         let cut = {
             let (wiv, wov) = (wi.vectors(), wo.vectors());
             let (p, s) = (&mut pdf[..], &mut stderr[..]);
-            self.run(py, &params, n, samples, |a| {
+            self.run(py, (&params, wavelengths.as_ref()), n, samples, |a| {
                 let q = Queries::pairs(wiv, wov).walks(samples);
                 a.pdf_unbiased_into(&q, &mut |k, e| {
                     p[k] = e.value as f32;
@@ -1180,9 +1275,13 @@ impl Bsdf {
     /// Directional albedo from `n` walks per direction:
     /// `(R, T, R_stderr, T_stderr)`, reflected and transmitted fractions per
     /// channel with their standard errors, each in the layout of `wi`.
-    /// `keys`, `params` and `return_truncated` as for `eval` (an albedo's
+    /// `keys`, `params`, `wavelengths` and `return_truncated` as for `eval` (an albedo's
     /// walk counts once: R and T come from the same walks).
-    #[pyo3(signature = (wi, n, keys=None, *, params=None, return_truncated=false))]
+    #[pyo3(signature = (wi, n, keys=None, *, params=None, wavelengths=None, return_truncated=false))]
+    #[expect(
+        clippy::too_many_arguments,
+        reason = "a Python method's positional and keyword arguments"
+    )]
     fn albedo<'py>(
         &self,
         py: Python<'py>,
@@ -1190,6 +1289,7 @@ impl Bsdf {
         #[pyo3(from_py_with = n_arg)] n: i128,
         keys: Option<&Bound<'py, PyAny>>,
         params: Option<&Bound<'py, PyAny>>,
+        wavelengths: Option<&Bound<'py, PyAny>>,
         return_truncated: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let n = walks_arg("n", n).map_err(|e| query_err(py, e, None))?;
@@ -1197,6 +1297,7 @@ impl Bsdf {
         let keys = keys_in(keys)?;
         let m = check_directions(py, &wi, keys.as_ref())?;
         let params = params_in(params, m)?;
+        let wavelengths = wavelengths_in(wavelengths, m)?;
         let mut rec: Vec<AlbedoRecord> = zeros("Bsdf.albedo", m)?;
         let cut = {
             let wiv = wi.vectors();
@@ -1204,7 +1305,7 @@ impl Bsdf {
                 .as_ref()
                 .map(|k| k.as_slice().expect("checked contiguous"));
             let out = &mut rec[..];
-            self.run(py, &params, m, n, |a| {
+            self.run(py, (&params, wavelengths.as_ref()), m, n, |a| {
                 let q = Queries {
                     keys,
                     ..Queries::directions(wiv)

@@ -1,0 +1,105 @@
+"""Spectral queries (`wavelengths=`): three wavelengths a query, one per channel."""
+
+import json
+
+import numpy as np
+import pytest
+
+from strata_bsdf import Bsdf, QueryError
+
+from test_api import run_cli
+
+# A Lambertian base whose albedo is a tabulated spectrum: f = rho(lambda) / pi,
+# rho linear between 400 nm (0.2) and 700 nm (0.8).
+DIFFUSE = '[[layers]]\ninterface = { kind = "diffuse", albedo = { nm = [400, 700], values = [0.2, 0.8] } }\n'
+GOLD = '[[layers]]\ninterface = { kind = "conductor", preset = "Au", roughness = 0.2 }\n'
+GLASS = '[[layers]]\ninterface = { kind = "dielectric", ior = { nd = 1.5168, abbe = 40 }, roughness = 0.2 }\n'
+
+
+def pairs(n):
+    wi = np.tile(np.array([[0.1, 0.0, 1.0]], dtype=np.float32), (n, 1))
+    wo = np.tile(np.array([[0.3, 0.2, 0.9]], dtype=np.float32), (n, 1))
+    return wi, wo
+
+
+def test_a_spectral_albedo_answers_at_each_wavelength():
+    nm = np.array([[400, 550, 700], [450, 500, 650], [380, 720, 600]], dtype=np.float32)
+    wi, wo = pairs(len(nm))
+    f, se = Bsdf.from_toml(DIFFUSE).eval(wi, wo, wavelengths=nm)
+    rho = 0.2 + 0.6 * (np.clip(nm.astype(np.float64), 400, 700) - 400) / 300
+    np.testing.assert_allclose(f, rho / np.pi, rtol=1e-6)
+    assert np.all(se == 0)
+    # Without wavelengths: the RGB numbers of the spectrum.
+    f_rgb, _ = Bsdf.from_toml(DIFFUSE).eval(wi, wo)
+    assert not np.allclose(f_rgb, f)
+
+
+def test_every_verb_takes_wavelengths_and_matches_the_cli(strata_cli, tmp_path):
+    path = tmp_path / "gold.toml"
+    path.write_text(GOLD)
+    nm = np.array([[450, 550, 650], [700, 700, 700]], dtype=np.float32)
+    wi, wo = pairs(2)
+    b = Bsdf.from_toml(GOLD, samples=4)
+    f, _ = b.eval(wi, wo, wavelengths=nm)
+    line = json.dumps({"wi": wi[0].tolist(), "wo": wo[0].tolist()}) + "\n"
+    for k, w in enumerate(["450,550,650", "700"]):
+        cli = run_cli(strata_cli, ["eval", "--material", str(path), "--samples", "4", "--wavelengths", w], line)
+        got = f[k] if k == 0 else f[k][:1]
+        np.testing.assert_allclose(got, cli[0]["f"], rtol=1e-6)
+    # Gold is redder at longer wavelengths.
+    assert f[0][0] < 0.6 * f[0][2]
+    f2, _, pdf = b.eval_pdf(wi, wo, wavelengths=nm)
+    np.testing.assert_array_equal(f2, f)
+    np.testing.assert_array_equal(pdf, b.pdf(wi, wo, wavelengths=nm))
+    wo_s, weight, pdf_s, flags = b.sample(wi, wavelengths=nm)
+    assert weight.shape == (2, 3) and np.all(flags != 0)
+    np.testing.assert_array_equal(pdf_s, b.pdf(wi, wo_s, wavelengths=nm))
+    r, t, r_se, t_se = b.albedo(wi, 64, wavelengths=nm)
+    assert r.shape == (2, 3) and np.all(t == 0) and r[0][0] < r[0][2]
+    p, p_se = b.pdf_unbiased(wi, wo, 16, wavelengths=nm)
+    assert p.shape == (2,)
+
+
+def test_an_rgb_param_is_read_at_the_wavelengths_as_the_cli_reads_a_set(strata_cli, tmp_path):
+    path = tmp_path / "diffuse.toml"
+    path.write_text(DIFFUSE)
+    rgb = np.array([[0.8, 0.3, 0.1]], dtype=np.float32)
+    nm = np.array([[450, 550, 650]], dtype=np.float32)
+    wi, wo = pairs(1)
+    params = {"layers[0].interface.albedo": rgb}
+    f, _ = Bsdf.from_toml(DIFFUSE).eval(wi, wo, params=params, wavelengths=nm)
+    line = json.dumps({"wi": wi[0].tolist(), "wo": wo[0].tolist(), "set": {"layers[0].interface.albedo": [0.8, 0.3, 0.1]}})
+    cli = run_cli(strata_cli, ["eval", "--material", str(path), "--wavelengths", "450,550,650"], line + "\n")
+    np.testing.assert_allclose(f[0], cli[0]["f"], rtol=1e-6)
+    assert f[0][2] > 2 * f[0][0]
+
+
+@pytest.mark.parametrize(
+    "nm,exc,words",
+    [
+        (np.array([[450, 550, 650]], dtype=np.float64), ValueError, ["wavelengths", "float32", "(2, 3)"]),
+        (np.array([450, 550, 650, 700, 600, 500], dtype=np.float32), ValueError, ["(2, 3)", "shape (6,)"]),
+        ([[450, 550, 650], [450, 550, 650]], TypeError, ["wavelengths", "list"]),
+    ],
+)
+def test_bad_wavelength_arrays_name_the_shape(nm, exc, words):
+    wi, wo = pairs(2)
+    with pytest.raises(exc) as e:
+        Bsdf.from_toml(GOLD).eval(wi, wo, wavelengths=nm)
+    for w in words:
+        assert w in str(e.value), str(e.value)
+
+
+def test_bad_wavelengths_name_the_query():
+    wi, wo = pairs(2)
+    nm = np.array([[450, 550, 650], [500, np.nan, 600]], dtype=np.float32)
+    with pytest.raises(QueryError) as e:
+        Bsdf.from_toml(GOLD).eval(wi, wo, wavelengths=nm)
+    assert e.value.index == 1 and "nan" in str(e.value).lower(), str(e.value)
+    # A dispersive IOR refracts at one wavelength a walk.
+    nm = np.array([[500, 500, 500], [450, 550, 650]], dtype=np.float32)
+    with pytest.raises(QueryError) as e:
+        Bsdf.from_toml(GLASS).eval(wi, wo, wavelengths=nm)
+    assert e.value.index == 1 and "layers[0].interface.ior" in str(e.value), str(e.value)
+    f, _ = Bsdf.from_toml(GLASS).eval(wi, wo, wavelengths=np.array([[450] * 3, [650] * 3], dtype=np.float32))
+    assert f[0][0] != f[1][0]
