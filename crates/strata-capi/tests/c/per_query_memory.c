@@ -94,6 +94,12 @@ static int out_of_memory_is_a_status(const struct StrataBsdf *b) {
          * refuses to a pool thread that sat out the warm call (an abort
          * outside strata's reach). */
         mallopt(M_ARENA_MAX, 1);
+        /* Large blocks always from mmap: glibc otherwise raises the
+         * threshold to the size of a large block the warm call freed, and
+         * the limited call's working memory may then come from that freed
+         * heap, so that the call goes on to build its rows and a later small
+         * allocation fails instead (an abort: about one run in twenty). */
+        mallopt(M_MMAP_THRESHOLD, 128 * 1024);
 #endif
         if (eval_columns(b, WARM, IOR) != STRATA_OK) {
             fprintf(stderr, "warm call: %s\n", strata_last_error());
