@@ -395,6 +395,16 @@ typedef struct StrataBatch {
    */
   size_t ncolumns;
   /**
+   * Optional `3 n` floats (all calls): query `k`'s three wavelengths in
+   * nm, one per channel, making the queries spectral: channel `c` of
+   * every output is the value at wavelength `c`, the material's spectra
+   * (and the RGB triples of `columns`, through their uplift) read at
+   * them (docs/materials.md, *Spectra*). A material whose IOR varies
+   * with wavelength takes one wavelength three times per query. NULL:
+   * RGB.
+   */
+  const float *wavelengths;
+  /**
    * Walks per query, 1 to 2^40 (albedo, pdf_unbiased); 0 for the others.
    */
   uint64_t walks;

@@ -44,7 +44,8 @@ use strata_bsdf::stack::MaterialError;
 use strata_bsdf::{
     check_walks, AlbedoRecord, BatchError, Bsdf, Column, ColumnsError, Estimate, Estimator,
     EvalBuffers, LayerStack, LayeredBsdf, PdfWalks, PerQuery, Queries, QueryError, SampleBuffers,
-    SampleRecord, SetError, SetPath, Transport, Vectors, VectorsMut,
+    SampleRecord, SetError, SetPath, SpectralColumns, SpectralError, Transport, Vectors,
+    VectorsMut,
 };
 
 // ------------------------------------------------------------------ statuses
@@ -1082,6 +1083,9 @@ struct Columns<'a> {
     values: Vec<&'a [f32]>,
     /// The columns array and every column's values: inputs of the call.
     spans: Vec<Span>,
+    /// With wavelengths: the columns the queries run on, the material's
+    /// spectra and the columns' RGB triples read at them.
+    spectral: Option<SpectralColumns>,
 }
 
 /// Reads and checks the columns of a call of `n` queries (n > 0): the array
@@ -1103,6 +1107,7 @@ unsafe fn read_columns<'a>(
         widths: Vec::new(),
         values: Vec::new(),
         spans: Vec::new(),
+        spectral: None,
     };
     if ncolumns == 0 {
         return Ok(cols);
@@ -1160,6 +1165,17 @@ unsafe fn read_columns<'a>(
 }
 
 impl Columns<'_> {
+    /// The columns as the library takes them.
+    fn columns(&self) -> Vec<Column<'_>> {
+        (self.paths.iter().zip(&self.widths).zip(&self.values))
+            .map(|((path, &width), values)| Column {
+                path,
+                width,
+                values,
+            })
+            .collect()
+    }
+
     /// Checks that no output of the call (in `spans`) overlaps another array
     /// of it, the columns' values included.
     fn disjoint(&self, mut spans: Vec<Span>) -> Result<(), Failure> {
@@ -1175,16 +1191,13 @@ impl Columns<'_> {
         bsdf: &'b LayeredBsdf,
         n: usize,
     ) -> Result<Option<PerQuery<'b>>, Failure> {
-        if self.paths.is_empty() {
+        let columns = match &self.spectral {
+            Some(s) => s.columns(),
+            None => self.columns(),
+        };
+        if columns.is_empty() {
             return Ok(None);
         }
-        let columns: Vec<Column> = (self.paths.iter().zip(&self.widths).zip(&self.values))
-            .map(|((path, &width), values)| Column {
-                path,
-                width,
-                values,
-            })
-            .collect();
         match PerQuery::new(bsdf, n, &columns) {
             Ok(m) => Ok(Some(m)),
             // A fault of the whole column (its path, its width): named as
@@ -1291,6 +1304,14 @@ pub struct StrataBatch {
     pub columns: *const StrataColumn,
     /// The number of `columns`.
     pub ncolumns: usize,
+    /// Optional `3 n` floats (all calls): query `k`'s three wavelengths in
+    /// nm, one per channel, making the queries spectral: channel `c` of
+    /// every output is the value at wavelength `c`, the material's spectra
+    /// (and the RGB triples of `columns`, through their uplift) read at
+    /// them (docs/materials.md, *Spectra*). A material whose IOR varies
+    /// with wavelength takes one wavelength three times per query. NULL:
+    /// RGB.
+    pub wavelengths: *const f32,
     /// Walks per query, 1 to 2^40 (albedo, pdf_unbiased); 0 for the others.
     pub walks: u64,
     /// Out (eval, required): `f(wi, wo)` per RGB channel, without the cosine.
@@ -1358,6 +1379,7 @@ impl Default for StrataBatch {
             keys: std::ptr::null(),
             columns: std::ptr::null(),
             ncolumns: 0,
+            wavelengths: std::ptr::null(),
             walks: 0,
             f: StrataVectorsOut::default(),
             stderr: StrataVectorsOut::default(),
@@ -1543,6 +1565,7 @@ impl StrataBatch {
         self.wi.spans("wi", n, false, true, &mut s)?;
         self.wo.spans("wo", n, false, need("wo"), &mut s)?;
         s.push(span("keys", self.keys, 1, n, false, true)?);
+        s.push(span("wavelengths", self.wavelengths, 3, n, false, true)?);
         let vectors = [
             ("f", self.f),
             ("stderr", self.stderr),
@@ -1568,10 +1591,24 @@ impl StrataBatch {
     /// # Safety
     /// As the batch calls': the descriptor's arrays and columns hold what
     /// [`StrataBatch`] says.
-    unsafe fn checked<'a>(&self, required: &[&str]) -> Result<Columns<'a>, Failure> {
+    unsafe fn checked<'a>(
+        &self,
+        bsdf: &LayeredBsdf,
+        required: &[&str],
+    ) -> Result<Columns<'a>, Failure> {
         // SAFETY: the caller's guarantees on the columns are `read_columns`'.
-        let cols = unsafe { read_columns(self.columns, self.ncolumns, self.n)? };
+        let mut cols = unsafe { read_columns(self.columns, self.ncolumns, self.n)? };
         cols.disjoint(self.spans(required)?)?;
+        if !self.wavelengths.is_null() {
+            // SAFETY: checked aligned and addressable by `spans`; the caller
+            // guarantees `3 n` readable floats.
+            let nm = unsafe { input("wavelengths", self.wavelengths, 3, self.n)? };
+            let spectral = SpectralColumns::new(bsdf, nm, &cols.columns());
+            cols.spectral = Some(spectral.map_err(|e| match e {
+                SpectralError::Columns(e) => Failure::invalid(format!("columns: {e}")),
+                e => Failure::invalid(format!("wavelengths: {e}")),
+            })?);
+        }
         Ok(cols)
     }
 
@@ -1663,7 +1700,7 @@ pub unsafe extern "C" fn strata_eval(b: *const StrataBsdf, batch: *const StrataB
         };
         // SAFETY: as above; `checked` verifies every array before the body
         // makes slices of them.
-        let cols = unsafe { d.checked(&["wo", "f"])? };
+        let cols = unsafe { d.checked(bsdf, &["wo", "f"])? };
         let rows = cols.rows(bsdf, d.n)?;
         let answers = answers(bsdf, &rows);
         // SAFETY: the arrays were checked by `checked` (outputs disjoint
@@ -1730,7 +1767,7 @@ pub unsafe extern "C" fn strata_sample(b: *const StrataBsdf, batch: *const Strat
             (true, _) => &["sampled", "weight", "pdf", "flags"],
         };
         // SAFETY: as in `strata_eval`.
-        let cols = unsafe { d.checked(required)? };
+        let cols = unsafe { d.checked(bsdf, required)? };
         let rows = cols.rows(bsdf, d.n)?;
         let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`. `StrataSample` has the layout of
@@ -1778,7 +1815,7 @@ pub unsafe extern "C" fn strata_pdf(b: *const StrataBsdf, batch: *const StrataBa
             return Ok(());
         };
         // SAFETY: as in `strata_eval`.
-        let cols = unsafe { d.checked(&["wo", "pdf"])? };
+        let cols = unsafe { d.checked(bsdf, &["wo", "pdf"])? };
         let rows = cols.rows(bsdf, d.n)?;
         let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`.
@@ -1811,7 +1848,7 @@ pub unsafe extern "C" fn strata_pdf_unbiased(
         };
         walk_count("walks", d.walks)?;
         // SAFETY: as in `strata_eval`.
-        let cols = unsafe { d.checked(&["wo", "pdf", "pdf_stderr"])? };
+        let cols = unsafe { d.checked(bsdf, &["wo", "pdf", "pdf_stderr"])? };
         let rows = cols.rows(bsdf, d.n)?;
         let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`.
@@ -1846,7 +1883,7 @@ pub unsafe extern "C" fn strata_albedo(b: *const StrataBsdf, batch: *const Strat
         };
         walk_count("walks", d.walks)?;
         // SAFETY: as in `strata_eval`.
-        let cols = unsafe { d.checked(&["albedo"])? };
+        let cols = unsafe { d.checked(bsdf, &["albedo"])? };
         let rows = cols.rows(bsdf, d.n)?;
         let answers = answers(bsdf, &rows);
         // SAFETY: as in `strata_eval`. `StrataAlbedo` has the layout of

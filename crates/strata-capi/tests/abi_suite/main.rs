@@ -12,5 +12,6 @@ mod batch;
 mod columns;
 mod config;
 mod errors;
+mod spectral;
 mod thread_exit;
 mod threads;
