@@ -244,7 +244,8 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 ///
 /// Where every column is a field a built stack takes in place
 /// ([`SetPath::in_place`]: thicknesses, extinctions, albedos, roughnesses,
-/// a conductor's `eta` and `k`) and the rows share one shape, the rows are
+/// a conductor's `eta` and `k`) and the rows run on one shape (the same, or
+/// a grey extinction where the shape's is chromatic), the rows are
 /// a table of the template's numbers: each row is written into a copy of
 /// the template's stack and checked as a material file's fields are, its
 /// numbers go to the lanes, and what its stack decides (a walk-free form and
@@ -252,7 +253,9 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// no material built; a query answers bit for bit what a material file with
 /// its floats answers, or over a Lambertian base to within its `R̄`, which a
 /// row takes from the coat's table (`estimator::coat_return`, within 1e-6)
-/// where a material integrates it (`tests/api/rows_in_place.rs`). Build it once for the
+/// where a material integrates it, or, for a grey extinction on a
+/// chromatic shape, with its file's expectation, not its bits
+/// (`tests/api/rows_in_place.rs`). Build it once for the
 /// calls of a batch of vertices (sample, then eval and pdf of the light
 /// samples): it holds the table of a batch of one chunk. Other columns make
 /// a material per distinct row, as described below.
@@ -484,7 +487,7 @@ fn write_rows(
         // (The row is the template's stack written at `paths`, and the
         // rows' BSDF has the template's shape there but for the first
         // row's values at those paths.)
-        if !row.same_shape_at(bsdf.stack(), &paths) {
+        if !row.runs_on_at(bsdf.stack(), &paths) {
             return Err(Refused::Materials);
         }
         if let Some(adding) = adding.as_mut() {
@@ -577,7 +580,7 @@ impl<'a> PerQuery<'a> {
                     break;
                 }
             }
-            if !first.same_shape(self.template.stack()) {
+            if !first.runs_on(self.template.stack()) {
                 shape = Some(Box::new(self.template.with_stack(first)));
             }
         }

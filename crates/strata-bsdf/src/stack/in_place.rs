@@ -16,6 +16,7 @@ use super::layer_stack::{
     check_conductor, check_depth, roughness, sigma_t, thickness, unit_rgb, LayerStack,
 };
 use super::set::{InterfaceField, MediumField, SetPath, Target};
+use super::shape::LayerShape;
 use super::Roughness;
 
 impl SetPath {
@@ -127,6 +128,41 @@ impl LayerStack {
             Target::Interface(i, _) => self.interfaces[i].smooth == other.interfaces[i].smooth,
             Target::ExteriorIor => self.same_shape(other),
         })
+    }
+
+    /// Whether this stack, written from `other` at `paths`, runs on
+    /// `other`'s shape: [`LayerStack::same_shape_at`], or a grey extinction
+    /// where `other`'s is chromatic. A chromatic walk answers a grey layer
+    /// with the same expectation (its channels' free flights then agree),
+    /// not bit for bit what a grey walk answers.
+    pub fn runs_on_at(&self, other: &LayerStack, paths: &[&SetPath]) -> bool {
+        paths.iter().all(|p| match p.target {
+            Target::Medium(l, _) => match (&self.media[l], &other.media[l]) {
+                (Some(a), Some(b)) => a.kind() == b.kind() && (a.grey() || !b.grey()),
+                (a, b) => a.is_none() && b.is_none(),
+            },
+            _ => self.same_shape_at(other, &[p]),
+        })
+    }
+
+    /// [`LayerStack::runs_on_at`] for every part: [`LayerStack::same_shape`]
+    /// but for grey extinctions where `other`'s are chromatic.
+    pub fn runs_on(&self, other: &LayerStack) -> bool {
+        let layer = |l: usize| match (self.layer_shape(l), other.layer_shape(l)) {
+            (
+                LayerShape::Medium { kind, grey, phase },
+                LayerShape::Medium {
+                    kind: k,
+                    grey: g,
+                    phase: p,
+                },
+            ) => kind == k && phase == p && (grey || !g),
+            (a, b) => a == b,
+        };
+        self.two_sided == other.two_sided
+            && self.len() == other.len()
+            && (0..self.len()).all(|i| self.interface_shape(i) == other.interface_shape(i))
+            && (0..self.media.len()).all(layer)
     }
 
     /// Whether this stack has `other`'s shape: compared part by part,

@@ -444,3 +444,86 @@ fn a_kept_table_of_another_shape_answers_with_its_templates_configuration() {
     assert_eq!(second, fresh(&other));
     assert_eq!(eval(&one), first);
 }
+
+/// A row whose extinction is grey, among rows whose extinction is not (a
+/// texture's grey texels, a spectrum that is flat beyond its table at a
+/// query's three wavelengths), runs in place on the chromatic shape: a
+/// chromatic row answers its material file bit for bit, and a grey one
+/// within 4 standard errors of its file (a chromatic walk has its
+/// expectation, not its bits), whichever row comes first. A chromatic row
+/// on a grey shape would not run: `runs_on_at` says so.
+#[test]
+fn grey_rows_run_in_place_on_a_chromatic_shape() {
+    const CHROMATIC: &str = "[[layers]]\n\
+        interface = { kind = \"dielectric\", ior = 1.5, roughness = 0.2 }\n\
+        medium = { thickness = 0.5, sigma_t = [0.5, 1.0, 2.0], albedo = 0.8 }\n\
+        [[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.7 }\n";
+    let walks = 20_000;
+    let template = LayeredBsdf::new(LayerStack::from_toml_str(CHROMATIC).unwrap())
+        .samples(walks)
+        .seed(3);
+    let path: SetPath = "layers[0].medium.sigma_t".parse().unwrap();
+    let rows: [[f32; 3]; 3] = [[1.0, 1.0, 1.0], [0.25, 0.75, 1.5], [2.0, 2.0, 2.0]];
+    for order in [[0, 1, 2], [1, 2, 0]] {
+        let values: Vec<f32> = order.iter().flat_map(|&r| rows[r]).collect();
+        let cols = [Column {
+            path: &path,
+            width: 3,
+            values: &values,
+        }];
+        let q = PerQuery::new(&template, 3, &cols).unwrap();
+        assert!(q.rows_in_place(), "order {order:?}");
+        let wi = [[0.3f32, 0.1, 0.9]; 3];
+        let wo = [[-0.2f32, 0.3, 0.8]; 3];
+        let keys = [11u64, 12, 13];
+        let mut f = [[0f32; 3]; 3];
+        let mut se = [[0f32; 3]; 3];
+        let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+        q.eval_buffers(
+            a,
+            b,
+            Some(&keys),
+            VectorsMut::Aos(&mut f),
+            Some(VectorsMut::Aos(&mut se)),
+        )
+        .unwrap();
+        for (k, &r) in order.iter().enumerate() {
+            let file =
+                CHROMATIC.replace("[0.5, 1.0, 2.0]", &format!("{:?}", rows[r].map(f64::from)));
+            let own = LayeredBsdf::new(LayerStack::from_toml_str(&file).unwrap())
+                .samples(walks)
+                .seed(3);
+            let mut want = [[0f32; 3]];
+            let mut want_se = [[0f32; 3]];
+            let (a, b) = (Vectors::Aos(&wi[..1]), Vectors::Aos(&wo[..1]));
+            let out = VectorsMut::Aos(&mut want);
+            own.eval_buffers(
+                a,
+                b,
+                Some(&keys[k..k + 1]),
+                out,
+                Some(VectorsMut::Aos(&mut want_se)),
+            )
+            .unwrap();
+            if r == 1 {
+                assert_eq!(f[k], want[0], "the chromatic row, at {k}");
+                continue;
+            }
+            for c in 0..3 {
+                let sigma = (se[k][c].powi(2) + want_se[0][c].powi(2)).sqrt();
+                assert!(
+                    (f[k][c] - want[0][c]).abs() < 4.0 * sigma,
+                    "grey row {r} at {k}, channel {c}: {} vs its file's {} ± {sigma}",
+                    f[k][c],
+                    want[0][c]
+                );
+            }
+        }
+    }
+    // A chromatic row on a grey shape does not run on it.
+    let grey = LayerStack::from_toml_str(&CHROMATIC.replace("[0.5, 1.0, 2.0]", "1.0")).unwrap();
+    let mut row = grey.clone();
+    row.write(&path, &[0.5, 1.0, 2.0]).unwrap();
+    assert!(!row.runs_on_at(&grey, &[&path]) && grey.runs_on_at(&row, &[&path]));
+    assert!(!row.runs_on(&grey) && grey.runs_on(&row));
+}
