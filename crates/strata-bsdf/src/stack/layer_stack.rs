@@ -250,12 +250,14 @@ pub(super) fn check_conductor(
             "must be >= 0",
         ));
     }
-    let too_big = format!("must be at most {MAX_CONDUCTOR}");
+    // The message is made only for an error: a per-query row checks its
+    // conductor's values on every write.
+    let too_big = || format!("must be at most {MAX_CONDUCTOR}");
     if e.iter().any(|&x| x > MAX_CONDUCTOR) {
-        return Err(StackError::new_rgb(layer, "interface.eta", e, &too_big));
+        return Err(StackError::new_rgb(layer, "interface.eta", e, &too_big()));
     }
     if kk.iter().any(|&x| x > MAX_CONDUCTOR) {
-        return Err(StackError::new_rgb(layer, "interface.k", kk, &too_big));
+        return Err(StackError::new_rgb(layer, "interface.k", kk, &too_big()));
     }
     Ok(())
 }
@@ -648,11 +650,11 @@ impl LayerStack {
     fn parse_medium(i: usize, m: &MediumDesc) -> Result<Medium, StackError> {
         let li = Some(i);
         let h = thickness(li, m.thickness)?;
-        let deep =
-            format!("gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}");
+        let deep = || {
+            format!("gives an optical depth (thickness {h} × sigma_t) above {MAX_OPTICAL_DEPTH}")
+        };
         let st_rule = |v: f64| {
-            in_range(0.0, false, f64::MAX)(v)
-                .or_else(|| (v * h > MAX_OPTICAL_DEPTH).then(|| deep.clone()))
+            in_range(0.0, false, f64::MAX)(v).or_else(|| (v * h > MAX_OPTICAL_DEPTH).then(deep))
         };
         let st = sigma_t(li, colour(li, "medium.sigma_t", &m.sigma_t, st_rule)?)?;
         check_depth(li, h, st)?;
