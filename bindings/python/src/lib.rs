@@ -502,6 +502,9 @@ impl CallError {
                 | SpectralError::Dispersive { query, .. }) => {
                     query_err(py, format!("wavelengths: {e}"), Some(query))
                 }
+                e @ SpectralError::OutOfMemory { .. } => {
+                    PyMemoryError::new_err(format!("wavelengths: {e}"))
+                }
                 e => PyValueError::new_err(format!("wavelengths: {e}")),
             },
         }
@@ -516,7 +519,7 @@ fn columns_err(py: Python<'_>, e: ColumnsError, columns: &[Column<'_>]) -> PyErr
         ColumnsError::Column {
             column,
             error: error @ SetError::Value { .. },
-        } => {
+        } if column < columns.len() => {
             let c = &columns[column];
             let n = c.values.len() / c.width;
             let (shape, per) = if c.width == 3 {

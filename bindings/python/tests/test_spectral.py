@@ -103,3 +103,22 @@ def test_bad_wavelengths_name_the_query():
     assert e.value.index == 1 and "layers[0].interface.ior" in str(e.value), str(e.value)
     f, _ = Bsdf.from_toml(GLASS).eval(wi, wo, wavelengths=np.array([[450] * 3, [650] * 3], dtype=np.float32))
     assert f[0][0] != f[1][0]
+
+
+def test_a_bad_param_with_wavelengths_names_the_param():
+    # The material's own spectral columns come after the caller's: an error
+    # about a param names that param (a triple for a number here).
+    wi, wo = pairs(2)
+    nm = np.array([[450, 550, 650]] * 2, dtype=np.float32)
+    params = {"layers[0].interface.roughness": np.full((2, 3), 0.2, dtype=np.float32)}
+    with pytest.raises(ValueError) as e:
+        Bsdf.from_toml(GOLD).eval(wi, wo, params=params, wavelengths=nm)
+    assert "layers[0].interface.roughness" in str(e.value) and "(2, 3)" in str(e.value), str(e.value)
+
+
+def test_non_contiguous_wavelengths_are_refused():
+    wi, wo = pairs(2)
+    nm = np.asfortranarray(np.array([[450, 550, 650], [500, 600, 700]], dtype=np.float32))
+    with pytest.raises(ValueError) as e:
+        Bsdf.from_toml(GOLD).eval(wi, wo, wavelengths=nm)
+    assert "C-contiguous" in str(e.value), str(e.value)

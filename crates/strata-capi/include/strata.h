@@ -400,8 +400,9 @@ typedef struct StrataBatch {
    * every output is the value at wavelength `c`, the material's spectra
    * (and the RGB triples of `columns`, through their uplift) read at
    * them (docs/materials.md, *Spectra*). A material whose IOR varies
-   * with wavelength takes one wavelength three times per query. NULL:
-   * RGB.
+   * with wavelength takes one wavelength three times per query. The
+   * queries' columns then take 4 bytes per query, channel and column,
+   * allocated fallibly (`STRATA_ERR_OUT_OF_MEMORY`). NULL: RGB.
    */
   const float *wavelengths;
   /**

@@ -1309,8 +1309,9 @@ pub struct StrataBatch {
     /// every output is the value at wavelength `c`, the material's spectra
     /// (and the RGB triples of `columns`, through their uplift) read at
     /// them (docs/materials.md, *Spectra*). A material whose IOR varies
-    /// with wavelength takes one wavelength three times per query. NULL:
-    /// RGB.
+    /// with wavelength takes one wavelength three times per query. The
+    /// queries' columns then take 4 bytes per query, channel and column,
+    /// allocated fallibly (`STRATA_ERR_OUT_OF_MEMORY`). NULL: RGB.
     pub wavelengths: *const f32,
     /// Walks per query, 1 to 2^40 (albedo, pdf_unbiased); 0 for the others.
     pub walks: u64,
@@ -1606,6 +1607,9 @@ impl StrataBatch {
             let spectral = SpectralColumns::new(bsdf, nm, &cols.columns());
             cols.spectral = Some(spectral.map_err(|e| match e {
                 SpectralError::Columns(e) => Failure::invalid(format!("columns: {e}")),
+                e @ SpectralError::OutOfMemory { .. } => {
+                    Failure::new(STRATA_ERR_OUT_OF_MEMORY, format!("wavelengths: {e}"))
+                }
                 e => Failure::invalid(format!("wavelengths: {e}")),
             })?);
         }

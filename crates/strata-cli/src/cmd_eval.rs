@@ -25,7 +25,9 @@
 //! invalid, stops the run like any bad line, naming the line, the path and
 //! the value.
 
-use crate::common::{at_wavelengths, load_material, spectral_passes, stdout_failure, EngineArgs};
+use crate::common::{
+    at_wavelengths, load_material, spectral_passes, stdout_failure, EngineArgs, SpectralPass,
+};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::{BufRead, Write};
@@ -139,6 +141,8 @@ pub fn run(mut args: Args) -> Result<(), String> {
     let bsdf = args.engine.apply(bsdf)?;
     // `--config` may have set the walks per query.
     args.samples = bsdf.samples_per_eval();
+    // The material at each pass of `--wavelengths`, made once.
+    let passes = spectral_passes(&bsdf, args.wavelengths.as_ref())?;
     let stdin = std::io::stdin();
     // From a file, lines are read in chunks of CHUNK. From anything else (a
     // pipe, a terminal) the lines that have arrived are answered, and the
@@ -194,7 +198,8 @@ pub fn run(mut args: Args) -> Result<(), String> {
                 break;
             }
         }
-        if let Err(e) = answer(&bsdf, &args, &pairs, &chunk_sets, &lines_of, &mut out) {
+        let chunk = (&pairs[..], &chunk_sets, &lines_of[..]);
+        if let Err(e) = answer(&bsdf, &passes, &args, chunk, &mut out) {
             return e;
         }
         pairs.clear();
@@ -233,20 +238,19 @@ fn is_regular_file(stdin: &std::io::Stdin) -> bool {
     }
 }
 
-/// Evaluates a chunk and prints one line per query. `Err(result)` ends the
-/// run with `result` (a failure, or a quiet stop on a closed pipe).
+/// Evaluates a chunk (its pairs, sets and line numbers) in each pass of
+/// wavelengths and prints one line per query. `Err(result)` ends the run
+/// with `result` (a failure, or a quiet stop on a closed pipe).
 fn answer(
     bsdf: &LayeredBsdf,
+    passes: &[SpectralPass],
     args: &Args,
-    pairs: &[(glam::Vec3, glam::Vec3)],
-    sets: &Variants,
-    lines_of: &[usize],
+    (pairs, sets, lines_of): (&[(glam::Vec3, glam::Vec3)], &Variants, &[usize]),
     out: &mut impl Write,
 ) -> Result<(), Result<(), String>> {
     if pairs.is_empty() {
         return Ok(());
     }
-    let passes = spectral_passes(bsdf, args.wavelengths.as_ref()).map_err(Err)?;
     let mut lines: Vec<Answer> = Vec::new();
     for (p, pass) in passes.iter().enumerate() {
         let got = if sets.stacks.len() > 1 {
@@ -260,9 +264,16 @@ fn answer(
             };
             let stacks = sets.stacks.iter().map(at).collect::<Result<Vec<_>, _>>();
             let mats = Materials::new(&pass.bsdf, stacks.map_err(Err)?);
-            answer_with(&mats, Some(&sets.material[..]), args, pairs, lines_of)?
+            answer_with(
+                &mats,
+                Some(&sets.material[..]),
+                args,
+                pairs,
+                lines_of,
+                p == 0,
+            )?
         } else {
-            answer_with(pass.bsdf.as_ref(), None, args, pairs, lines_of)?
+            answer_with(pass.bsdf.as_ref(), None, args, pairs, lines_of, p == 0)?
         };
         let channels = pass.channels();
         if p == 0 {
@@ -331,13 +342,15 @@ impl Variants {
 }
 
 /// The answers of [`answer`] on the file's material alone, or on materials
-/// with each line's row.
+/// with each line's row; their pdfs only `with_pdf` (a later pass of
+/// wavelengths takes the first's).
 fn answer_with(
     answers: &dyn Bsdf,
     rows: Option<&[u32]>,
     args: &Args,
     pairs: &[(glam::Vec3, glam::Vec3)],
     lines_of: &[usize],
+    with_pdf: bool,
 ) -> Result<Vec<Answer>, Result<(), String>> {
     // Directions were validated when parsed, so the batch cannot fail on them.
     let fail = |e: strata_bsdf::BatchError| {
@@ -355,6 +368,7 @@ fn answer_with(
     answers.eval_into(&q, &mut |k, e| f[k] = *e).map_err(fail)?;
     let mut p = vec![(0.0, None, 0); pairs.len()];
     match args.pdf {
+        _ if !with_pdf => Ok(()),
         PdfKind::Approximate => answers.pdf_into(&q, &mut |k, x| p[k] = (x, None, 0)),
         PdfKind::Unbiased => {
             let q = q.walks(args.unbiased_pdf_walks);

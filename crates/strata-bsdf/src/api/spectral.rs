@@ -21,9 +21,10 @@ use crate::stack::spectrum::rgb_at;
 use crate::stack::SetPath;
 use std::fmt;
 
-/// The per-query columns of spectral queries: a template's fields that vary
-/// with wavelength, read at each query's three wavelengths, and a caller's
-/// own columns, coloured ones read the same way. [`SpectralColumns::columns`]
+/// The per-query columns of spectral queries: a caller's own columns (at
+/// their indices; coloured ones read at each query's three wavelengths)
+/// and the template's fields that vary with wavelength, read at them. They
+/// hold `4 × width` bytes per query and column, allocated fallibly. [`SpectralColumns::columns`]
 /// gives them to [`super::PerQuery::new`] or [`super::Materials::per_query`].
 ///
 /// ```
@@ -71,6 +72,21 @@ pub enum SpectralError {
     },
     /// A caller's column of the wrong width or length.
     Columns(Box<ColumnsError>),
+    /// The columns' memory could not be allocated.
+    OutOfMemory {
+        /// The bytes asked for.
+        bytes: usize,
+    },
+}
+
+/// `len` zeros, allocated fallibly.
+fn filled(len: usize) -> Result<Vec<f32>, SpectralError> {
+    let mut v = Vec::new();
+    let bytes = len.saturating_mul(std::mem::size_of::<f32>());
+    v.try_reserve_exact(len)
+        .map_err(|_| SpectralError::OutOfMemory { bytes })?;
+    v.resize(len, 0.0);
+    Ok(v)
 }
 
 impl fmt::Display for SpectralError {
@@ -91,6 +107,10 @@ impl fmt::Display for SpectralError {
                 nm[0], nm[1], nm[2]
             ),
             SpectralError::Columns(e) => e.fmt(f),
+            SpectralError::OutOfMemory { bytes } => write!(
+                f,
+                "out of memory: cannot allocate {bytes} bytes of spectral columns"
+            ),
         }
     }
 }
@@ -132,43 +152,48 @@ impl SpectralColumns {
             queries,
             columns: Vec::new(),
         };
+        // The caller's columns first, at their own indices (an error about
+        // column `i` names the caller's column `i`).
+        for c in columns {
+            let mut values = filled(c.values.len())?;
+            if c.path.coloured() && c.width == 3 {
+                for (k, v) in values.chunks_exact_mut(3).enumerate() {
+                    let rgb = std::array::from_fn(|i| f64::from(c.values[3 * k + i]));
+                    for (v, x) in v.iter_mut().zip(at(k)) {
+                        *v = rgb_at(rgb, f64::from(x)) as f32;
+                    }
+                }
+            } else {
+                values.copy_from_slice(c.values);
+            }
+            out.columns.push((c.path.clone(), c.width, values));
+        }
         let fields = template.stack().desc().spectral_fields();
         for f in fields
             .iter()
             .filter(|f| columns.iter().all(|c| *c.path != f.path))
         {
             let read = |x: f32| f.spectrum.at(f64::from(x)) as f32;
-            let values = if f.path.coloured() {
-                (0..queries).flat_map(|k| at(k).map(read)).collect()
-            } else {
-                let mut v = Vec::with_capacity(queries);
-                for k in 0..queries {
-                    let w = at(k);
-                    if w[1] != w[0] || w[2] != w[0] {
-                        let path = f.path.to_string();
-                        return Err(SpectralError::Dispersive {
-                            query: k,
-                            path,
-                            nm: w,
-                        });
-                    }
-                    v.push(read(w[0]));
-                }
-                v
-            };
             let width = if f.path.coloured() { 3 } else { 1 };
+            let mut values = filled(width * queries)?;
+            for (k, v) in values.chunks_exact_mut(width).enumerate() {
+                let w = at(k);
+                if width == 3 {
+                    for (v, x) in v.iter_mut().zip(w) {
+                        *v = read(x);
+                    }
+                } else if w[1] != w[0] || w[2] != w[0] {
+                    let path = f.path.to_string();
+                    return Err(SpectralError::Dispersive {
+                        query: k,
+                        path,
+                        nm: w,
+                    });
+                } else {
+                    v[0] = read(w[0]);
+                }
+            }
             out.columns.push((f.path.clone(), width, values));
-        }
-        for c in columns {
-            let values = if c.path.coloured() && c.width == 3 {
-                let rgb = |k: usize| std::array::from_fn(|i| f64::from(c.values[3 * k + i]));
-                (0..queries)
-                    .flat_map(|k| at(k).map(|x| rgb_at(rgb(k), f64::from(x)) as f32))
-                    .collect()
-            } else {
-                c.values.to_vec()
-            };
-            out.columns.push((c.path.clone(), c.width, values));
         }
         Ok(out)
     }

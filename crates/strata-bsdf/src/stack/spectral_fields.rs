@@ -65,7 +65,8 @@ fn varies(s: &Spectrum) -> bool {
         Spectrum::Rgb([r, g, b]) => !(r == g && g == b),
         Spectrum::Tabulated { values, .. } => values.iter().any(|v| *v != values[0]),
         Spectrum::Cauchy { cauchy: [_, b] } => *b != 0.0,
-        Spectrum::Abbe { abbe, .. } => abbe.is_finite(),
+        // Its Cauchy B is (nd − 1) / (V (λF⁻² − λC⁻²)).
+        Spectrum::Abbe { nd, abbe } => *nd != 1.0 && abbe.is_finite(),
     }
 }
 
@@ -100,6 +101,11 @@ mod tests {
         );
         let diffuse = "[[layers]]\ninterface = { kind = \"diffuse\", albedo = 0.8 }\n";
         let st = LayerStack::from_toml_str(diffuse).unwrap();
+        assert!(st.desc().spectral_fields().is_empty());
+        // An Abbe form at nd = 1 has no spread (its Cauchy B is 0).
+        let flat =
+            "[[layers]]\ninterface = { kind = \"dielectric\", ior = { nd = 1.0, abbe = 30 } }\n";
+        let st = LayerStack::from_toml_str(flat).unwrap();
         assert!(st.desc().spectral_fields().is_empty());
     }
 }

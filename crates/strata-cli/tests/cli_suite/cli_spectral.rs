@@ -1,7 +1,8 @@
 //! `--wavelengths` on eval, albedo and sample (issue 42): every coloured
-//! output has one value per wavelength, each the value a run at that
-//! wavelength alone gives (three a walk, or one where the material's IOR
-//! varies with wavelength); bad wavelengths fail naming the flag.
+//! output has one value per wavelength, each the value a run of its group
+//! alone gives (three a walk, or one where the material's IOR varies with
+//! wavelength): the passes are assembled in order; bad wavelengths fail
+//! naming the flag.
 
 use crate::cli_common::{assert_fails_with, run, scratch, text};
 

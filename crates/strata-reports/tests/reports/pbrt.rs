@@ -24,7 +24,7 @@ fn data_parse_and_configurations_build() {
                 "{} pair {k}: {q:?}",
                 c.name
             );
-            assert!(q.f4[0] == q.f && q.se4[0] == q.se && q.f4.iter().all(|&f| f > 0.0));
+            assert!(q.f4.iter().chain(&q.se4).all(|&x| x > 0.0), "{q:?}");
             let n = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             assert!((n(q.wi) - 1.0).abs() < 1e-6 && (n(q.wo) - 1.0).abs() < 1e-6);
         }
