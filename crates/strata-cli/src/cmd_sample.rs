@@ -81,9 +81,8 @@ pub fn run(args: Args) -> Result<(), String> {
     let channels = match &args.wavelengths {
         None => 3,
         Some(nm) => {
-            // One walk draws one direction: one pass of wavelengths (three
-            // a walk, or one: how many passes three take says which).
-            let per_walk = 3 / bsdf.wavelength_groups(&[500.0; 3]).len();
+            // One walk draws one direction: one pass of wavelengths.
+            let per_walk = bsdf.wavelengths_per_walk();
             if nm.0.len() > per_walk {
                 return Err(format!(
                     "--wavelengths: {} wavelengths; a walk carries at most {per_walk} on this \

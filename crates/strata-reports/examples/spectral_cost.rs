@@ -41,8 +41,7 @@ const STACKS: [(&str, &str); 3] = [
 /// The passes of per-query columns that answer four wavelengths a query:
 /// each pass's three wavelengths per query.
 fn passes(bsdf: &LayeredBsdf, nm4: &[[f32; 4]]) -> Vec<Vec<f32>> {
-    let per_walk = 3 / bsdf.wavelength_groups(&[500.0; 3]).len();
-    let groups: Vec<Vec<usize>> = match per_walk {
+    let groups: Vec<Vec<usize>> = match bsdf.wavelengths_per_walk() {
         3 => vec![vec![0, 1, 2], vec![3, 3, 3]],
         _ => (0..4).map(|w| vec![w; 3]).collect(),
     };

@@ -232,15 +232,20 @@ impl LayeredBsdf {
         Ok(self.with_stack(stack))
     }
 
-    /// The wavelengths each walk answers of `nm`: three a walk, or one
-    /// where the stack's IOR varies with wavelength ([`LayeredBsdf::at_wavelengths`]
-    /// of each is a walk's material).
-    pub fn wavelength_groups<'n>(&self, nm: &'n [f32]) -> Vec<&'n [f32]> {
+    /// How many wavelengths one walk carries: three, or one where the
+    /// stack's IOR varies with wavelength (a walk refracts at one IOR).
+    pub fn wavelengths_per_walk(&self) -> usize {
         let fields = self.stack().desc().spectral_fields();
-        let per_walk = match fields.iter().any(|f| !f.path.coloured()) {
+        match fields.iter().any(|f| !f.path.coloured()) {
             true => 1,
             false => 3,
-        };
-        nm.chunks(per_walk).collect()
+        }
+    }
+
+    /// The wavelengths each walk answers of `nm`, in groups of
+    /// [`LayeredBsdf::wavelengths_per_walk`] ([`LayeredBsdf::at_wavelengths`]
+    /// of each is a walk's material).
+    pub fn wavelength_groups<'n>(&self, nm: &'n [f32]) -> Vec<&'n [f32]> {
+        nm.chunks(self.wavelengths_per_walk()).collect()
     }
 }
