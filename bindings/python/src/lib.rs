@@ -1382,6 +1382,14 @@ impl Bsdf {
         self.inner.stack().two_sided()
     }
 
+    /// How many wavelengths one walk carries: 3, or 1 where the material's
+    /// IOR varies with wavelength (so a call's `wavelengths` rows then
+    /// repeat one wavelength three times).
+    #[getter]
+    fn wavelengths_per_walk(&self) -> usize {
+        self.inner.wavelengths_per_walk()
+    }
+
     /// IOR of the exterior above the top interface.
     #[getter]
     fn exterior_ior(&self) -> f64 {

@@ -16,6 +16,9 @@ Estimator = Literal["auto", "uni", "unidirectional", "bidir", "bidirectional"]
 #: "layers[0].medium.sigma_t", "exterior_ior"; docs/materials.md) to a C-contiguous float32
 #: array of shape (N,) (a number per query) or (N, 3) (a triple per query).
 Params = Optional[Dict[str, F32]]
+#: Spectral queries: a C-contiguous float32 array of shape (N, 3), query k's three wavelengths
+#: in nm; channel c of every result is then the value at wavelength c (docs/materials.md, *Spectra*).
+Wavelengths = Optional[F32]
 #: Density walks per approximate pdf: None or "default" (the library's rule), a fixed count,
 #: "tight" (a pdf within 0.7-1.3x of sample's density nearly everywhere, about twice the
 #: walks), or an adaptive rule (pilot, max, rel_stderr).
@@ -95,6 +98,7 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[False] = False,
     ) -> Tuple[Vectors, Vectors]:
         """(f, stderr): f(wi, wo) per channel without the cosine, and its standard error.
@@ -102,6 +106,10 @@ class Bsdf:
         params: query k answers as the material with row k of every array set
         (bit for bit, same seed and keys); an invalid row raises QueryError
         naming the query, the path and the value.
+
+        wavelengths: channel c of query k answers at wavelength wavelengths[k, c]
+        (a material whose IOR varies takes one wavelength three times a query;
+        wavelengths_per_walk).
 
         return_truncated=True (eval, eval_pdf, pdf_unbiased, albedo): returns (result, truncated),
         truncated the number of walks the limit of events (max_events) ended in the
@@ -114,6 +122,7 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[True],
     ) -> Tuple[Tuple[Vectors, Vectors], int]: ...
     @overload
@@ -124,6 +133,7 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[False] = False,
     ) -> Tuple[Vectors, Vectors, F32]:
         """(f, stderr, pdf): eval and pdf of the same pairs in one call, bit for bit
@@ -137,13 +147,14 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[True],
     ) -> Tuple[Tuple[Vectors, Vectors, F32], int]: ...
     def sample(
-        self, wi: Vectors, keys: Keys = None, *, params: Params = None
+        self, wi: Vectors, keys: Keys = None, *, params: Params = None, wavelengths: Wavelengths = None
     ) -> Tuple[Vectors, Vectors, F32, npt.NDArray[np.uint32]]:
         """(wo, weight, pdf, flags): weight = f |cos θo| / p; flags REFLECTION | TRANSMISSION | DELTA, 0 if absorbed."""
-    def pdf(self, wi: Vectors, wo: Vectors, *, params: Params = None) -> F32:
+    def pdf(self, wi: Vectors, wo: Vectors, *, params: Params = None, wavelengths: Wavelengths = None) -> F32:
         """The approximate density of sample's wo (what sample reports as pdf)."""
     @overload
     def pdf_unbiased(
@@ -153,6 +164,7 @@ class Bsdf:
         samples: int,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[False] = False,
     ) -> Tuple[F32, F32]:
         """(pdf, stderr): the density of sample's directions from `samples` density walks
@@ -165,6 +177,7 @@ class Bsdf:
         samples: int,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[True],
     ) -> Tuple[Tuple[F32, F32], int]: ...
     @overload
@@ -175,6 +188,7 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[False] = False,
     ) -> Tuple[Vectors, Vectors, Vectors, Vectors]:
         """(R, T, R_stderr, T_stderr) from n walks per direction. return_truncated=True:
@@ -187,6 +201,7 @@ class Bsdf:
         keys: Keys = None,
         *,
         params: Params = None,
+        wavelengths: Wavelengths = None,
         return_truncated: Literal[True],
     ) -> Tuple[Tuple[Vectors, Vectors, Vectors, Vectors], int]: ...
     @property
@@ -225,3 +240,6 @@ class Bsdf:
     def exterior_ior_below(self) -> float: ...
     @property
     def lobes(self) -> Lobes: ...
+    @property
+    def wavelengths_per_walk(self) -> int:
+        """3, or 1 where the IOR varies with wavelength (one walk refracts at one IOR)."""

@@ -3,7 +3,7 @@
 Usage::
 
     import mitsuba as mi
-    mi.set_variant("llvm_ad_rgb")        # or "scalar_rgb"
+    mi.set_variant("llvm_ad_rgb")        # or scalar_rgb, scalar_spectral, llvm_ad_spectral
     import strata_bsdf.mitsuba           # registers "strata" for this variant
 
     scene = mi.load_dict({
@@ -51,6 +51,24 @@ Parameters of ``"strata"``:
   map**: its RGB ``c`` is decoded as Mitsuba's ``normalmap`` decodes it,
   ``n = 2c - 1`` in the surface's local frame, and lanes not queried get the
   untilted ``[0, 0, 1]`` (method.md §9 says what a tilted interface does).
+
+**Spectral variants** (``scalar_spectral``, ``llvm_ad_spectral``). Mitsuba
+hands a BSDF four wavelengths per path, and the plugin answers at them
+(``wavelengths=`` of :class:`Bsdf`; the material's spectra, presets and
+dispersion laws are read there, its RGB values through strata's uplift).
+strata's walks carry three wavelengths, or one where an IOR varies with
+wavelength (``Bsdf.wavelengths_per_walk``). So ``eval`` makes two strata
+calls per batch, the first three wavelengths and then the fourth (four calls,
+one per wavelength, where the IOR varies), and its ``pdf`` is that of the
+first call. ``sample`` walks once: it keeps the first call's wavelengths,
+weighted by 4/3 (by 4 where the IOR varies), and gives the others 0. That
+is unbiased because Mitsuba draws its four wavelengths with one marginal
+distribution (``sample_shifted``), so dropping the same index on every
+path only adds colour noise; it is how pbrt-v4 ends secondary wavelengths,
+kept to three. A coloured ``param:`` texture (a triple per hit) is refused
+there (Mitsuba evaluates its textures at the path's wavelengths, strata takes
+RGB); a number per hit and a normal map (``eval_3``, a ``raw`` bitmap) work.
+The polarized variants are refused.
 
 Importing registers the plugin for the variant that is set at that moment;
 after switching variants call :func:`register` again.
@@ -264,7 +282,72 @@ class _Host:
         return mi.Vector3f(*(self.float_out(c) for c in t))
 
     def color_out(self, t):
+        """RGB (three arrays) as a Color3f, or four wavelengths' values (four
+        arrays) as a Spectrum."""
+        if len(t) == 4:
+            return mi.Spectrum(*(self.float_out(c) for c in t))
         return mi.Color3f(*(self.float_out(c) for c in t))
+
+    def wavelengths_in(self, si, n):
+        """The four wavelengths of the lanes of ``si`` (a spectral variant) as
+        a float32 array (n, 4)."""
+        w = si.wavelengths
+        if self.jit:
+            return np.stack([_floats(w[i], n) for i in range(4)], axis=1)
+        return np.array([[float(w[i]) for i in range(4)]], np.float32)
+
+
+def _channels(x):
+    """A strata result's channels as a list of (n,) arrays: from an (n, 3)
+    array (scalar calls) or from three arrays (JIT calls)."""
+    if isinstance(x, tuple):
+        return list(x)
+    return [x[:, c] for c in range(x.shape[1])]
+
+
+class _Spectral:
+    """How the plugin answers Mitsuba's four wavelengths per lane with
+    strata's walks, which carry three wavelengths (one where an IOR varies):
+    ``groups`` are the strata calls of an eval, each three indices into the
+    four ((0, 1, 2) then (3, 3, 3); or (k, k, k) for each k), and a sample
+    keeps the wavelengths of the first group and weights them by
+    ``4 / kept`` (the others get 0)."""
+
+    def __init__(self, per_walk: int):
+        if per_walk == 3:
+            self.groups = [(0, 1, 2), (3, 3, 3)]
+        else:
+            self.groups = [(k, k, k) for k in range(4)]
+        self.kept = len(set(self.groups[0]))
+        self.scale = np.float32(4 / self.kept)
+
+    def nm(self, nm4, group):
+        return np.ascontiguousarray(nm4[:, list(group)])
+
+    def eval(self, call, nm4, n):
+        """The four wavelengths' values (a list of (n,) arrays) and the first
+        group's pdf (None if ``call`` returns none): ``call(nm)`` is strata's
+        eval or eval_pdf at three wavelengths per query."""
+        out = [None] * 4
+        pdf = None
+        for i, group in enumerate(self.groups):
+            r = call(self.nm(nm4, group))
+            f = _channels(r[0])
+            if i == 0 and len(r) == 3:
+                pdf = r[2]
+            for c, k in enumerate(group):
+                if out[k] is None:
+                    out[k] = f[c]
+        return out, pdf
+
+    def sample_weight(self, weight, n):
+        """A sample's weight at the four wavelengths: the kept ones scaled,
+        the others 0."""
+        w = _channels(weight)
+        out = [np.zeros(n, np.float32) for _ in range(4)]
+        for c in range(self.kept):
+            out[c] = w[c] * self.scale
+        return out
 
 
 def _valid_dirs(wi, active):
@@ -326,7 +409,9 @@ class _Param:
                 dr.eval(v)
             a = _floats(v, n) if jit else np.full(n, float(v), np.float32)
         else:
-            c = self.texture.eval(si, active)
+            # (a spectral variant's eval is at the path's wavelengths; a
+            # normal map's raw triple is eval_3)
+            c = self.texture.eval_3(si, active) if mi.is_spectral else self.texture.eval(si, active)
             if jit:
                 dr.eval(c)  # one kernel for the three channels
                 a = np.stack([_floats(c[i], n) for i in range(3)], axis=1)
@@ -415,6 +500,18 @@ def _make_class():
                 for k in sorted(props.keys())
                 if k.startswith("param:")
             ]
+            if mi.is_polarized:
+                raise ValueError("strata: Mitsuba's polarized variants are not supported (strata answers unpolarized light)")
+            self._spectral = None
+            if mi.is_spectral:
+                self._spectral = _Spectral(self._camera.wavelengths_per_walk)
+                for p in self._params:
+                    if p.width == 3 and not p.normal_map:
+                        raise ValueError(
+                            f"strata: property {p.key!r}: a coloured texture (a triple per hit) is not supported in "
+                            f"Mitsuba's spectral variants yet (Mitsuba hands out its values at the path's "
+                            f"wavelengths, strata takes RGB); use an RGB variant, or a number per hit"
+                        )
 
         def _params_at(self, si, active, n, ok=None):
             """The per-query parameters at the lanes of ``si`` (None without
@@ -426,6 +523,9 @@ def _make_class():
 
         def _bsdf(self, ctx):
             return self._camera if ctx.mode == mi.TransportMode.Radiance else self._light
+
+        def _zero(self):
+            return mi.Spectrum(0) if self._spectral else mi.Color3f(0)
 
         def _lane_type(self, flags):
             """(sampled type, component) of one sample's strata flags."""
@@ -443,12 +543,14 @@ def _make_class():
             v = si.wi  # (each read of si.wi makes a new vector)
             wi = (float(v.x), float(v.y), float(v.z))
             if not (active and all(map(math.isfinite, wi)) and any(wi)):
-                return bs, mi.Color3f(0)
+                return bs, self._zero()
             key = sample_key(float(sample1), float(sample2.x), float(sample2.y))
             params = self._params_at(si, active, 1)
+            sp = self._spectral
+            nm = sp.nm(self._host.wavelengths_in(si, 1), sp.groups[0]) if sp else None
             t1 = time.perf_counter()
             wo, weight, pdf, flags = self._bsdf(ctx).sample(
-                np.array([wi], np.float32), np.array([key], np.uint64), params=params
+                np.array([wi], np.float32), np.array([key], np.uint64), params=params, wavelengths=nm
             )
             t_strata = time.perf_counter() - t1
             fl = int(flags[0])
@@ -458,13 +560,15 @@ def _make_class():
                 ok = ok and comp == ctx.component
             _count("sample", 1, t0, t_strata)
             if not ok:
-                return bs, mi.Color3f(0)
+                return bs, self._zero()
             w = wo[0].tolist()
             bs.wo = mi.Vector3f(w[0], w[1], w[2])
             bs.pdf = float(pdf[0])
             if fl & TRANSMISSION:
                 bs.eta = float(self._eta_down) if wi[2] > 0 else float(1 / self._eta_down)
             bs.sampled_type, bs.sampled_component = stype, comp
+            if sp:
+                return bs, mi.Spectrum(*(float(c[0]) for c in sp.sample_weight(weight, 1)))
             r, g, b = weight[0].tolist()
             return bs, mi.Color3f(r, g, b)
 
@@ -482,28 +586,41 @@ def _make_class():
                 and any(wi)
                 and any(w)
             )
-            value, pdf = mi.Color3f(0), 0.0
+            value, pdf = self._zero(), 0.0
             t_strata = 0.0
             if ok:
                 bsdf = self._bsdf(ctx)
                 a, b = np.array([wi], np.float32), np.array([w], np.float32)
                 params = self._params_at(si, active, 1)
+                nm4 = self._host.wavelengths_in(si, 1) if self._spectral else None
                 t1 = time.perf_counter()
-                if method == "eval_pdf":  # one call: eval's and pdf's numbers
-                    f, _, p = bsdf.eval_pdf(a, b, params=params)
-                elif method == "eval":
-                    f, _ = bsdf.eval(a, b, params=params)
-                else:
-                    p = bsdf.pdf(a, b, params=params)
+                f, p = self._query(bsdf, a, b, params, nm4, method, 1)
                 t_strata = time.perf_counter() - t1
                 if method != "pdf":
-                    cos = abs(float(np.float32(w[2])))
-                    r, g, bl = f[0].tolist()
-                    value = mi.Color3f(float(np.float32(r * cos)), float(np.float32(g * cos)), float(np.float32(bl * cos)))
+                    cos = np.float32(abs(float(np.float32(w[2]))))
+                    value = (mi.Spectrum if self._spectral else mi.Color3f)(*(float(c[0] * cos) for c in f))
                 if method != "eval":
                     pdf = float(p[0])
             _count(method, 1, t0, t_strata)
             return value, pdf
+
+        def _query(self, bsdf, wi, wo, params, nm4, method, n):
+            """strata's answers for ``method`` (eval, pdf or eval_pdf): f as a
+            list of channel arrays (RGB, or Mitsuba's four wavelengths when
+            ``nm4`` holds them), or None for pdf; and the pdf, or None for eval."""
+            if method == "pdf":
+                nm = self._spectral.nm(nm4, self._spectral.groups[0]) if nm4 is not None else None
+                return None, bsdf.pdf(wi, wo, params=params, wavelengths=nm)
+
+            def call(nm):
+                if method == "eval_pdf":  # one call: eval's and pdf's numbers
+                    return bsdf.eval_pdf(wi, wo, params=params, wavelengths=nm)
+                return bsdf.eval(wi, wo, params=params, wavelengths=nm)
+
+            if nm4 is not None:
+                return self._spectral.eval(call, nm4, n)
+            r = call(None)
+            return _channels(r[0]), (r[2] if method == "eval_pdf" else None)
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             h = self._host
@@ -512,12 +629,14 @@ def _make_class():
             h.check()
             t0 = time.perf_counter()
             n = _width(si.wi.x, sample1, sample2.x, active)
-            h.evaluate(si.wi, sample1, sample2, active)
+            h.evaluate(si.wi, sample1, sample2, active, *([si.wavelengths] if self._spectral else []))
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), _bools(active, n))
             keys = sample_keys(_floats(sample1, n), _floats(sample2.x, n), _floats(sample2.y, n))
             params = self._params_at(si, active, n, ok)
+            sp = self._spectral
+            nm = sp.nm(h.wavelengths_in(si, n), sp.groups[0]) if sp else None
             t1 = time.perf_counter()
-            wo, weight, pdf, flags = self._bsdf(ctx).sample(wi, keys, params=params)
+            wo, weight, pdf, flags = self._bsdf(ctx).sample(wi, keys, params=params, wavelengths=nm)
             t_strata = time.perf_counter() - t1
             # Sampled type and component per lane: a table lookup by flags.
             lobe = flags & np.uint32(7)
@@ -534,6 +653,8 @@ def _make_class():
             eta[refracted] = np.where(wi[2][refracted] > 0, self._eta_down, self._eta_up)
             # strata's arrays are the plugin's own: lanes not sampled are
             # zeroed in place, and the arrays go to Dr.Jit without a copy.
+            if sp:
+                weight = tuple(sp.sample_weight(weight, n))
             if not ok.all():
                 off = ~ok
                 for a in (*wo, *weight, pdf, stype):
@@ -555,7 +676,7 @@ def _make_class():
             h.check()
             t0 = time.perf_counter()
             n = _width(si.wi.x, wo.x, active)
-            h.evaluate(si.wi, wo, active)
+            h.evaluate(si.wi, wo, active, *([si.wavelengths] if self._spectral else []))
             act = _bools(active, n)
             wi, ok = _valid_dirs(h.vec_in(si.wi, n), act)
             w, ok2 = _valid_dirs(h.vec_in(wo, n), act)
@@ -571,12 +692,11 @@ def _make_class():
             value = pdf = None
             t_strata = 0.0
             p = None
+            nm4 = h.wavelengths_in(si, n) if query and self._spectral else None
+            channels = 4 if self._spectral else 3
             if query and method != "pdf":
                 t1 = time.perf_counter()
-                if method == "eval_pdf":  # one call: eval's and pdf's numbers
-                    f, _, p = bsdf.eval_pdf(wi, w, params=params)
-                else:
-                    f, _ = bsdf.eval(wi, w, params=params)
+                f, p = self._query(bsdf, wi, w, params, nm4, method, n)
                 t_strata += time.perf_counter() - t1
             if method in ("eval", "eval_pdf"):
                 if query:
@@ -588,13 +708,13 @@ def _make_class():
                         if off is not None:
                             c[off] = 0
                 else:
-                    f = tuple(np.zeros(n, np.float32) for _ in range(3))
+                    f = [np.zeros(n, np.float32) for _ in range(channels)]
                 value = h.color_out(f)
             if method in ("pdf", "eval_pdf"):
                 if query:
                     if p is None:
                         t1 = time.perf_counter()
-                        p = bsdf.pdf(wi, w, params=params)
+                        _, p = self._query(bsdf, wi, w, params, nm4, "pdf", n)
                         t_strata += time.perf_counter() - t1
                     if off is not None:
                         p[off] = 0
