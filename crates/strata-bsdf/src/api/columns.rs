@@ -244,7 +244,7 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 ///
 /// Where every column is a field a built stack takes in place
 /// ([`SetPath::in_place`]: thicknesses, extinctions, albedos, roughnesses,
-/// a conductor's `eta` and `k`) and the rows run on one shape (the same, or
+/// a conductor's `eta` and `k`, a dielectric's IOR) and the rows run on one shape (the same, or
 /// a grey extinction where the shape's is chromatic), the rows are
 /// a table of the template's numbers: each row is written into a copy of
 /// the template's stack and checked as a material file's fields are, its
@@ -254,8 +254,9 @@ pub const CHUNK_QUERIES: usize = 1 << 16;
 /// its floats answers, or over a Lambertian base to within its `R̄`, which a
 /// row takes from the coat's table (`estimator::coat_return`, within 1e-6)
 /// where a material integrates it, or, for a grey extinction on a
-/// chromatic shape, with its file's expectation, not its bits
-/// (`tests/api/rows_in_place.rs`). Build it once for the
+/// chromatic shape, with its file's expectation, not its bits; a row
+/// with its own IOR walks a coat over a Lambertian base, whose `R̄` is
+/// tabulated per IOR (`tests/api/rows_in_place.rs`). Build it once for the
 /// calls of a batch of vertices (sample, then eval and pdf of the light
 /// samples): it holds the table of a batch of one chunk. Other columns make
 /// a material per distinct row, as described below.
@@ -467,9 +468,15 @@ fn write_rows(
     let mut row = own.clone();
     let mut v = [0.0f64; 3];
     let paths: Vec<&SetPath> = columns.iter().map(|c| c.path).collect();
+    let order = write_order(columns);
+    // A coat whose IOR is the row's own has no table of `R̄`: walks.
+    let returns = match order.first().is_some_and(|c| c.path.writes_ior()) {
+        true => Returns::Walked,
+        false => Returns::Tabulated,
+    };
     let mut adding = sets.map(ParamSets::sets_mut);
     for k in range {
-        let written = columns.iter().try_for_each(|c| {
+        let written = order.iter().try_for_each(|c| {
             let x = &c.values[k * c.width..(k + 1) * c.width];
             for (v, &x) in v.iter_mut().zip(x) {
                 *v = f64::from(x);
@@ -491,10 +498,18 @@ fn write_rows(
             return Err(Refused::Materials);
         }
         if let Some(adding) = adding.as_mut() {
-            bsdf.push_set(adding, &row, Returns::Tabulated);
+            bsdf.push_set(adding, &row, returns);
         }
     }
     Ok(())
+}
+
+/// The columns in the order a row writes them: IORs first, since writing
+/// an IOR derives the fields below it (a conductor's relative constants,
+/// index matching) that a later column of their own then replaces.
+fn write_order<'c, 'a>(columns: &'c [Column<'a>]) -> Vec<&'c Column<'a>> {
+    let (ior, rest): (Vec<_>, Vec<_>) = columns.iter().partition(|c| c.path.writes_ior());
+    ior.into_iter().chain(rest).collect()
 }
 
 impl<'a> PerQuery<'a> {
@@ -573,7 +588,7 @@ impl<'a> PerQuery<'a> {
         let mut shape = None;
         if n > 0 {
             let mut first = self.template.stack().clone();
-            for c in &self.columns {
+            for c in write_order(&self.columns) {
                 let v: Vec<f64> = c.values[..c.width].iter().map(|&x| x.into()).collect();
                 if first.write(c.path, &v).is_err() {
                     // Found by the rows below, as any invalid row.

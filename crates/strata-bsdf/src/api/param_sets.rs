@@ -142,6 +142,10 @@ pub(crate) enum Returns<'a> {
     /// per-query columns written in place, where a quadrature per row
     /// would cost far more than its queries.
     Tabulated,
+    /// None: rows written in place whose coat's IOR is their own (a
+    /// dispersive IOR at each query's wavelength), where a table per IOR
+    /// would cost far more than the walks that answer them instead.
+    Walked,
 }
 
 /// Which parameters each query of a call has: the BSDF's own, or a set

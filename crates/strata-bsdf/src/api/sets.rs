@@ -84,6 +84,9 @@ impl LayeredBsdf {
     /// next set, with every choice its stack makes (the walk-free form, the
     /// control variate, the estimator of its evals) decided here.
     pub(super) fn push_set(&self, sets: &mut SetsMut, st: &LayerStack, returns: Returns) {
+        if matches!(returns, Returns::Walked) {
+            return self.push_set_with(sets, st, None);
+        }
         let tabulated = matches!(returns, Returns::Tabulated);
         // A row written in place keeps the shape and IORs: its walk-free
         // form is this BSDF's with the row's numbers.
@@ -103,7 +106,7 @@ impl LayeredBsdf {
             let (with, own) = match returns {
                 Returns::Own => (self.coat.as_ref(), true),
                 Returns::SharedWith(t) => (t, false),
-                Returns::Tabulated => return Some(c),
+                Returns::Tabulated | Returns::Walked => return Some(c),
             };
             let same = match (with.and_then(CoatLambertian::rough), c.rough()) {
                 (_, None) => true,

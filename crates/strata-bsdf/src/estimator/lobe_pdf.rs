@@ -28,8 +28,8 @@ impl<S: Scalar> ScalarEngine<S> {
     }
 }
 
-/// [`ScalarEngine::lobe_pdf`] of `stack`'s shape and IORs with the
-/// interfaces `ifaces` and the body return `body` (a parameter set's).
+/// [`ScalarEngine::lobe_pdf`] of `stack`'s shape with the interfaces
+/// `ifaces` and the body return `body` (a parameter set's).
 pub fn lobe_pdf<S: Scalar>(
     stack: &LayerStack,
     ifaces: &[InterfaceLanes<S>],
@@ -50,7 +50,10 @@ pub fn lobe_pdf<S: Scalar>(
     let desc = &stack.interfaces()[entry];
     let enters = match desc.kind {
         InterfaceKind::Dielectric => {
-            let eta = desc.n_below / desc.n_above;
+            // The lanes' IORs: a row's own (written in place) where the
+            // stack is its template's.
+            let it = &ifaces[entry];
+            let eta = it.n_below.lane(0) / it.n_above.lane(0);
             1.0 - crate::fresnel::dielectric(a[2], eta)
         }
         InterfaceKind::Conductor | InterfaceKind::Diffuse => 0.0,

@@ -21,11 +21,53 @@ use std::path::Path;
 pub const IOR_RANGE: [f64; 2] = [1e-3, 1e3];
 
 /// An IOR: finite, > 0 and in [`IOR_RANGE`] ([`ior_rule`]).
-fn ior_in_range(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> {
+pub(super) fn ior_in_range(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> {
     match ior_rule(v) {
         Some(why) => Err(StackError::new(layer, field, v, &why)),
         None => Ok(v),
     }
+}
+
+/// A conductor's absolute `eta` and `k` (RGB) from its description's
+/// `preset`, or `eta` and `k`, checked.
+pub(super) fn conductor_numbers(
+    li: Option<usize>,
+    preset: Option<&str>,
+    eta: &Option<Spectrum>,
+    k: &Option<Spectrum>,
+) -> Result<([f64; 3], [f64; 3]), StackError> {
+    let (e, kk) = match (preset, eta, k) {
+        (Some(p), None, None) => presets::conductor(p).ok_or_else(|| {
+            StackError::msg(
+                li,
+                "interface.preset",
+                &format!(
+                    "unknown conductor preset {p:?} (known: {})",
+                    presets::names()
+                ),
+            )
+        })?,
+        (None, Some(e), Some(k)) => (
+            colour(li, "interface.eta", e, in_range(0.0, true, MAX_CONDUCTOR))?,
+            colour(li, "interface.k", k, in_range(0.0, false, MAX_CONDUCTOR))?,
+        ),
+        (Some(_), _, _) => {
+            return Err(StackError::msg(
+                li,
+                "interface.preset",
+                "give either a preset or eta and k, not both",
+            ))
+        }
+        _ => {
+            return Err(StackError::msg(
+                li,
+                "interface.eta",
+                "a conductor needs a preset, or both eta and k",
+            ))
+        }
+    };
+    check_conductor(li, e, kk)?;
+    Ok((e, kk))
 }
 
 /// The largest optical depth (`thickness × sigma_t`) of a medium: beyond it
@@ -168,11 +210,14 @@ fn finite(layer: Option<usize>, field: &str, v: f64) -> Result<f64, StackError> 
 }
 
 /// The slab's normal: an untilted interface's shading normal.
-const Z: [f64; 3] = [0.0, 0.0, 1.0];
+pub(super) const Z: [f64; 3] = [0.0, 0.0, 1.0];
 
 /// A shading normal as given (`None`: untilted), normalized: finite, of
 /// nonzero length and pointing into the region above (`z > 0`).
-fn shading_normal(layer: Option<usize>, n: Option<[f64; 3]>) -> Result<[f64; 3], StackError> {
+pub(super) fn shading_normal(
+    layer: Option<usize>,
+    n: Option<[f64; 3]>,
+) -> Result<[f64; 3], StackError> {
     let Some(n) = n else { return Ok(Z) };
     let field = "interface.normal";
     if !n.iter().all(|x| x.is_finite()) {
@@ -553,37 +598,7 @@ impl LayerStack {
                             "a conductor is opaque and must be the last layer",
                         ));
                     }
-                    let (e, kk) = match (preset, eta, k) {
-                        (Some(p), None, None) => presets::conductor(p).ok_or_else(|| {
-                            StackError::msg(
-                                li,
-                                "interface.preset",
-                                &format!(
-                                    "unknown conductor preset {p:?} (known: {})",
-                                    presets::names()
-                                ),
-                            )
-                        })?,
-                        (None, Some(e), Some(k)) => (
-                            colour(li, "interface.eta", e, in_range(0.0, true, MAX_CONDUCTOR))?,
-                            colour(li, "interface.k", k, in_range(0.0, false, MAX_CONDUCTOR))?,
-                        ),
-                        (Some(_), _, _) => {
-                            return Err(StackError::msg(
-                                li,
-                                "interface.preset",
-                                "give either a preset or eta and k, not both",
-                            ))
-                        }
-                        _ => {
-                            return Err(StackError::msg(
-                                li,
-                                "interface.eta",
-                                "a conductor needs a preset, or both eta and k",
-                            ))
-                        }
-                    };
-                    check_conductor(li, e, kk)?;
+                    let (e, kk) = conductor_numbers(li, preset.as_deref(), eta, k)?;
                     let (alpha, smooth) = roughness(i, *r)?;
                     Interface {
                         kind: InterfaceKind::Conductor,

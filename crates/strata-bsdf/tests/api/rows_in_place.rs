@@ -356,9 +356,9 @@ fn eval_pdf_is_eval_and_pdf() {
         (f, e, p)
     };
     let thickness: SetPath = "layers[0].medium.thickness".parse().unwrap();
-    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let ior: SetPath = "exterior_ior".parse().unwrap();
     let depths: Vec<f32> = (0..n).map(|k| sixty_fourths(k, 0, 8)).collect();
-    let iors: Vec<f32> = (0..n).map(|k| 1.25 + sixty_fourths(k, 0, 0)).collect();
+    let iors: Vec<f32> = (0..n).map(|k| 1.0 + sixty_fourths(k, 0, 0)).collect();
     for toml in [COATED_COPPER, SMOOTH_COAT_ABSORBER, VARNISH_OVER_SCATTERING] {
         let bsdf = LayeredBsdf::new(LayerStack::from_toml_str(toml).unwrap())
             .samples(2)
@@ -526,4 +526,262 @@ fn grey_rows_run_in_place_on_a_chromatic_shape() {
     row.write(&path, &[0.5, 1.0, 2.0]).unwrap();
     assert!(!row.runs_on_at(&grey, &[&path]) && grey.runs_on_at(&row, &[&path]));
     assert!(!row.runs_on(&grey) && grey.runs_on(&row));
+}
+
+/// Two tilted rough dielectrics over a conductor given by its numbers: an
+/// IOR written at either dielectric moves the next interface's IOR above,
+/// the conductor's relative constants, and which interface is index-matched.
+const TWO_COATS_OVER_METAL: &str = r#"
+[[layers]]
+interface = { kind = "dielectric", ior = 1.5, roughness = 0.2, normal = [0.2, 0.0, 1.0] }
+medium = { thickness = 0.5, sigma_t = 0.5, albedo = 0.5 }
+[[layers]]
+interface = { kind = "dielectric", ior = 1.25, roughness = 0.3, normal = [0.0, 0.3, 1.0] }
+medium = { thickness = 0.25, sigma_t = [0.2, 0.4, 0.6], albedo = 0.0 }
+[[layers]]
+interface = { kind = "conductor", eta = [0.2, 0.9, 1.1], k = [3.9, 2.4, 2.2], roughness = 0.1 }
+"#;
+
+/// An IOR written in place derives what `LayerStack::new` derives from the
+/// file with that IOR, bit for bit: the next interface's IOR above, a
+/// conductor's constants relative to it, and index matching (a matched
+/// dielectric is smooth and untilted; one that stops matching takes its
+/// description's roughness and normal back). Its shape comparison agrees
+/// with the whole one.
+#[test]
+fn an_ior_written_in_place_is_its_files_stack() {
+    let cases: [(&str, &str, &[f64]); 3] = [
+        (
+            TWO_COATS_OVER_METAL,
+            "layers[0].interface.ior",
+            &[1.0, 1.25, 1.75, 1.5],
+        ),
+        (
+            TWO_COATS_OVER_METAL,
+            "layers[1].interface.ior",
+            &[1.5, 1.0, 2.0, 1.25],
+        ),
+        (
+            COATED_COPPER,
+            "layers[0].interface.ior",
+            &[1.0, 1.3, 2.5, 1.5],
+        ),
+    ];
+    let (mut same, mut differ) = (0, 0);
+    for (toml, path, values) in cases {
+        let stack = LayerStack::from_toml_str(toml).unwrap();
+        let path: SetPath = path.parse().unwrap();
+        assert!(path.in_place() && path.writes_ior());
+        // Written one after another: matched, unmatched again, and back to
+        // the file's own value.
+        let mut row = stack.clone();
+        for &v in values {
+            row.write(&path, &[v]).unwrap();
+            let file = stack.with_set(&[(path.clone(), Value::from(v))]).unwrap();
+            for i in 0..file.len() {
+                assert_eq!(
+                    row.interface(i),
+                    file.interface(i),
+                    "{path} = {v}, interface {i}"
+                );
+            }
+            let whole = row.same_shape(&stack);
+            assert_eq!(row.same_shape_at(&stack, &[&path]), whole, "{path} = {v}");
+            match whole {
+                true => same += 1,
+                false => differ += 1,
+            }
+        }
+        assert!(row.same_shape(&stack));
+        for i in 0..stack.len() {
+            assert_eq!(row.interface(i), stack.interface(i));
+        }
+    }
+    assert!(
+        same >= 6 && differ >= 4,
+        "{same} keep the shape, {differ} change it"
+    );
+    let e = LayerStack::from_toml_str(COATED_COPPER)
+        .unwrap()
+        .write(&"layers[0].interface.ior".parse().unwrap(), &[-1.0])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("interface.ior") && e.contains("-1"), "{e}");
+}
+
+/// Per-query IORs (a dispersive coat at each query's wavelength) are
+/// written in place and answer what the material file with the row's values
+/// answers, bit for bit, on both engines: eval (keyed), sample and pdf. The
+/// conductor's `eta` column comes first and still stands (rows write IORs
+/// first); a row whose IOR matches the exterior's makes another shape and
+/// runs as a material, answering the same.
+#[test]
+fn ior_columns_answer_their_material_files() {
+    let n = 16;
+    let wi: Vec<[f32; 3]> = (0..n)
+        .map(|k| {
+            let t = k as f32 * 0.9;
+            let z = 0.25 + 0.7 * (t * 1.7).sin().abs();
+            let r = (1.0 - z * z).sqrt();
+            [r * t.cos(), r * t.sin(), z]
+        })
+        .collect();
+    let wo: Vec<[f32; 3]> = (0..n).map(|k| wi[(k + 3) % n]).collect();
+    let keys: Vec<u64> = (0..n as u64).map(|k| 5 + 3 * k).collect();
+    let stack = LayerStack::from_toml_str(TWO_COATS_OVER_METAL).unwrap();
+    let eta: SetPath = "layers[2].interface.eta".parse().unwrap();
+    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let etas: Vec<f32> = (0..3 * n)
+        .map(|i| sixty_fourths(i / 3, i % 3, 10))
+        .collect();
+    for matched in [false, true] {
+        // IORs in [1.125, 1.73] (exact in binary), and one of 1 when matched.
+        let iors: Vec<f32> = (0..n)
+            .map(|k| match matched && k == 5 {
+                true => 1.0,
+                false => (72 + (5 * k) % 40) as f32 / 64.0,
+            })
+            .collect();
+        let cols = [
+            Column {
+                path: &eta,
+                width: 3,
+                values: &etas,
+            },
+            Column {
+                path: &ior,
+                width: 1,
+                values: &iors,
+            },
+        ];
+        for engine in [Engine::Scalar, Engine::Wavefront] {
+            let make = |s: LayerStack| LayeredBsdf::new(s).engine(engine).samples(2).seed(9);
+            let template = make(stack.clone());
+            let q = PerQuery::new(&template, n, &cols).unwrap();
+            assert_eq!(q.rows_in_place(), !matched);
+            let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+            let mut f = vec![[0f32; 3]; n];
+            q.eval_buffers(a, b, Some(&keys), VectorsMut::Aos(&mut f), None)
+                .unwrap();
+            let mut s = vec![SampleRecord::default(); n];
+            q.sample_records(a, Some(&keys), &mut s).unwrap();
+            let mut p = vec![0f32; n];
+            q.pdf_buffers(a, b, &mut p).unwrap();
+            for k in 0..n {
+                let e: Vec<f64> = etas[3 * k..3 * k + 3].iter().map(|&x| x.into()).collect();
+                let set = [
+                    (eta.clone(), Value::from(e)),
+                    (ior.clone(), Value::from(f64::from(iors[k]))),
+                ];
+                let own = make(stack.with_set(&set).unwrap());
+                let what = format!("{engine:?}, matched {matched}, query {k}");
+                fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
+                    Vectors::Aos(&v[k..k + 1])
+                }
+                let mut want = [[0f32; 3]];
+                own.eval_buffers(
+                    one(&wi, k),
+                    one(&wo, k),
+                    Some(&keys[k..k + 1]),
+                    VectorsMut::Aos(&mut want),
+                    None,
+                )
+                .unwrap();
+                assert_eq!(
+                    f[k].map(f32::to_bits),
+                    want[0].map(f32::to_bits),
+                    "eval, {what}"
+                );
+                let mut ws = [SampleRecord::default()];
+                own.sample_records(one(&wi, k), Some(&keys[k..k + 1]), &mut ws)
+                    .unwrap();
+                assert_eq!(
+                    s[k].wo.map(f32::to_bits),
+                    ws[0].wo.map(f32::to_bits),
+                    "sample, {what}"
+                );
+                assert_eq!(
+                    s[k].weight.map(f32::to_bits),
+                    ws[0].weight.map(f32::to_bits),
+                    "{what}"
+                );
+                assert_eq!(
+                    s[k].pdf.to_bits(),
+                    ws[0].pdf.to_bits(),
+                    "sample pdf, {what}"
+                );
+                let mut wp = [0f32];
+                own.pdf_buffers(one(&wi, k), one(&wo, k), &mut wp).unwrap();
+                assert_eq!(p[k].to_bits(), wp[0].to_bits(), "pdf, {what}");
+            }
+        }
+    }
+}
+
+/// A coat over a Lambertian base answered without walks (a closed form)
+/// takes a table of `R̄` per IOR: rows whose IOR is their own are walked
+/// instead, in place. Their eval agrees with each row's material file (the
+/// closed form, exact) within 4 standard errors of the walks.
+#[test]
+fn ior_rows_of_a_walk_free_coat_are_walked() {
+    let n = 8;
+    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let iors: Vec<f32> = (0..n).map(|k| (80 + 6 * k) as f32 / 64.0).collect();
+    let cols = [Column {
+        path: &ior,
+        width: 1,
+        values: &iors,
+    }];
+    let wi: Vec<[f32; 3]> = (0..n).map(|k| [0.1 * k as f32, 0.0, 1.0]).collect();
+    let wo: Vec<[f32; 3]> = (0..n).map(|k| [0.0, -0.08 * k as f32, 1.0]).collect();
+    for toml in [SMOOTH_COAT_ABSORBER, ROUGH_COAT_ABSORBER] {
+        let stack = LayerStack::from_toml_str(toml).unwrap();
+        // (Enough walks that their standard error is itself well estimated:
+        // a walk's rare long paths carry much of the rough coat's value.)
+        let template = LayeredBsdf::new(stack.clone()).samples(200_000).seed(3);
+        assert!(template.eval_without_walks());
+        let q = PerQuery::new(&template, n, &cols).unwrap();
+        assert!(q.rows_in_place());
+        let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+        let (mut f, mut se) = (vec![[0f32; 3]; n], vec![[0f32; 3]; n]);
+        q.eval_buffers(
+            a,
+            b,
+            None,
+            VectorsMut::Aos(&mut f),
+            Some(VectorsMut::Aos(&mut se)),
+        )
+        .unwrap();
+        for k in 0..n {
+            let set = [(ior.clone(), Value::from(f64::from(iors[k])))];
+            // (A rough coat's walk-free eval estimates its first-order
+            // term: with as many samples, and its own standard error.)
+            let own = LayeredBsdf::new(stack.with_set(&set).unwrap())
+                .samples(200_000)
+                .seed(4);
+            let (mut want, mut want_se) = ([[0f32; 3]], [[0f32; 3]]);
+            fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
+                Vectors::Aos(&v[k..k + 1])
+            }
+            let (a, b) = (one(&wi, k), one(&wo, k));
+            own.eval_buffers(
+                a,
+                b,
+                None,
+                VectorsMut::Aos(&mut want),
+                Some(VectorsMut::Aos(&mut want_se)),
+            )
+            .unwrap();
+            for c in 0..3 {
+                assert!(se[k][c] > 0.0, "walked: query {k}");
+                let z = (f[k][c] - want[0][c]) / se[k][c].hypot(want_se[0][c]);
+                assert!(
+                    z.abs() < 4.0,
+                    "query {k} channel {c}: {} vs {} (z {z})",
+                    f[k][c],
+                    want[0][c]
+                );
+            }
+        }
+    }
 }
