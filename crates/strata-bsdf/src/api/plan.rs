@@ -169,8 +169,9 @@ impl CoatLambertian {
     ///   texture's jitter of a grey medium), of optical depth at most
     ///   [`BOOSTED_CV_MAX_DEPTH`], with a Henyey–Greenstein phase function:
     ///   its walks then boost their first collision
-    ///   ([`crate::estimator::events::FIRST_COLLISION_BOOST`]), and every such stack
-    ///   measured a gain at the median (and at every pair but one); or
+    ///   ([`crate::estimator::events::FIRST_COLLISION_BOOST`]): the thin
+    ///   layers measured large gains at the median, the deeper ones (τ 0.5
+    ///   to 2) small losses at some (`control_variate_efficiency`); or
     /// * the medium scatters little against what the base reflects,
     ///   `max_c(τ_c a_c) <= 0.1 min_c ρ_c` (optical depth `τ`,
     ///   single-scattering albedo `a`, base albedo `ρ`).

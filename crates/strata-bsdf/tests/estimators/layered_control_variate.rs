@@ -306,13 +306,13 @@ pub const STACKS: &[(&str, &str)] = &[
         "#,
     ),
     (
-        "nearly grey τ 1, channels 8 % apart, white base",
+        "IOR 2.2, τ 2, forward g 0.8, nearly grey (channels 8 % apart)",
         r#"
         [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 1.0, sigma_t = [1.0, 0.96, 0.92], albedo = [0.9, 0.85, 0.88], phase = { kind = "hg", g = 0.3 } }
+        interface = { kind = "dielectric", ior = 2.2 }
+        medium = { thickness = 1.0, sigma_t = [2.0, 1.92, 1.84], albedo = [0.95, 0.9, 0.93], phase = { kind = "hg", g = 0.8 } }
         [[layers]]
-        interface = { kind = "diffuse", albedo = 1.0 }
+        interface = { kind = "diffuse", albedo = 0.6 }
         "#,
     ),
 ];
