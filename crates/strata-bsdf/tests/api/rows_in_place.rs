@@ -70,9 +70,9 @@ fn columns_of(toml: &str) -> Columns {
     c
 }
 
-#[test]
-fn rows_in_place_answer_their_material_files() {
-    let n = 24;
+/// `n` pairs of directions above the surface: a spiral of `wi`, and each
+/// `wo` the `wi` five steps on.
+fn pairs(n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let wi: Vec<[f32; 3]> = (0..n)
         .map(|k| {
             let t = k as f32 * 0.7;
@@ -81,7 +81,14 @@ fn rows_in_place_answer_their_material_files() {
             [r * t.cos(), r * t.sin(), z]
         })
         .collect();
-    let wo: Vec<[f32; 3]> = (0..n).map(|k| wi[(k + 5) % n]).collect();
+    let wo = (0..n).map(|k| wi[(k + 5) % n]).collect();
+    (wi, wo)
+}
+
+#[test]
+fn rows_in_place_answer_their_material_files() {
+    let n = 24;
+    let (wi, wo) = pairs(n);
     let keys: Vec<u64> = (0..n as u64).map(|k| 77 + k).collect();
     for toml in [
         ROUGH_COAT_ABSORBER,
@@ -618,15 +625,7 @@ fn an_ior_written_in_place_is_its_files_stack() {
 #[test]
 fn ior_columns_answer_their_material_files() {
     let n = 16;
-    let wi: Vec<[f32; 3]> = (0..n)
-        .map(|k| {
-            let t = k as f32 * 0.9;
-            let z = 0.25 + 0.7 * (t * 1.7).sin().abs();
-            let r = (1.0 - z * z).sqrt();
-            [r * t.cos(), r * t.sin(), z]
-        })
-        .collect();
-    let wo: Vec<[f32; 3]> = (0..n).map(|k| wi[(k + 3) % n]).collect();
+    let (wi, wo) = pairs(n);
     let keys: Vec<u64> = (0..n as u64).map(|k| 5 + 3 * k).collect();
     let stack = LayerStack::from_toml_str(TWO_COATS_OVER_METAL).unwrap();
     let eta: SetPath = "layers[2].interface.eta".parse().unwrap();
