@@ -92,15 +92,8 @@ fn flight_weights<L: Lane>(
     albedo: Rgb<L>,
     ratios: Rgb<L>,
 ) -> (Rgb<L>, Rgb<L>) {
-    let y = flight_densities(sigma_t, sh, dist, collide);
-    mis_weights(y, y, collide, albedo, ratios)
-}
-
-/// Each channel's density of a flight of `dist` (a collision there in the
-/// lanes `collide`, else passing) over the hero's, whose extinction is `sh`.
-#[inline(always)]
-fn flight_densities<L: Lane>(sigma_t: Rgb<L>, sh: L, dist: L, collide: L::Mask) -> Rgb<L> {
-    let has = sh.gt(L::zero());
+    let zero = L::zero();
+    let has = sh.gt(zero);
     // T_c / T_h = exp(-(σc - σh) d), kept finite for absurd optical depths.
     let rel = sigma_t.map(|s| {
         (-(s - sh) * dist)
@@ -109,25 +102,11 @@ fn flight_densities<L: Lane>(sigma_t: Rgb<L>, sh: L, dist: L, collide: L::Mask) 
     });
     // At a collision the densities also carry σc / σh.
     let sig = sigma_t.map(|s| L::div_or_zero(s, sh, has));
-    Rgb::select(collide, sig * rel, rel)
-}
-
-/// One-sample MIS over channels: the throughput factor (each channel's
-/// physical density `physical` over the walk's mixture of the channels'
-/// sampling densities `sampling`, both relative to one common density,
-/// times the albedo at a collision) and the new channel ratios.
-#[inline(always)]
-fn mis_weights<L: Lane>(
-    physical: Rgb<L>,
-    sampling: Rgb<L>,
-    collide: L::Mask,
-    albedo: Rgb<L>,
-    ratios: Rgb<L>,
-) -> (Rgb<L>, Rgb<L>) {
-    let x = Rgb::select(collide, physical * albedo, physical);
-    let r = ratios * sampling;
+    let y = Rgb::select(collide, sig * rel, rel);
+    let x = Rgb::select(collide, y * albedo, y);
+    let r = ratios * y;
     let s = r.average();
-    let ok = s.gt(L::zero());
+    let ok = s.gt(zero);
     let inv = L::div_or_zero(L::one(), s, ok);
     (
         Rgb::select(ok, x.scale(inv), Rgb::zero()),
@@ -210,59 +189,6 @@ pub fn free_flight_grey_boosted<L: Lane>(
         distance: L::select(boosted, flight.distance, plain.distance),
         weight: Rgb::select(boosted, flight.weight, plain.weight),
         ratios,
-    }
-}
-
-/// [`free_flight`] with the collision made `boost` times as likely (lanes
-/// with `boost > 1`; others are [`free_flight`] exactly), as
-/// [`free_flight_grey_boosted`] boosts a grey medium's: the hero's flight
-/// collides before `max_dist` with probability `q_h = max(P_h, min(boost ·
-/// P_h, MAX_BOOSTED))`, at a distance from its exponential truncated to
-/// `max_dist`. Every channel `c` would have sampled by its own `q_c` and
-/// `P_c`, so its sampling density is its physical one times `q_c / P_c`
-/// (collision) or `(1 − q_c) / (1 − P_c)` (passing), and the one-sample MIS
-/// over channels weighs the physical densities against those.
-#[inline(never)]
-pub fn free_flight_boosted<L: Lane>(
-    sigma_t: Rgb<L>,
-    albedo: Rgb<L>,
-    max_dist: L,
-    hero: L,
-    u_dist: L,
-    ratios: Rgb<L>,
-    boost: L,
-) -> FreeFlight<L> {
-    let plain = free_flight(sigma_t, albedo, max_dist, hero, u_dist, ratios);
-    let boosted = boost.gt(L::one());
-    if !boosted.any() {
-        return plain;
-    }
-    let (zero, one) = (L::zero(), L::one());
-    let p = sigma_t.map(|s| L::select(s.gt(zero), -(-(s * max_dist)).exp_m1(), zero));
-    let q = p.map(|p| (boost * p).min(L::splat(MAX_BOOSTED)).max(p));
-    let (sh, ph, qh) = (
-        hero_sigma(sigma_t, hero),
-        hero_sigma(p, hero),
-        hero_sigma(q, hero),
-    );
-    let has = sh.gt(zero);
-    let collide = has & u_dist.lt(qh);
-    // Given a collision, u / q_h is uniform: the truncated exponential's inverse.
-    let u = L::div_or_zero(u_dist, qh, collide) * ph;
-    let t = L::div_or_zero(-(one - u).ln(), sh, collide).min(max_dist);
-    let dist = L::select(collide, t, max_dist);
-    let physical = flight_densities(sigma_t, sh, dist, collide);
-    let scale = Rgb::select(
-        collide,
-        q.zip(p, |q, p| L::div_or_zero(q, p, p.gt(zero))),
-        q.zip(p, |q, p| L::div_or_zero(one - q, one - p, p.lt(one))),
-    );
-    let (weight, new_ratios) = mis_weights(physical, physical * scale, collide, albedo, ratios);
-    FreeFlight {
-        collide: (boosted & collide) | (!boosted & plain.collide),
-        distance: L::select(boosted, dist, plain.distance),
-        weight: Rgb::select(boosted, weight, plain.weight),
-        ratios: Rgb::select(boosted, new_ratios, plain.ratios),
     }
 }
 
@@ -393,73 +319,6 @@ mod tests {
                 assert!(close(col, 0.7 * p), "{what}: {col} vs {}", 0.7 * p);
                 assert!(close(t, 0.7 * mean_t), "{what}: {t} vs {}", 0.7 * mean_t);
                 assert!(close(pass, 1.0 - p), "{what}: {pass} vs {}", 1.0 - p);
-            }
-        }
-    }
-
-    /// The same for a chromatic medium's boosted flight, per channel, over
-    /// the uniform and the hero channel (each with probability 1/3, the
-    /// walk's ratios being one): collision probability × albedo, the mean
-    /// collision distance and the probability of passing of every channel;
-    /// the new ratios average 1; boost 1 is the plain flight exactly.
-    #[test]
-    fn chromatic_boosted_flights_keep_every_expectation() {
-        let al = Rgb::new(0.7, 0.5, 0.9);
-        let one = Rgb::one();
-        for (sigma, dist) in [
-            ([1.0, 1.1, 0.9], 0.01),
-            ([0.5, 2.0, 4.0], 0.3),
-            ([0.0, 1.0, 3.0], 2.0),
-        ] {
-            let st = Rgb::from_array(sigma);
-            for boost in [1.0, 8.0, 64.0] {
-                let n = 300_000;
-                let (mut col, mut t, mut pass) = ([0.0; 3], [0.0; 3], [0.0; 3]);
-                for hero in 0..3 {
-                    for k in 0..n {
-                        let u = (k as f64 + 0.5) / n as f64;
-                        let h = hero as f64;
-                        let ff = free_flight_boosted(st, al, dist, h, u, one, boost);
-                        assert!((ff.ratios.average() - 1.0).abs() < 1e-12);
-                        if boost == 1.0 {
-                            let plain = free_flight(st, al, dist, h, u, one);
-                            assert_eq!((ff.collide, ff.distance), (plain.collide, plain.distance));
-                            let rgb = |w: Rgb<f64>| [w.r, w.g, w.b];
-                            assert_eq!(rgb(ff.weight), rgb(plain.weight));
-                        }
-                        let w = [ff.weight.r, ff.weight.g, ff.weight.b];
-                        for c in 0..3 {
-                            let w = w[c] / (3 * n) as f64;
-                            match ff.collide {
-                                true => (col[c] += w, t[c] += w * ff.distance),
-                                false => (pass[c] += w, ()),
-                            };
-                        }
-                    }
-                }
-                for c in 0..3 {
-                    let (s, a) = (sigma[c], [0.7, 0.5, 0.9][c]);
-                    let p: f64 = 1.0 - (-s * dist).exp();
-                    let mean_t = match s > 0.0 {
-                        true => (1.0 - (1.0 + s * dist) * (-s * dist).exp()) / s,
-                        false => 0.0,
-                    };
-                    let what = format!("σ {sigma:?} L {dist} boost {boost} channel {c}");
-                    let close = |x: f64, r: f64| (x - r).abs() <= (1e-3 * r).max(1e-6);
-                    assert!(close(col[c], a * p), "{what}: {} vs {}", col[c], a * p);
-                    assert!(
-                        close(t[c], a * mean_t),
-                        "{what}: {} vs {}",
-                        t[c],
-                        a * mean_t
-                    );
-                    assert!(
-                        close(pass[c], 1.0 - p),
-                        "{what}: {} vs {}",
-                        pass[c],
-                        1.0 - p
-                    );
-                }
             }
         }
     }

@@ -6,7 +6,7 @@
 //! | choice | rule | constants | measured in |
 //! |---|---|---|---|
 //! | eval without walks | `Estimator::Auto` on a dielectric coat over a clear or absorbing layer over a Lambertian base: the closed form under a smooth coat, the factorization under a rough one (`estimator::coat_and_base`) | | `tests/physics/rough_coat.rs`, docs/method.md §4 |
-//! | control variate | `Auto` on a coat over a *scattering* layer over a Lambertian base, where it measured less variance per unit of time ([`CoatLambertian::control_variate_pays`]) | [`BOOSTED_CV_MAX_DEPTH`] 2, [`ROUGH_CV_MIN_BASE`] 0.5, scattering at most 0.1 of the base, [`NEARLY_GREY`](crate::estimator::layout::NEARLY_GREY) 0.1 | `tests/estimators/layered_control_variate.rs` |
+//! | control variate | `Auto` on a coat over a *scattering* layer over a Lambertian base, where it measured less variance per unit of time ([`CoatLambertian::control_variate_pays`]) | [`BOOSTED_CV_MAX_DEPTH`] 2, [`ROUGH_CV_MIN_BASE`] 0.5, scattering at most 0.1 of the base | `tests/estimators/layered_control_variate.rs` |
 //! | bidirectional walks | `Auto` on optically thin stacks of three interfaces or more, on a rough coat over a smooth conductor, on near-specular coated conductors; not at the specular peak ([`Estimator::bidirectional_pays`], [`Estimator::is_bidirectional_at`]) | [`NEAR_SPECULAR_ALPHA`] 0.05, [`MAX_OPTICAL_DEPTH`] 3, [`MAX_COATED_CONDUCTOR_DEPTH`] 1 | docs/results.md |
 //! | side walks start from | `EvalStart::Normal`: the direction nearer the normal, or farther from it for a reflected pair under a rough entrance; on an untilted stack | | docs/performance.md |
 //! | engine | `Engine::Auto`: the scalar engine for a call of fewer walks than the wavefront has lanes ([`Engine::resolve`]; a pdf counts its first round twice) | lanes 8 | docs/performance.md, *criterion* |
@@ -20,7 +20,6 @@
 use super::strategy::{Engine, Estimator, EvalStart};
 use crate::estimator::coat_and_base::coat_and_base;
 use crate::estimator::coat_lambertian::CoatLambertian;
-use crate::estimator::layout::nearly_grey;
 use crate::estimator::rough_coat::RoughCoatLambertian;
 use crate::estimator::Settings;
 use crate::lane::{DefaultWide, Lane};
@@ -164,12 +163,10 @@ impl CoatLambertian {
     /// `stack`: it has the shape ([`CoatLambertian::unscattered`]), its
     /// medium scatters, and, under a **smooth** coat, either
     ///
-    /// * the medium is grey or nearly so (its channels' optical depths and
-    ///   albedos within [`crate::estimator::layout::NEARLY_GREY`] of each other: a
-    ///   texture's jitter of a grey medium), of optical depth at most
-    ///   [`BOOSTED_CV_MAX_DEPTH`], with a Henyey–Greenstein phase function:
-    ///   its walks then boost their first collision
-    ///   ([`crate::estimator::events::FIRST_COLLISION_BOOST`]): the thin
+    /// * the medium is grey (one extinction and one albedo for the three
+    ///   channels), of optical depth at most [`BOOSTED_CV_MAX_DEPTH`], with a
+    ///   Henyey–Greenstein phase function: its walks then boost their first
+    ///   collision ([`super::events::FIRST_COLLISION_BOOST`]): the thin
     ///   layers measured large gains at the median, the deeper ones (τ 0.5
     ///   to 2) small losses at some (`control_variate_efficiency`); or
     /// * the medium scatters little against what the base reflects,
@@ -177,7 +174,7 @@ impl CoatLambertian {
     ///   single-scattering albedo `a`, base albedo `ρ`).
     ///
     /// Elsewhere (a chromatic albedo, a mixture of lobes, or chromatic
-    /// extinction) the control variate
+    /// extinction, which the boost does not cover) the control variate
     /// measured more variance per unit of time at some pairs: a collided
     /// path scores about what the uncollided one it replaces would have, and
     /// the boosted walks' longer roulette costs time; deeper grey media are
@@ -211,7 +208,7 @@ impl CoatLambertian {
         if !stack.interface(0).smooth {
             return little && base >= ROUGH_CV_MIN_BASE;
         }
-        let grey = nearly_grey(tau, m.albedo);
+        let grey = m.grey() && m.albedo.iter().all(|&a| a == m.albedo[0]);
         let boosted_pays =
             grey && tau[0] <= BOOSTED_CV_MAX_DEPTH && m.phase_kind() == PhaseKind::Hg;
         boosted_pays || little

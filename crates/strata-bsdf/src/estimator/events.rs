@@ -501,12 +501,10 @@ pub const FIRST_COLLISION_BOOST: f64 = 8.0;
 pub const BOOST_CEILING: f64 = 2.0;
 
 /// Whether the control variate's walks on a stack with these media boost
-/// their first collision: its one medium is grey or nearly so
-/// ([`super::layout::nearly_grey`]; [`medium::free_flight_boosted`] boosts the hero
-/// channel's flight). A strongly chromatic medium is left out, as the
-/// control variate's rule leaves it out (`CoatLambertian::control_variate_pays`).
+/// their first collision: its one medium is grey (a chromatic one samples
+/// its flights by a hero channel, which the boost does not cover).
 pub fn boosts_first_collision<L: Lane>(media: &[MediumLanes<L>]) -> bool {
-    media.first().is_some_and(|m| m.grey || m.nearly_grey)
+    media.first().is_some_and(|m| m.grey)
 }
 
 /// The boost of a free flight of the lanes `m` and the scale of their
@@ -660,10 +658,10 @@ pub struct Flight<'a, L: Lane> {
 /// optional scatter-order cap ends instead) and those that pass to the
 /// layer's boundary. A direction exactly parallel to the layer collides (see
 /// [`flight_limit`]); if it does not, it is in neither: its walk ends.
-/// With `boost`, lanes whose boost is above 1 collide that many times as
-/// often, with weights that compensate ([`medium::free_flight_grey_boosted`],
-/// [`medium::free_flight_boosted`] in a chromatic medium); `None` is the
-/// plain flight, with no work for the boost.
+/// With `boost`, lanes whose boost is above 1 in a grey medium collide that
+/// many times as often, with weights that compensate
+/// ([`medium::free_flight_grey_boosted`]; ignored in a chromatic one);
+/// `None` is the plain flight, with no work for the boost.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub fn free_flight<L: Lane>(
@@ -686,8 +684,7 @@ pub fn free_flight<L: Lane>(
         Some(b) if med.grey => {
             medium::free_flight_grey_boosted(sigma.r, med.albedo, limit, u, *st.ratios, b)
         }
-        Some(b) => medium::free_flight_boosted(sigma, med.albedo, limit, hero, u, *st.ratios, b),
-        None => medium::sample_free_flight(sigma, med.albedo, med.grey, limit, hero, u, *st.ratios),
+        _ => medium::sample_free_flight(sigma, med.albedo, med.grey, limit, hero, u, *st.ratios),
     };
     *st.beta = Rgb::select(active, *st.beta * ff.weight, *st.beta);
     *st.ratios = Rgb::select(active, ff.ratios, *st.ratios);

@@ -29,29 +29,6 @@ pub struct MediumLanes<L: Lane> {
     pub directional: bool,
     /// The same `sigma_t` in every channel: free flights need no spectral MIS.
     pub grey: bool,
-    /// Every channel's optical depth and albedo within [`NEARLY_GREY`] of
-    /// the others': the control variate's
-    /// walks boost their first collision here as in a grey medium
-    /// ([`super::events::boosts_first_collision`]). A property of the
-    /// engine's layer, which its parameter sets' lanes keep.
-    pub nearly_grey: bool,
-}
-
-/// How far a nearly grey medium's channels may lie apart: the spread of
-/// its optical depths, and of its albedos, at most this share of the
-/// largest. A texture's jitter of a grey value (a few per cent) is nearly
-/// grey; a tinted medium is not.
-pub const NEARLY_GREY: f64 = 0.1;
-
-/// Whether the optical depths `tau` and the albedos `albedo` of a medium's
-/// channels are each within [`NEARLY_GREY`] of their largest.
-pub fn nearly_grey(tau: [f64; 3], albedo: [f64; 3]) -> bool {
-    let close = |v: [f64; 3]| {
-        let hi = v.iter().copied().fold(f64::MIN, f64::max);
-        let lo = v.iter().copied().fold(f64::MAX, f64::min);
-        hi - lo <= NEARLY_GREY * hi
-    };
-    close(tau) && close(albedo)
 }
 
 impl MediumLanes<f64> {
@@ -66,7 +43,6 @@ impl MediumLanes<f64> {
             phase: self.phase.splat(),
             directional: self.directional,
             grey: self.grey,
-            nearly_grey: self.nearly_grey,
         }
     }
 }
@@ -84,7 +60,6 @@ impl<L: Lane> MediumLanes<L> {
                 phase: PhaseLanes::isotropic(),
                 directional: false,
                 grey: true,
-                nearly_grey: true,
             },
         }
     }
@@ -103,7 +78,6 @@ impl<L: Lane> MediumLanes<L> {
             phase: PhaseLanes::new(&m.phase, m.phase_kind()),
             directional: m.phase_kind().directional(),
             grey: m.grey(),
-            nearly_grey: nearly_grey(m.optical_depth(), m.albedo),
         }
     }
 

@@ -148,14 +148,7 @@ impl ScalarEngine<f32> {
             stack: stack.map_or_else(|| Arc::clone(&self.stack), Arc::clone),
             layout: self.layout,
             ifaces: table.ifaces_of(s).to_vec(),
-            // (Whether a layer is nearly grey is the engine's, as in the
-            // wavefront's lanes.)
-            media: (table.media_of(s).iter().zip(&self.media))
-                .map(|(m, own)| MediumLanes {
-                    nearly_grey: own.nearly_grey,
-                    ..*m
-                })
-                .collect(),
+            media: table.media_of(s).to_vec(),
             settings: self.settings,
             body: table.body(s),
             cv: table.cv(s).cloned(),
@@ -312,7 +305,7 @@ impl<S: Scalar> ScalarEngine<S> {
 
     /// Whether walks that leave out the control variate's paths (`cv`)
     /// boost their first collision ([`events::FIRST_COLLISION_BOOST`]): in
-    /// a grey or nearly grey medium.
+    /// a grey medium.
     fn boosting(&self, cv: bool) -> bool {
         cv && events::boosts_first_collision(&self.media)
     }

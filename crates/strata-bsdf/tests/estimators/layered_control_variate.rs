@@ -295,37 +295,15 @@ pub const STACKS: &[(&str, &str)] = &[
         interface = { kind = "diffuse", albedo = 0.5 }
         "#,
     ),
-    (
-        "pbrt-v4's weak scatterer, nearly grey (a texture's 1 % jitter of each channel)",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 1.5 }
-        medium = { thickness = 0.0101, sigma_t = [0.993, 1.008, 1.0], albedo = [0.9, 0.905, 0.895], phase = { kind = "hg", g = 0.5 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = [0.8, 0.79, 0.805] }
-        "#,
-    ),
-    (
-        "IOR 2.2, τ 2, forward g 0.8, nearly grey (channels 8 % apart)",
-        r#"
-        [[layers]]
-        interface = { kind = "dielectric", ior = 2.2 }
-        medium = { thickness = 1.0, sigma_t = [2.0, 1.92, 1.84], albedo = [0.95, 0.9, 0.93], phase = { kind = "hg", g = 0.8 } }
-        [[layers]]
-        interface = { kind = "diffuse", albedo = 0.6 }
-        "#,
-    ),
 ];
 
 /// The stacks of [`STACKS`] on which `Auto` uses the control variate
 /// (`CoatLambertian::control_variate_pays`): under a smooth coat, the grey
-/// (or nearly grey) media of optical depth up to 2 with a Henyey–Greenstein
-/// phase function;
+/// media of optical depth up to 2 with a Henyey–Greenstein phase function;
 /// under a rough one, media that scatter little over a bright base.
-const IN_AUTO: [bool; 29] = [
+const IN_AUTO: [bool; 27] = [
     true, true, false, true, false, true, true, true, true, true, false, false, false, false,
-    false, true, false, false, false, false, false, false, false, true, true, false, false, true,
-    true,
+    false, true, false, false, false, false, false, false, false, true, true, false, false,
 ];
 
 const N: u64 = 1 << 18;

@@ -174,7 +174,7 @@ impl<W: Wide> Wavefront<W> {
 
     /// The lanes whose walks boost their first collision
     /// ([`events::FIRST_COLLISION_BOOST`]): eval walks with the control
-    /// variate, in a grey or nearly grey medium (scalar: `ScalarEngine::boosting`). `None`
+    /// variate, in a grey medium (scalar: `ScalarEngine::boosting`). `None`
     /// where no lane can, decided without looking at the lanes, so that the
     /// plain walks run the plain events' code alone.
     #[inline(always)]
