@@ -18,8 +18,8 @@
 use super::description::InterfaceDesc;
 use super::error::StackError;
 use super::layer_stack::{
-    check_conductor, check_depth, conductor_numbers, ior_in_range, roughness, shading_normal,
-    sigma_t, thickness, unit_rgb, LayerStack, Z,
+    check_conductor, check_depth, conductor_numbers, index_matched, ior_in_range, roughness,
+    shading_normal, sigma_t, thickness, unit_rgb, LayerStack, Z,
 };
 use super::set::{InterfaceField, MediumField, SetPath, Target};
 use super::shape::LayerShape;
@@ -86,8 +86,8 @@ impl LayerStack {
                     InterfaceField::Roughness => {
                         let (alpha, smooth) = roughness(i, Roughness::Isotropic(v[0]))?;
                         // An index-matched dielectric stays invisible.
-                        let matched =
-                            it.n_below == it.n_above && it.kind == super::InterfaceKind::Dielectric;
+                        let matched = index_matched(it.n_below, it.n_above)
+                            && it.kind == super::InterfaceKind::Dielectric;
                         if !matched {
                             it.alpha = alpha;
                             it.smooth = smooth;
@@ -155,7 +155,7 @@ impl LayerStack {
     /// as [`LayerStack::new`] builds it.
     fn match_index(&mut self, i: usize) -> Result<(), StackError> {
         let it = &self.interfaces[i];
-        let matched = it.n_below == it.n_above;
+        let matched = index_matched(it.n_below, it.n_above);
         let (alpha, smooth, normal) = if matched {
             ([0.0; 2], true, Z)
         } else {

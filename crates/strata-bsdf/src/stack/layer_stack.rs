@@ -70,6 +70,15 @@ pub(super) fn conductor_numbers(
     Ok((e, kk))
 }
 
+/// Whether two IORs are one to the walks, which hold them in single
+/// precision: the interface between them is invisible. (A rough interface of
+/// relative IOR 1 refracts nothing and its microfacets have no refraction
+/// half-vector; IORs a rounding apart, such as a texture's `1.45f32` and a
+/// file's 1.45, are that interface.)
+pub(super) fn index_matched(a: f64, b: f64) -> bool {
+    a as f32 == b as f32
+}
+
 /// The largest optical depth (`thickness × sigma_t`) of a medium: beyond it
 /// single precision cannot hold it. (Light does not cross 1e30 mean free
 /// paths: at 100 the layer is already opaque to 1e-43.)
@@ -563,7 +572,7 @@ impl LayerStack {
                 } => {
                     let ior = ior_value(li, ior)?;
                     let (alpha, smooth) = roughness(i, *r)?;
-                    let matched = ior == n_above;
+                    let matched = index_matched(ior, n_above);
                     Interface {
                         kind: InterfaceKind::Dielectric,
                         n_above,

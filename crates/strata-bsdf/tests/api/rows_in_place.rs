@@ -784,3 +784,42 @@ fn ior_rows_of_a_walk_free_coat_are_walked() {
         }
     }
 }
+
+/// An IOR a rounding from its neighbour's (a texture's `1.45f32` beside a
+/// file's 1.45) makes the interface between them invisible, in place as in
+/// the material file: the walks hold IORs in single precision, where the two
+/// are one. The row answers what the file with the decimal answers, but for
+/// the IOR's last bits.
+#[test]
+fn an_ior_a_rounding_from_its_neighbours_matches_it() {
+    let toml = TWO_COATS_OVER_METAL
+        .replace("ior = 1.5,", "ior = 1.3,")
+        .replace("ior = 1.25,", "ior = 1.45,");
+    let stack = LayerStack::from_toml_str(&toml).unwrap();
+    assert!(!stack.interface(1).smooth);
+    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let mut row = stack.clone();
+    row.write(&ior, &[f64::from(1.45f32)]).unwrap();
+    let file = stack.with_set(&[(ior.clone(), Value::from(1.45))]).unwrap();
+    assert!(file.interface(1).smooth && row.interface(1).smooth);
+    assert_eq!(row.interface_shape(1), file.interface_shape(1));
+    assert_eq!(row.interface(1).normal, [0.0, 0.0, 1.0]);
+    let n = 8;
+    let (wi, wo) = pairs(n);
+    let iors = vec![1.45f32; n];
+    let cols = [Column { path: &ior, width: 1, values: &iors }];
+    let template = LayeredBsdf::new(stack).samples(64).seed(2);
+    let q = PerQuery::new(&template, n, &cols).unwrap();
+    let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+    let mut f = vec![[0f32; 3]; n];
+    q.eval_buffers(a, b, None, VectorsMut::Aos(&mut f), None).unwrap();
+    let own = LayeredBsdf::new(file).samples(64).seed(2);
+    let mut want = vec![[0f32; 3]; n];
+    own.eval_buffers(a, b, None, VectorsMut::Aos(&mut want), None).unwrap();
+    for k in 0..n {
+        for c in 0..3 {
+            let (x, y) = (f[k][c], want[k][c]);
+            assert!((x - y).abs() <= 1e-4 * y.abs().max(1e-6), "query {k}: {x} vs {y}");
+        }
+    }
+}
