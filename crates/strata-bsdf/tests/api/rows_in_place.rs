@@ -807,19 +807,28 @@ fn an_ior_a_rounding_from_its_neighbours_matches_it() {
     let n = 8;
     let (wi, wo) = pairs(n);
     let iors = vec![1.45f32; n];
-    let cols = [Column { path: &ior, width: 1, values: &iors }];
+    let cols = [Column {
+        path: &ior,
+        width: 1,
+        values: &iors,
+    }];
     let template = LayeredBsdf::new(stack).samples(64).seed(2);
     let q = PerQuery::new(&template, n, &cols).unwrap();
     let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
     let mut f = vec![[0f32; 3]; n];
-    q.eval_buffers(a, b, None, VectorsMut::Aos(&mut f), None).unwrap();
+    q.eval_buffers(a, b, None, VectorsMut::Aos(&mut f), None)
+        .unwrap();
     let own = LayeredBsdf::new(file).samples(64).seed(2);
     let mut want = vec![[0f32; 3]; n];
-    own.eval_buffers(a, b, None, VectorsMut::Aos(&mut want), None).unwrap();
+    own.eval_buffers(a, b, None, VectorsMut::Aos(&mut want), None)
+        .unwrap();
     for k in 0..n {
         for c in 0..3 {
             let (x, y) = (f[k][c], want[k][c]);
-            assert!((x - y).abs() <= 1e-4 * y.abs().max(1e-6), "query {k}: {x} vs {y}");
+            assert!(
+                (x - y).abs() <= 1e-4 * y.abs().max(1e-6),
+                "query {k}: {x} vs {y}"
+            );
         }
     }
 }
