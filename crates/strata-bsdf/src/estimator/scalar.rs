@@ -148,7 +148,15 @@ impl ScalarEngine<f32> {
             stack: stack.map_or_else(|| Arc::clone(&self.stack), Arc::clone),
             layout: self.layout,
             ifaces: table.ifaces_of(s).to_vec(),
-            media: table.media_of(s).to_vec(),
+            // A layer's greyness is the engine's, as in the wavefront's
+            // lanes: a grey row on a chromatic shape runs chromatic flights
+            // on both engines.
+            media: (table.media_of(s).iter().zip(&self.media))
+                .map(|(m, own)| MediumLanes {
+                    grey: own.grey,
+                    ..*m
+                })
+                .collect(),
             settings: self.settings,
             body: table.body(s),
             cv: table.cv(s).cloned(),
