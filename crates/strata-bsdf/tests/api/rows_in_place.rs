@@ -85,6 +85,11 @@ fn pairs(n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     (wi, wo)
 }
 
+/// Query `k` of `v` alone.
+fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
+    Vectors::Aos(&v[k..k + 1])
+}
+
 #[test]
 fn rows_in_place_answer_their_material_files() {
     let n = 24;
@@ -142,9 +147,6 @@ fn rows_in_place_answer_their_material_files() {
                     })
                     .collect();
                 let own = make(stack.with_set(&set).unwrap());
-                fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
-                    Vectors::Aos(&v[k..k + 1])
-                }
                 let mut want = [[0f32; 3]];
                 own.eval_buffers(
                     one(&wi, k),
@@ -692,9 +694,6 @@ fn ior_columns_answer_their_material_files() {
                 ];
                 let own = make(stack.with_set(&set).unwrap());
                 let what = format!("{engine:?}, matched {matched}, query {k}");
-                fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
-                    Vectors::Aos(&v[k..k + 1])
-                }
                 let mut want = [[0f32; 3]];
                 own.eval_buffers(
                     one(&wi, k),
@@ -777,9 +776,6 @@ fn ior_rows_of_a_walk_free_coat_are_walked() {
                 .samples(200_000)
                 .seed(4);
             let (mut want, mut want_se) = ([[0f32; 3]], [[0f32; 3]]);
-            fn one(v: &[[f32; 3]], k: usize) -> Vectors<'_> {
-                Vectors::Aos(&v[k..k + 1])
-            }
             let (a, b) = (one(&wi, k), one(&wo, k));
             own.eval_buffers(
                 a,
