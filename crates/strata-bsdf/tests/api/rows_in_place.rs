@@ -846,3 +846,51 @@ fn an_ior_a_rounding_from_its_neighbours_matches_it() {
         }
     }
 }
+
+/// The bottom interface's IOR is the exterior's below, which the transport
+/// mode's η² reads from the BSDF's own stack: such a column runs as a
+/// material per row, and a transmitted pair in importance mode answers what
+/// its file answers, bit for bit.
+#[test]
+fn the_bottom_interfaces_ior_runs_as_a_material() {
+    let glass = "[[layers]]\ninterface = { kind = \"dielectric\", ior = 1.5, roughness = 0.3 }\n";
+    let stack = LayerStack::from_toml_str(glass).unwrap();
+    let ior: SetPath = "layers[0].interface.ior".parse().unwrap();
+    let iors = [1.25f32, 1.75];
+    let cols = [Column {
+        path: &ior,
+        width: 1,
+        values: &iors,
+    }];
+    let make = |s: LayerStack| {
+        LayeredBsdf::new(s)
+            .transport(strata_bsdf::Transport::Importance)
+            .samples(4)
+            .seed(1)
+    };
+    let template = make(stack.clone());
+    let q = PerQuery::new(&template, 2, &cols).unwrap();
+    assert!(!q.rows_in_place());
+    let wi = [[0.3f32, 0.0, 0.9]; 2];
+    let wo = [[-0.2f32, 0.1, -0.9]; 2];
+    let (a, b) = (Vectors::Aos(&wi), Vectors::Aos(&wo));
+    let mut f = [[0f32; 3]; 2];
+    q.eval_buffers(a, b, Some(&[3, 4]), VectorsMut::Aos(&mut f), None)
+        .unwrap();
+    for k in 0..2 {
+        let set = [(ior.clone(), Value::from(f64::from(iors[k])))];
+        let own = make(stack.with_set(&set).unwrap());
+        let mut want = [[0f32; 3]];
+        let keys = [3 + k as u64];
+        own.eval_buffers(
+            one(&wi, k),
+            one(&wo, k),
+            Some(&keys),
+            VectorsMut::Aos(&mut want),
+            None,
+        )
+        .unwrap();
+        assert!(want[0][0] > 0.0);
+        assert_eq!(f[k], want[0], "query {k}");
+    }
+}
